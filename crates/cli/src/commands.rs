@@ -1,0 +1,218 @@
+use anyhow::{Context, Result};
+use assetfield_data::{Dataset, DatasetSummary, LoadOptions, Split};
+use assetfield_synth::{SynthOptions, synthesize};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Args)]
+pub struct SynthArgs {
+    /// The layout script to render (e.g. scenes/conference_room.ron).
+    pub scene: PathBuf,
+    /// Output folder [default: runs/<scene name>]. Written atomically: it appears only when
+    /// complete.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    /// Total number of views (train + test) [default: 50, or the scene's `views.count`].
+    #[arg(long)]
+    pub views: Option<u32>,
+    /// Number of test views, evenly interleaved [default: 10].
+    #[arg(long)]
+    pub test_views: Option<u32>,
+    /// Square image resolution in pixels [default: 400].
+    #[arg(long = "res")]
+    pub resolution: Option<u32>,
+    /// Camera distance from the scene centre [default: fit the whole scene in view].
+    #[arg(long)]
+    pub radius: Option<f32>,
+    /// Lowest camera elevation above the ground, degrees [default: 15].
+    #[arg(long)]
+    pub elev_min: Option<f32>,
+    /// Highest camera elevation above the ground, degrees [default: 75].
+    #[arg(long)]
+    pub elev_max: Option<f32>,
+    /// Horizontal field of view, degrees [default: 40].
+    #[arg(long)]
+    pub fov: Option<f32>,
+    /// Anti-aliasing: N x N samples per pixel [default: 2].
+    #[arg(long)]
+    pub aa: Option<u32>,
+    /// Also render this edited layout from the same test cameras into OUT/edited/.
+    #[arg(long)]
+    pub edited: Option<PathBuf>,
+    /// Replace the output folder if it exists.
+    #[arg(long)]
+    pub force: bool,
+    /// Print the run report as JSON on stdout instead of the text summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{spinner:.green} {msg} [{bar:40.cyan/blue}] {pos}/{len} {elapsed_precise} (eta {eta})",
+        )
+        .expect("valid progress template")
+        .progress_chars("=> "),
+    );
+    pb.set_message(what.to_string());
+    pb
+}
+
+fn stem(p: &Path) -> String {
+    p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into())
+}
+
+pub fn synth(a: SynthArgs) -> Result<()> {
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("runs").join(stem(&a.scene)));
+    let elevation = match (a.elev_min, a.elev_max) {
+        (None, None) => None,
+        (lo, hi) => Some((lo.unwrap_or(15.0), hi.unwrap_or(75.0))),
+    };
+    let opts = SynthOptions {
+        views: a.views,
+        test_views: a.test_views,
+        resolution: a.resolution,
+        radius: a.radius,
+        elevation_deg: elevation,
+        fov_deg: a.fov,
+        samples_per_side: a.aa,
+    };
+    let pb = progress_bar(0, "rendering views");
+    let mut progress = |done: usize, total: usize| {
+        pb.set_length(total as u64);
+        pb.set_position(done as u64);
+    };
+    let result = synthesize(&a.scene, &opts, &out, a.force, a.edited.as_deref(), &mut progress);
+    pb.finish_and_clear();
+    let report = result.with_context(|| format!("synthesising {}", a.scene.display()))?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "{}: {} objects in {} categories ({})",
+        report.scene,
+        report.instances,
+        report.categories.len(),
+        report.categories.join(", ")
+    );
+    println!(
+        "rendered {} train + {} test views{} at {}x{} ({}x{} samples/pixel) in {:.1} s ({:.2} M rays/s)",
+        report.train_views,
+        report.test_views,
+        if report.edited_views > 0 {
+            format!(" + {} edited", report.edited_views)
+        } else {
+            String::new()
+        },
+        report.config.resolution,
+        report.config.resolution,
+        report.config.samples_per_side,
+        report.config.samples_per_side,
+        report.seconds,
+        report.rays_per_second / 1e6
+    );
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct InspectArgs {
+    /// The dataset folder (holding transforms_*.json or transforms.json).
+    pub dir: PathBuf,
+    /// Where to write the picture of the cameras seen from above
+    /// [default: runs/inspect/<folder name>/cameras.png].
+    #[arg(long)]
+    pub picture: Option<PathBuf>,
+    /// Also decode every image (slower; checks every file fully, not just its header).
+    #[arg(long)]
+    pub decode: bool,
+    /// Print the summary as JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn inspect(a: InspectArgs) -> Result<()> {
+    let opts = LoadOptions::default();
+    let cams = Dataset::load_cameras_only(&a.dir, Split::All, &opts)
+        .with_context(|| format!("reading dataset {}", a.dir.display()))?;
+    if a.decode {
+        let ds = Dataset::load(&a.dir, Split::All, &opts)
+            .with_context(|| format!("decoding images of {}", a.dir.display()))?;
+        eprintln!("decoded {} images", ds.len());
+    }
+    let summary = DatasetSummary::of(&cams);
+    let name = a
+        .dir
+        .canonicalize()
+        .ok()
+        .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .unwrap_or_else(|| "dataset".into());
+    let picture = a
+        .picture
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("runs/inspect").join(&name).join("cameras.png"));
+    assetfield_data::camera_map(&cams.cameras(), &picture, &name)
+        .context("drawing the camera map")?;
+    if a.json {
+        println!("{}", summary.to_json_pretty());
+    } else {
+        println!("{summary}");
+        println!("camera map: {}", picture.display());
+    }
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct LayoutArgs {
+    /// The layout script to check.
+    pub scene: PathBuf,
+    /// Draw the resolved layout from above into this PNG.
+    #[arg(long)]
+    pub picture: Option<PathBuf>,
+    /// Print the ground-truth layout JSON (the gt_layout.json schema) instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn layout(a: LayoutArgs) -> Result<()> {
+    let (_, _, layout) = assetfield_synth::load_scene(&a.scene)
+        .with_context(|| format!("resolving {}", a.scene.display()))?;
+    if let Some(p) = &a.picture {
+        assetfield_synth::synth::layout_picture(&layout, p)?;
+    }
+    if a.json {
+        println!("{}", assetfield_layout::GtLayout::from_resolved(&layout).to_json());
+        return Ok(());
+    }
+    println!(
+        "{}: {} instances ({} objects, {} containers)",
+        layout.name,
+        layout.instances.len(),
+        layout.objects().count(),
+        layout.containers().count()
+    );
+    println!(
+        "{:>4}  {:<28} {:<14} {:>8} {:>8} {:>6} {:>7} {:>6}  on",
+        "id", "key", "category", "x", "y", "z", "yaw", "scale"
+    );
+    for i in &layout.instances {
+        let t = i.transform;
+        println!(
+            "{:>4}  {:<28} {:<14} {:>8.3} {:>8.3} {:>6.3} {:>7.1} {:>6.2}  {}",
+            i.id,
+            i.key,
+            if i.container { format!("({})", i.category) } else { i.category.clone() },
+            t.position.x,
+            t.position.y,
+            t.base,
+            t.yaw_deg,
+            t.scale,
+            i.supported_by.map(|s| format!("#{s}")).unwrap_or_default()
+        );
+    }
+    Ok(())
+}

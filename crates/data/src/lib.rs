@@ -1,0 +1,22 @@
+//! Posed-image datasets for assetfield.
+//!
+//! Reads NeRF-synthetic (`transforms_{train,val,test}.json`) and nerfstudio / instant-ngp
+//! (`transforms.json`) datasets into cameras ([`assetfield_core::Camera`], OpenGL camera axes,
+//! camera-to-world) and floating-point images composited onto a background; writes the same
+//! schema; produces rays, a summary for `assetfield inspect` and a top-down camera map.
+
+pub mod dataset;
+pub mod error;
+pub mod image_f32;
+pub mod map;
+pub mod rays;
+pub mod schema;
+pub mod summary;
+
+pub use dataset::{Dataset, DatasetCameras, Format, Frame, LoadOptions, Split, View};
+pub use error::{DataError, FrameRef};
+pub use image_f32::ImageF32;
+pub use map::{camera_map, camera_map_canvas};
+pub use rays::{PixelRays, fill_rays, rays_flat};
+pub use schema::{FrameEntry, TransformsFile, write_transforms};
+pub use summary::{DatasetSummary, PosedViews};

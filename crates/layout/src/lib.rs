@@ -1,0 +1,34 @@
+//! The assetfield layout language.
+//!
+//! A scene is a RON script ([`Script`]): asset definitions (primitives or OBJ meshes), a
+//! layout of placement items (single instances, rows, grids, rings, seeded scatters, items
+//! along a polyline, nested and supported groups) and edits (remove or replace by category,
+//! per-instance overrides, moves, duplicates). The same script drives ground-truth synthesis
+//! (`assetfield synth`) and, later, neural composition, so an edited layout can be rendered
+//! both ways and compared.
+//!
+//! [`load`] reads a script (following `base` and `include` references) into a
+//! [`LoadedScript`]; [`resolve`] turns it into a [`ResolvedLayout`]: every instance with its
+//! world transform and a stable id. Errors carry `file:line:column`.
+//!
+//! Conventions: Z up, ground = XY plane, angles in degrees counter-clockwise about +Z seen
+//! from above, an asset's local origin at the centre of its footprint on the floor, and its
+//! *front* facing local +X (rules like `face: Center` turn the front towards a point).
+
+pub mod error;
+pub mod gt;
+pub mod resolve;
+pub mod rng;
+pub mod script;
+pub mod source;
+
+pub use error::{LayoutError, Location};
+pub use gt::{GtInstance, GtLayout};
+pub use resolve::{
+    AssetCatalog, AssetInfo, PartsCatalog, ResolvedInstance, ResolvedLayout, resolve,
+};
+pub use script::{
+    AssetDef, Axis, Edit, Facing, Item, Lighting, ObjSource, Part, Region, Script, Variation,
+    ViewSettings,
+};
+pub use source::{LoadedScript, load, load_str};

@@ -1,0 +1,1096 @@
+//! Resolution: a [`LoadedScript`] becomes a [`ResolvedLayout`], every instance with its world
+//! transform, a stable integer id (script order; removed instances leave gaps, duplicates
+//! come after) and a human-readable key (`dining/chairs[3]`).
+
+use crate::error::{LayoutError, Location};
+use crate::rng::Rng;
+use crate::script::{AssetDef, Axis, Edit, Facing, Item, Part, Region, V2, Variation};
+use crate::source::{ItemNode, LoadedScript};
+use assetfield_core::ground::wrap_degrees;
+use assetfield_core::{Aabb3, GroundTransform, Rect2};
+use glam::{Vec2, Vec3};
+use std::collections::BTreeMap;
+
+/// What resolution needs to know about an asset.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AssetInfo {
+    pub category: String,
+    /// Footprint in the asset's local frame (unscaled).
+    pub footprint: Rect2,
+    /// Height of the asset's top above its floor (unscaled); things placed `on` it stand there.
+    pub height: f32,
+    pub yaw_symmetry_deg: f32,
+    pub container: bool,
+}
+
+/// Where resolution looks up assets: the synthesiser (geometry), the composer (asset library).
+pub trait AssetCatalog {
+    fn asset_info(&self, name: &str) -> Option<AssetInfo>;
+    fn asset_names(&self) -> Vec<String>;
+}
+
+/// A catalog computed from the primitive parts of a script's assets. Assets made only of an
+/// OBJ mesh are not in it (the synthesiser's catalog loads meshes).
+#[derive(Debug, Clone, Default)]
+pub struct PartsCatalog {
+    infos: BTreeMap<String, AssetInfo>,
+}
+
+impl PartsCatalog {
+    pub fn from_script(script: &LoadedScript) -> Self {
+        let mut infos = BTreeMap::new();
+        for (name, entry) in &script.assets {
+            let b = entry.def.parts_bounds();
+            if !b.is_empty() {
+                infos.insert(name.clone(), asset_info_from_bounds(name, &entry.def, b));
+            }
+        }
+        PartsCatalog { infos }
+    }
+}
+
+impl AssetCatalog for PartsCatalog {
+    fn asset_info(&self, name: &str) -> Option<AssetInfo> {
+        self.infos.get(name).cloned()
+    }
+    fn asset_names(&self) -> Vec<String> {
+        self.infos.keys().cloned().collect()
+    }
+}
+
+/// The [`AssetInfo`] of an asset whose local bounds are known.
+pub fn asset_info_from_bounds(name: &str, def: &AssetDef, b: Aabb3) -> AssetInfo {
+    AssetInfo {
+        category: def.category.clone().unwrap_or_else(|| name.to_string()),
+        footprint: b.bev(),
+        height: b.max.z.max(0.0),
+        yaw_symmetry_deg: def.yaw_symmetry_deg,
+        container: def.container,
+    }
+}
+
+impl Part {
+    /// Local bounding box of the part.
+    pub fn bounds(&self) -> Aabb3 {
+        let v = |t: (f32, f32, f32)| Vec3::new(t.0, t.1, t.2);
+        match self {
+            Part::Box { center, size, yaw, .. } => {
+                let c = v(*center);
+                let h = v(*size) * 0.5;
+                let (s, co) = yaw.to_radians().sin_cos();
+                let hx = (co * h.x).abs() + (s * h.y).abs();
+                let hy = (s * h.x).abs() + (co * h.y).abs();
+                let e = Vec3::new(hx, hy, h.z);
+                Aabb3::new(c - e, c + e)
+            }
+            Part::Cylinder { base, radius, height, axis, .. } => {
+                let b = v(*base);
+                let (along, r) = (axis_vec(*axis) * *height, Vec3::splat(*radius));
+                let across = r * (Vec3::ONE - axis_vec(*axis));
+                Aabb3::new(b.min(b + along) - across, b.max(b + along) + across)
+            }
+            Part::Cone { base, radius, top_radius, height, .. } => {
+                let b = v(*base);
+                let r = radius.max(*top_radius);
+                Aabb3::new(b - Vec3::new(r, r, 0.0), b + Vec3::new(r, r, *height))
+            }
+            Part::Sphere { center, radius, .. } => {
+                Aabb3::new(v(*center) - Vec3::splat(*radius), v(*center) + Vec3::splat(*radius))
+            }
+        }
+    }
+}
+
+fn axis_vec(a: Axis) -> Vec3 {
+    match a {
+        Axis::X => Vec3::X,
+        Axis::Y => Vec3::Y,
+        Axis::Z => Vec3::Z,
+    }
+}
+
+impl AssetDef {
+    /// Union of the parts' bounds (empty for an asset without parts).
+    pub fn parts_bounds(&self) -> Aabb3 {
+        self.parts.iter().fold(Aabb3::EMPTY, |acc, p| acc.union(&p.bounds()))
+    }
+}
+
+/// One placed instance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResolvedInstance {
+    /// Stable id: script order; removals leave gaps; duplicates get new ids after the rest.
+    pub id: u32,
+    /// Human-readable key, e.g. `dining/chairs[3]`; edits refer to instances by key.
+    pub key: String,
+    pub asset: String,
+    pub category: String,
+    /// World transform.
+    pub transform: GroundTransform,
+    /// Transform relative to the top of the instance it stands on (equal to `transform` for
+    /// instances on the ground).
+    pub local: GroundTransform,
+    pub supported_by: Option<u32>,
+    pub container: bool,
+    pub yaw_symmetry_deg: f32,
+    /// Footprint rectangle in the asset's own frame (unscaled).
+    pub footprint: Rect2,
+    /// World bird's-eye-view box of the footprint.
+    pub bev_aabb: Rect2,
+    /// World height of the top of the instance.
+    pub top: f32,
+}
+
+/// A resolved layout.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResolvedLayout {
+    pub name: String,
+    /// Instances in id order.
+    pub instances: Vec<ResolvedInstance>,
+    /// The ground region of interest.
+    pub extent: Rect2,
+}
+
+impl ResolvedLayout {
+    /// Instances that are objects (not containers).
+    pub fn objects(&self) -> impl Iterator<Item = &ResolvedInstance> {
+        self.instances.iter().filter(|i| !i.container)
+    }
+    pub fn containers(&self) -> impl Iterator<Item = &ResolvedInstance> {
+        self.instances.iter().filter(|i| i.container)
+    }
+    pub fn get(&self, id: u32) -> Option<&ResolvedInstance> {
+        self.instances.binary_search_by_key(&id, |i| i.id).ok().map(|k| &self.instances[k])
+    }
+    pub fn by_key(&self, key: &str) -> Option<&ResolvedInstance> {
+        self.instances.iter().find(|i| i.key == key)
+    }
+    /// Category names in order of first appearance.
+    pub fn categories(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for i in self.objects() {
+            if !out.contains(&i.category) {
+                out.push(i.category.clone());
+            }
+        }
+        out
+    }
+}
+
+/// Resolve a loaded script against an asset catalog.
+pub fn resolve(
+    script: &LoadedScript,
+    catalog: &dyn AssetCatalog,
+) -> Result<ResolvedLayout, LayoutError> {
+    let mut r = Resolver { script, catalog, out: Vec::new(), next_id: 0 };
+    for (k, node) in script.items.iter().enumerate() {
+        r.item(node, GroundTransform::IDENTITY, "", None, k)?;
+    }
+    let mut removed = vec![false; r.out.len()];
+    for e in &script.edits {
+        r.edit(e, &mut removed)?;
+        removed.resize(r.out.len(), false);
+    }
+    let instances: Vec<ResolvedInstance> =
+        r.out.into_iter().zip(removed).filter(|(_, gone)| !gone).map(|(i, _)| i).collect();
+    let extent = match script.extent {
+        Some((a, b)) => Rect2::new(Vec2::from(a).min(b.into()), Vec2::from(a).max(b.into())),
+        None => {
+            let mut e = instances.iter().fold(Rect2::EMPTY, |acc, i| acc.union(&i.bev_aabb));
+            if e.is_empty() {
+                e = Rect2::new(Vec2::splat(-1.0), Vec2::splat(1.0));
+            }
+            e
+        }
+    };
+    Ok(ResolvedLayout { name: script.name.clone(), instances, extent })
+}
+
+struct Resolver<'a> {
+    script: &'a LoadedScript,
+    catalog: &'a dyn AssetCatalog,
+    out: Vec<ResolvedInstance>,
+    next_id: u32,
+}
+
+fn semantic(location: &Location, message: String) -> LayoutError {
+    LayoutError::Semantic { location: location.clone(), message }
+}
+
+/// The closest known name, for "did you mean" hints.
+fn closest<'a>(name: &str, known: &'a [String]) -> Option<&'a String> {
+    fn dist(a: &str, b: &str) -> usize {
+        let b: Vec<char> = b.chars().collect();
+        let mut prev: Vec<usize> = (0..=b.len()).collect();
+        for (i, ca) in a.chars().enumerate() {
+            let mut cur = vec![i + 1];
+            for (j, cb) in b.iter().enumerate() {
+                cur.push((prev[j] + usize::from(ca != *cb)).min(prev[j + 1] + 1).min(cur[j] + 1));
+            }
+            prev = cur;
+        }
+        prev[b.len()]
+    }
+    known.iter().map(|k| (dist(name, k), k)).filter(|(d, _)| *d <= 3).min().map(|(_, k)| k)
+}
+
+/// `*` matches any run of characters, `?` one character; everything else literally.
+pub fn glob_match(pattern: &str, text: &str) -> bool {
+    let (p, t): (Vec<char>, Vec<char>) = (pattern.chars().collect(), text.chars().collect());
+    let (mut pi, mut ti, mut star, mut mark) = (0, 0, None, 0);
+    while ti < t.len() {
+        if pi < p.len() && (p[pi] == '?' || p[pi] == t[ti]) {
+            pi += 1;
+            ti += 1;
+        } else if pi < p.len() && p[pi] == '*' {
+            star = Some(pi);
+            mark = ti;
+            pi += 1;
+        } else if let Some(s) = star {
+            pi = s + 1;
+            mark += 1;
+            ti = mark;
+        } else {
+            return false;
+        }
+    }
+    while pi < p.len() && p[pi] == '*' {
+        pi += 1;
+    }
+    pi == p.len()
+}
+
+/// Corners of an instance's footprint in world coordinates.
+fn footprint_corners(info: &AssetInfo, t: &GroundTransform) -> [Vec2; 4] {
+    let (a, b) = (info.footprint.min, info.footprint.max);
+    [a, Vec2::new(b.x, a.y), b, Vec2::new(a.x, b.y)].map(|p| t.transform_point2(p))
+}
+
+fn bev_of(info: &AssetInfo, t: &GroundTransform) -> Rect2 {
+    footprint_corners(info, t).iter().fold(Rect2::EMPTY, |mut r, p| {
+        r.grow(*p);
+        r
+    })
+}
+
+/// Separating-axis test of two convex quadrilaterals.
+fn quads_overlap(a: &[Vec2; 4], b: &[Vec2; 4]) -> bool {
+    for quad in [a, b] {
+        for k in 0..4 {
+            let e = quad[(k + 1) % 4] - quad[k];
+            let n = Vec2::new(-e.y, e.x);
+            let proj = |q: &[Vec2; 4]| {
+                q.iter()
+                    .map(|p| p.dot(n))
+                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)))
+            };
+            let (a0, a1) = proj(a);
+            let (b0, b1) = proj(b);
+            if a1 <= b0 + 1e-6 || b1 <= a0 + 1e-6 {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+fn region_bounds(r: &Region) -> Rect2 {
+    match r {
+        Region::Rect { min, max } => {
+            Rect2::new(Vec2::from(*min).min((*max).into()), Vec2::from(*min).max((*max).into()))
+        }
+        Region::Circle { center, radius } => {
+            Rect2::new(Vec2::from(*center) - *radius, Vec2::from(*center) + *radius)
+        }
+        Region::Polygon(pts) => pts.iter().fold(Rect2::EMPTY, |mut r, p| {
+            r.grow((*p).into());
+            r
+        }),
+    }
+}
+
+fn region_contains(r: &Region, p: Vec2) -> bool {
+    match r {
+        Region::Rect { .. } => region_bounds(r).contains(p),
+        Region::Circle { center, radius } => p.distance(Vec2::from(*center)) <= *radius,
+        Region::Polygon(pts) => {
+            let mut inside = false;
+            let n = pts.len();
+            for i in 0..n {
+                let (a, b) = (Vec2::from(pts[i]), Vec2::from(pts[(i + n - 1) % n]));
+                if (a.y > p.y) != (b.y > p.y) && p.x < (b.x - a.x) * (p.y - a.y) / (b.y - a.y) + a.x
+                {
+                    inside = !inside;
+                }
+            }
+            inside
+        }
+    }
+}
+
+fn yaw_towards(from: Vec2, to: Vec2) -> f32 {
+    let d = to - from;
+    if d.length_squared() < 1e-12 { 0.0 } else { d.y.atan2(d.x).to_degrees() }
+}
+
+/// A generated placement in the item's frame, before variation: position and facing yaw.
+struct Spot {
+    pos: Vec2,
+    yaw: f32,
+}
+
+impl Resolver<'_> {
+    fn info(&self, asset: &str, node: &ItemNode) -> Result<AssetInfo, LayoutError> {
+        self.info_at(asset, &self.script.files[node.file].find_string_after(asset, &node.location))
+    }
+
+    fn info_at(&self, asset: &str, location: &Location) -> Result<AssetInfo, LayoutError> {
+        if let Some(i) = self.catalog.asset_info(asset) {
+            return Ok(i);
+        }
+        let known = self.catalog.asset_names();
+        let hint =
+            closest(asset, &known).map(|k| format!("; did you mean \"{k}\"?")).unwrap_or_default();
+        Err(semantic(
+            location,
+            format!("unknown asset \"{asset}\"{hint} (known assets: {})", known.join(", ")),
+        ))
+    }
+
+    fn top_frame(&self, supporter: Option<u32>) -> GroundTransform {
+        match supporter.and_then(|id| self.out.iter().find(|i| i.id == id)) {
+            None => GroundTransform::IDENTITY,
+            Some(s) => GroundTransform { base: s.top, ..s.transform },
+        }
+    }
+
+    fn push(
+        &mut self,
+        key: String,
+        asset: &str,
+        info: &AssetInfo,
+        world: GroundTransform,
+        supporter: Option<u32>,
+    ) -> u32 {
+        let local = relative_to(&world, &self.top_frame(supporter));
+        let id = self.next_id;
+        self.next_id += 1;
+        self.out.push(ResolvedInstance {
+            id,
+            key,
+            asset: asset.to_string(),
+            category: info.category.clone(),
+            transform: world,
+            local,
+            supported_by: supporter,
+            container: info.container,
+            yaw_symmetry_deg: info.yaw_symmetry_deg,
+            footprint: info.footprint,
+            bev_aabb: bev_of(info, &world),
+            top: world.base + world.scale * info.height,
+        });
+        id
+    }
+
+    fn item(
+        &mut self,
+        node: &ItemNode,
+        frame: GroundTransform,
+        prefix: &str,
+        supporter: Option<u32>,
+        index: usize,
+    ) -> Result<(), LayoutError> {
+        let loc = &node.location;
+        let label = node
+            .item
+            .name()
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("{}{index}", node.item.variant().to_ascii_lowercase()));
+        let full = format!("{prefix}{label}");
+        let check_scale = |s: f32| {
+            if s.is_finite() && s > 0.0 {
+                Ok(())
+            } else {
+                Err(semantic(loc, format!("scale must be positive, got {s}")))
+            }
+        };
+        let check_count = |n: u32, what: &str| {
+            if n == 0 { Err(semantic(loc, format!("{what} must be at least 1"))) } else { Ok(()) }
+        };
+        match &node.item {
+            Item::Instance { asset, at, yaw, scale, base, .. } => {
+                check_scale(*scale)?;
+                let info = self.info(asset, node)?;
+                let local = GroundTransform::new((*at).into(), *yaw, *scale, *base);
+                self.push(full, asset, &info, frame.compose(&local), supporter);
+            }
+            Item::Group { at, yaw, scale, base, on, around, .. } => {
+                check_scale(*scale)?;
+                let own = GroundTransform::new((*at).into(), *yaw, *scale, *base);
+                let (pattern, stand_on) = match (on, around) {
+                    (None, None) => {
+                        let f = frame.compose(&own);
+                        for (k, c) in node.children.iter().enumerate() {
+                            self.item(c, f, &format!("{full}/"), supporter, k)?;
+                        }
+                        return Ok(());
+                    }
+                    (Some(p), None) => (p, true),
+                    (None, Some(p)) => (p, false),
+                    (Some(_), Some(_)) => {
+                        return Err(semantic(
+                            loc,
+                            "a Group takes `on` or `around`, not both".into(),
+                        ));
+                    }
+                };
+                let hosts: Vec<(u32, String, GroundTransform, Option<u32>)> = self
+                    .out
+                    .iter()
+                    .filter(|i| glob_match(pattern, &i.key) || pattern == &format!("#{}", i.id))
+                    .map(|i| (i.id, i.key.clone(), i.transform, i.supported_by))
+                    .collect();
+                if hosts.is_empty() {
+                    let field = if stand_on { "on" } else { "around" };
+                    return Err(semantic(
+                        loc,
+                        format!(
+                            "`{field}: \"{pattern}\"` matches no instance placed before this group \
+                             (instances are matched in script order: place them earlier)"
+                        ),
+                    ));
+                }
+                let named = node.item.name().map(|n| format!("{n}/")).unwrap_or_default();
+                for (host, host_key, host_t, host_support) in hosts {
+                    let (f, sup) = if stand_on {
+                        (self.top_frame(Some(host)).compose(&own), Some(host))
+                    } else {
+                        (host_t.compose(&own), host_support)
+                    };
+                    for (k, c) in node.children.iter().enumerate() {
+                        self.item(c, f, &format!("{host_key}/{named}"), sup, k)?;
+                    }
+                }
+            }
+            Item::Row { asset, from, to, count, yaw, face, scale, vary, .. } => {
+                check_count(*count, "count")?;
+                let (a, b) = (Vec2::from(*from), Vec2::from(*to));
+                let mid = (a + b) * 0.5;
+                let spots = (0..*count)
+                    .map(|i| {
+                        let t = if *count == 1 { 0.5 } else { i as f32 / (*count - 1) as f32 };
+                        let pos = a.lerp(b, t);
+                        Spot { pos, yaw: facing(*face, pos, mid, yaw_towards(a, b)) }
+                    })
+                    .collect();
+                self.place(
+                    node,
+                    frame,
+                    &full,
+                    supporter,
+                    asset,
+                    spots,
+                    *yaw,
+                    *scale,
+                    vary.as_ref(),
+                )?;
+            }
+            Item::Grid { asset, center, rows, cols, spacing, yaw, scale, vary, .. } => {
+                check_count(*rows, "rows")?;
+                check_count(*cols, "cols")?;
+                let c = Vec2::from(*center);
+                let mut spots = Vec::new();
+                for r in 0..*rows {
+                    for k in 0..*cols {
+                        let off = Vec2::new(
+                            (k as f32 - (*cols - 1) as f32 * 0.5) * spacing.0,
+                            (r as f32 - (*rows - 1) as f32 * 0.5) * spacing.1,
+                        );
+                        spots.push(Spot { pos: c + off, yaw: 0.0 });
+                    }
+                }
+                self.place(
+                    node,
+                    frame,
+                    &full,
+                    supporter,
+                    asset,
+                    spots,
+                    *yaw,
+                    *scale,
+                    vary.as_ref(),
+                )?;
+            }
+            Item::Ring {
+                asset, center, radius, count, start_deg, face, yaw, scale, vary, ..
+            } => {
+                check_count(*count, "count")?;
+                let c = Vec2::from(*center);
+                let spots = (0..*count)
+                    .map(|i| {
+                        let ang = start_deg + 360.0 * i as f32 / *count as f32;
+                        let pos = c + Vec2::from_angle(ang.to_radians()) * *radius;
+                        Spot { pos, yaw: facing(*face, pos, c, ang + 90.0) }
+                    })
+                    .collect();
+                self.place(
+                    node,
+                    frame,
+                    &full,
+                    supporter,
+                    asset,
+                    spots,
+                    *yaw,
+                    *scale,
+                    vary.as_ref(),
+                )?;
+            }
+            Item::Along { asset, path, count, spacing, offset, face, yaw, scale, vary, .. } => {
+                let spots = along_spots(path, *count, *spacing, *offset, *face)
+                    .map_err(|m| semantic(loc, m))?;
+                self.place(
+                    node,
+                    frame,
+                    &full,
+                    supporter,
+                    asset,
+                    spots,
+                    *yaw,
+                    *scale,
+                    vary.as_ref(),
+                )?;
+            }
+            Item::Scatter {
+                asset,
+                region,
+                count,
+                min_distance,
+                seed,
+                yaw,
+                scale,
+                overlap,
+                vary,
+                ..
+            } => {
+                check_count(*count, "count")?;
+                check_scale(*scale)?;
+                self.scatter(
+                    node,
+                    frame,
+                    &full,
+                    supporter,
+                    asset,
+                    region,
+                    *count,
+                    *min_distance,
+                    *seed,
+                    *yaw,
+                    *scale,
+                    *overlap,
+                    vary.as_ref(),
+                )?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Place generated spots (in the item's frame) with variation.
+    fn place(
+        &mut self,
+        node: &ItemNode,
+        frame: GroundTransform,
+        full: &str,
+        supporter: Option<u32>,
+        asset: &str,
+        spots: Vec<Spot>,
+        yaw: f32,
+        scale: f32,
+        vary: Option<&Variation>,
+    ) -> Result<(), LayoutError> {
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(semantic(&node.location, format!("scale must be positive, got {scale}")));
+        }
+        let info = self.info(asset, node)?;
+        for (i, s) in spots.into_iter().enumerate() {
+            let key = format!("{full}[{i}]");
+            let local = varied(&key, s.pos, s.yaw + yaw, scale, vary);
+            self.push(key, asset, &info, frame.compose(&local), supporter);
+        }
+        Ok(())
+    }
+
+    fn scatter(
+        &mut self,
+        node: &ItemNode,
+        frame: GroundTransform,
+        full: &str,
+        supporter: Option<u32>,
+        asset: &str,
+        region: &Region,
+        count: u32,
+        min_distance: f32,
+        seed: u64,
+        yaw: f32,
+        scale: f32,
+        overlap: bool,
+        vary: Option<&Variation>,
+    ) -> Result<(), LayoutError> {
+        let loc = &node.location;
+        if let Region::Polygon(p) = region
+            && p.len() < 3
+        {
+            return Err(semantic(
+                loc,
+                format!("a polygon region needs at least 3 points, got {}", p.len()),
+            ));
+        }
+        let info = self.info(asset, node)?;
+        let bounds = region_bounds(region);
+        let mut rng = Rng::stream(seed, full);
+        let mut placed: Vec<Vec2> = Vec::new();
+        let obstacles: Vec<[Vec2; 4]> = if overlap {
+            Vec::new()
+        } else {
+            self.out
+                .iter()
+                .filter(|i| !i.container && Some(i.id) != supporter)
+                .filter_map(|i| {
+                    self.catalog
+                        .asset_info(&i.asset)
+                        .map(|inf| footprint_corners(&inf, &i.transform))
+                })
+                .collect()
+        };
+        let mut mine: Vec<[Vec2; 4]> = Vec::new();
+        let budget = 500 * count as usize;
+        let mut tries = 0;
+        while placed.len() < count as usize && tries < budget {
+            tries += 1;
+            let p = Vec2::new(
+                rng.range(bounds.min.x, bounds.max.x),
+                rng.range(bounds.min.y, bounds.max.y),
+            );
+            if !region_contains(region, p) || placed.iter().any(|q| q.distance(p) < min_distance) {
+                continue;
+            }
+            let key = format!("{full}[{}]", placed.len());
+            let local = varied(&key, p, yaw, scale, vary);
+            let world = frame.compose(&local);
+            let quad = footprint_corners(&info, &world);
+            if !overlap && obstacles.iter().chain(mine.iter()).any(|o| quads_overlap(o, &quad)) {
+                continue;
+            }
+            placed.push(p);
+            mine.push(quad);
+            self.push(key, asset, &info, world, supporter);
+        }
+        if placed.len() < count as usize {
+            return Err(semantic(
+                loc,
+                format!(
+                    "Scatter could place only {} of {count} instances of \"{asset}\" in a region of \
+                     {:.2} x {:.2} with min_distance {min_distance} after {tries} tries; \
+                     enlarge the region, or lower count or min_distance{}",
+                    placed.len(),
+                    bounds.size().x,
+                    bounds.size().y,
+                    if overlap { "" } else { " (or allow `overlap: true`)" }
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn matches(
+        &self,
+        pattern: &str,
+        removed: &[bool],
+        loc: &Location,
+    ) -> Result<Vec<usize>, LayoutError> {
+        let hits: Vec<usize> = self
+            .out
+            .iter()
+            .enumerate()
+            .filter(|(k, i)| {
+                !removed[*k] && (glob_match(pattern, &i.key) || pattern == format!("#{}", i.id))
+            })
+            .map(|(k, _)| k)
+            .collect();
+        if hits.is_empty() {
+            let sample: Vec<&str> = self
+                .out
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| !removed[*k])
+                .take(6)
+                .map(|(_, i)| i.key.as_str())
+                .collect();
+            return Err(semantic(
+                loc,
+                format!(
+                    "\"{pattern}\" matches no instance (keys look like: {}, ...; or use #ID)",
+                    sample.join(", ")
+                ),
+            ));
+        }
+        Ok(hits)
+    }
+
+    /// Indices of `roots` and everything standing on them (transitively), in id order.
+    fn with_dependents(&self, roots: &[usize], removed: &[bool]) -> Vec<usize> {
+        let mut keep = vec![false; self.out.len()];
+        for &r in roots {
+            keep[r] = true;
+        }
+        for k in 0..self.out.len() {
+            if removed[k] {
+                continue;
+            }
+            if let Some(p) = self.out[k].supported_by
+                && let Some(pk) = self.out.iter().position(|i| i.id == p)
+                && keep[pk]
+            {
+                keep[k] = true;
+            }
+        }
+        (0..self.out.len()).filter(|k| keep[*k]).collect()
+    }
+
+    /// Re-derive world transforms (and boxes) of everything from locals, parents first.
+    fn refresh(&mut self) {
+        for k in 0..self.out.len() {
+            let frame = self.top_frame(self.out[k].supported_by);
+            let world = frame.compose(&self.out[k].local);
+            let info = self.catalog.asset_info(&self.out[k].asset);
+            let inst = &mut self.out[k];
+            inst.transform = world;
+            if let Some(info) = info {
+                inst.footprint = info.footprint;
+                inst.bev_aabb = bev_of(&info, &world);
+                inst.top = world.base + world.scale * info.height;
+            }
+        }
+    }
+
+    fn set_world(&mut self, k: usize, world: GroundTransform) {
+        let frame = self.top_frame(self.out[k].supported_by);
+        self.out[k].local = relative_to(&world, &frame);
+    }
+
+    fn edit(
+        &mut self,
+        node: &crate::source::EditNode,
+        removed: &mut Vec<bool>,
+    ) -> Result<(), LayoutError> {
+        let loc = &node.location;
+        let one_of = |to: bool, by: bool| {
+            if to == by {
+                Err(semantic(
+                    loc,
+                    format!("{} needs exactly one of `to` or `by`", node.edit.variant()),
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        match &node.edit {
+            Edit::Remove(target) => {
+                let hits = self.matches(target, removed, loc)?;
+                for k in self.with_dependents(&hits, removed) {
+                    removed[k] = true;
+                }
+            }
+            Edit::RemoveCategory(cat) => {
+                let hits: Vec<usize> = (0..self.out.len())
+                    .filter(|k| !removed[*k] && &self.out[*k].category == cat)
+                    .collect();
+                if hits.is_empty() {
+                    return Err(semantic(
+                        loc,
+                        format!(
+                            "no instance of category \"{cat}\" ({})",
+                            self.category_list(removed)
+                        ),
+                    ));
+                }
+                for k in self.with_dependents(&hits, removed) {
+                    removed[k] = true;
+                }
+            }
+            Edit::ReplaceAsset { category, with } => {
+                let src = &self.script.files[node.file];
+                let info = self.info_at(with, &src.find_string_after(with, loc))?;
+                let hits: Vec<usize> = (0..self.out.len())
+                    .filter(|k| !removed[*k] && &self.out[*k].category == category)
+                    .collect();
+                if hits.is_empty() {
+                    return Err(semantic(
+                        loc,
+                        format!(
+                            "no instance of category \"{category}\" ({})",
+                            self.category_list(removed)
+                        ),
+                    ));
+                }
+                for k in hits {
+                    self.retarget(k, with, &info);
+                }
+                self.refresh();
+            }
+            Edit::Move { target, to, by } => {
+                one_of(to.is_some(), by.is_some())?;
+                self.update_world(target, removed, loc, |w| {
+                    w.position = match (to, by) {
+                        (Some(t), _) => (*t).into(),
+                        _ => w.position + Vec2::from(by.unwrap_or_default()),
+                    };
+                    Ok(())
+                })?;
+            }
+            Edit::Rotate { target, to, by } => {
+                one_of(to.is_some(), by.is_some())?;
+                self.update_world(target, removed, loc, |w| {
+                    w.yaw_deg = wrap_degrees(to.unwrap_or(w.yaw_deg + by.unwrap_or(0.0)));
+                    Ok(())
+                })?;
+            }
+            Edit::Scale { target, to, by } => {
+                one_of(to.is_some(), by.is_some())?;
+                self.update_world(target, removed, loc, |w| {
+                    w.scale = to.unwrap_or(w.scale * by.unwrap_or(1.0));
+                    if w.scale.is_finite() && w.scale > 0.0 {
+                        Ok(())
+                    } else {
+                        Err(format!("scale must be positive, got {}", w.scale))
+                    }
+                })?;
+            }
+            Edit::Override { target, asset, at, yaw, scale, base } => {
+                if let Some(s) = scale
+                    && !(s.is_finite() && *s > 0.0)
+                {
+                    return Err(semantic(loc, format!("scale must be positive, got {s}")));
+                }
+                let new_info = match asset {
+                    Some(a) => Some(
+                        self.info_at(a, &self.script.files[node.file].find_string_after(a, loc))?,
+                    ),
+                    None => None,
+                };
+                for k in self.matches(target, removed, loc)? {
+                    if let (Some(a), Some(info)) = (asset, &new_info) {
+                        self.retarget(k, a, info);
+                    }
+                    let mut w = self.out[k].transform;
+                    if let Some(p) = at {
+                        w.position = (*p).into();
+                    }
+                    if let Some(y) = yaw {
+                        w.yaw_deg = wrap_degrees(*y);
+                    }
+                    if let Some(s) = scale {
+                        w.scale = *s;
+                    }
+                    if let Some(b) = base {
+                        w.base = self.top_frame(self.out[k].supported_by).base + b;
+                    }
+                    self.set_world(k, w);
+                    self.refresh();
+                }
+            }
+            Edit::Duplicate { target, at, by, yaw, name } => {
+                if at.is_some() && by.is_some() {
+                    return Err(semantic(loc, "Duplicate takes `at` or `by`, not both".into()));
+                }
+                let roots = self.matches(target, removed, loc)?;
+                let many = roots.len() > 1;
+                for (n, &root) in roots.iter().enumerate() {
+                    let family = self.with_dependents(&[root], removed);
+                    let root_key = self.out[root].key.clone();
+                    let new_root_key = match name {
+                        Some(nm) if many => format!("{nm}[{n}]"),
+                        Some(nm) => nm.clone(),
+                        None => self.unique_copy_key(&root_key),
+                    };
+                    let mut id_map: BTreeMap<u32, u32> = BTreeMap::new();
+                    for &k in &family {
+                        let mut copy = self.out[k].clone();
+                        let new_id = self.next_id;
+                        self.next_id += 1;
+                        id_map.insert(copy.id, new_id);
+                        copy.id = new_id;
+                        copy.supported_by =
+                            copy.supported_by.map(|p| *id_map.get(&p).unwrap_or(&p));
+                        copy.key = if k == root {
+                            new_root_key.clone()
+                        } else {
+                            copy.key.replacen(root_key.as_str(), &new_root_key, 1)
+                        };
+                        self.out.push(copy);
+                        removed.push(false);
+                        if k == root {
+                            let last = self.out.len() - 1;
+                            let mut w = self.out[last].transform;
+                            if let Some(p) = at {
+                                w.position = (*p).into();
+                            }
+                            if let Some(b) = by {
+                                w.position += Vec2::from(*b);
+                            }
+                            if let Some(y) = yaw {
+                                w.yaw_deg = wrap_degrees(*y);
+                            }
+                            self.set_world(last, w);
+                        }
+                    }
+                    self.refresh();
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Apply `f` to the world transform of every instance matching `target` (what stands on
+    /// them follows); `f` may refuse with a message.
+    fn update_world(
+        &mut self,
+        target: &str,
+        removed: &[bool],
+        loc: &Location,
+        mut f: impl FnMut(&mut GroundTransform) -> Result<(), String>,
+    ) -> Result<(), LayoutError> {
+        for k in self.matches(target, removed, loc)? {
+            let mut w = self.out[k].transform;
+            f(&mut w).map_err(|m| semantic(loc, m))?;
+            self.set_world(k, w);
+            self.refresh();
+        }
+        Ok(())
+    }
+
+    fn retarget(&mut self, k: usize, asset: &str, info: &AssetInfo) {
+        let inst = &mut self.out[k];
+        inst.asset = asset.to_string();
+        inst.category = info.category.clone();
+        inst.yaw_symmetry_deg = info.yaw_symmetry_deg;
+        inst.container = info.container;
+    }
+
+    fn unique_copy_key(&self, key: &str) -> String {
+        (1..)
+            .map(|n| format!("{key}+copy{n}"))
+            .find(|k| !self.out.iter().any(|i| &i.key == k))
+            .unwrap()
+    }
+
+    fn category_list(&self, removed: &[bool]) -> String {
+        let mut cats: Vec<&str> = self
+            .out
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !removed[*k])
+            .map(|(_, i)| i.category.as_str())
+            .collect();
+        cats.sort();
+        cats.dedup();
+        format!("categories present: {}", cats.join(", "))
+    }
+}
+
+fn facing(face: Facing, pos: Vec2, centre: Vec2, path_yaw: f32) -> f32 {
+    match face {
+        Facing::Fixed => 0.0,
+        Facing::Center => yaw_towards(pos, centre),
+        Facing::Outward => yaw_towards(centre, pos),
+        Facing::Path => path_yaw,
+        Facing::Toward(x, y) => yaw_towards(pos, Vec2::new(x, y)),
+    }
+}
+
+/// Apply seeded variation to a placement. The random stream depends on the instance key
+/// only, so adding items elsewhere never changes an instance's jitter.
+fn varied(key: &str, pos: Vec2, yaw: f32, scale: f32, vary: Option<&Variation>) -> GroundTransform {
+    let mut t = GroundTransform::new(pos, wrap_degrees(yaw), scale, 0.0);
+    if let Some(v) = vary {
+        let mut rng = Rng::stream(v.seed, key);
+        let j = rng.range(-v.yaw_jitter_deg, v.yaw_jitter_deg);
+        let choice = if v.yaw_choices.is_empty() {
+            0.0
+        } else {
+            v.yaw_choices[rng.below(v.yaw_choices.len())]
+        };
+        t.yaw_deg = wrap_degrees(t.yaw_deg + j + choice);
+        t.scale *= 1.0 + rng.range(-v.scale_jitter, v.scale_jitter);
+        t.position += Vec2::new(
+            rng.range(-v.position_jitter, v.position_jitter),
+            rng.range(-v.position_jitter, v.position_jitter),
+        );
+    }
+    t
+}
+
+fn along_spots(
+    path: &[V2],
+    count: Option<u32>,
+    spacing: Option<f32>,
+    offset: f32,
+    face: Facing,
+) -> Result<Vec<Spot>, String> {
+    if path.len() < 2 {
+        return Err(format!("Along needs a path of at least 2 points, got {}", path.len()));
+    }
+    let pts: Vec<Vec2> = path.iter().map(|p| Vec2::from(*p)).collect();
+    let lens: Vec<f32> = pts.windows(2).map(|w| w[0].distance(w[1])).collect();
+    let total: f32 = lens.iter().sum();
+    if total <= 0.0 {
+        return Err("Along path has zero length".into());
+    }
+    let stations: Vec<f32> = match (count, spacing) {
+        (Some(n), None) if n >= 1 => {
+            if n == 1 {
+                vec![total * 0.5]
+            } else {
+                (0..n).map(|i| total * i as f32 / (n - 1) as f32).collect()
+            }
+        }
+        (None, Some(s)) if s > 0.0 => {
+            let n = (total / s + 1e-4).floor() as u32 + 1;
+            (0..n).map(|i| i as f32 * s).collect()
+        }
+        _ => {
+            return Err(
+                "Along needs either `count` (at least 1) or a positive `spacing`, not both".into(),
+            );
+        }
+    };
+    let centre = pts.iter().copied().sum::<Vec2>() / pts.len() as f32;
+    Ok(stations
+        .into_iter()
+        .map(|s| {
+            let mut acc = 0.0;
+            let mut seg = lens.len() - 1;
+            for (k, l) in lens.iter().enumerate() {
+                if s <= acc + l || k == lens.len() - 1 {
+                    seg = k;
+                    break;
+                }
+                acc += l;
+            }
+            let (a, b) = (pts[seg], pts[seg + 1]);
+            let dir = (b - a).normalize_or_zero();
+            let t = ((s - acc) / lens[seg].max(1e-12)).clamp(0.0, 1.0);
+            let pos = a.lerp(b, t) + Vec2::new(-dir.y, dir.x) * offset;
+            Spot { pos, yaw: facing(face, pos, centre, dir.y.atan2(dir.x).to_degrees()) }
+        })
+        .collect())
+}
+
+/// The transform `local` such that `parent.compose(local) == world`.
+pub fn relative_to(world: &GroundTransform, parent: &GroundTransform) -> GroundTransform {
+    GroundTransform {
+        position: parent.inverse_transform_point2(world.position),
+        yaw_deg: wrap_degrees(world.yaw_deg - parent.yaw_deg),
+        scale: world.scale / parent.scale,
+        base: (world.base - parent.base) / parent.scale,
+    }
+}

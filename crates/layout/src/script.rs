@@ -1,0 +1,511 @@
+//! The raw script: exactly what the user wrote, as RON. Nothing here is validated beyond
+//! syntax; [`crate::resolve`] turns it into a world-space layout.
+//!
+//! ```ron
+//! Scene(
+//!     name: "cafe",
+//!     include: ["assets/furniture.ron"],
+//!     layout: [
+//!         Instance(asset: "table_round", at: (0, 0)),
+//!         Ring(asset: "chair", center: (0, 0), radius: 0.9, count: 4, face: Center),
+//!         Scatter(asset: "plant", region: Rect(min: (-4, -3), max: (4, 3)), count: 5,
+//!                 min_distance: 1.0, seed: 3, vary: (yaw_jitter_deg: 180)),
+//!     ],
+//!     edits: [ReplaceAsset(category: "chair", with: "stool")],
+//! )
+//! ```
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// A 2D point or vector on the ground plane, `(x, y)`.
+pub type V2 = (f32, f32);
+/// A 3D point or vector, `(x, y, z)`.
+pub type V3 = (f32, f32, f32);
+/// A linear RGB colour with components in `[0, 1]`.
+pub type Color = (f32, f32, f32);
+
+fn one() -> f32 {
+    1.0
+}
+fn full_turn() -> f32 {
+    360.0
+}
+fn is_zero(v: &f32) -> bool {
+    *v == 0.0
+}
+fn is_one(v: &f32) -> bool {
+    *v == 1.0
+}
+fn is_full_turn(v: &f32) -> bool {
+    *v == 360.0
+}
+fn is_false(v: &bool) -> bool {
+    !*v
+}
+
+/// A whole scene script (the top-level value of a `.ron` file, written `Scene(...)`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename = "Scene", deny_unknown_fields)]
+pub struct Script {
+    /// Scene name (defaults to the file stem).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Another script this one extends: its assets, layout and edits come first, this
+    /// script's items and edits are applied after them (an edit script names its scene here).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base: Option<String>,
+    /// Files holding shared asset definitions (`Scene(assets: {...})`), relative to this file.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub include: Vec<String>,
+    /// Asset definitions by name. The name is also the asset's category unless it says
+    /// otherwise.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub assets: BTreeMap<String, AssetDef>,
+    /// The ground region of interest `[min, max]` (cameras aim at its centre). Defaults to
+    /// the footprint of everything placed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub extent: Option<(V2, V2)>,
+    /// Default camera rig for `assetfield synth` (command-line flags override it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub views: Option<ViewSettings>,
+    /// Lighting for the ground-truth renderer.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lighting: Option<Lighting>,
+    /// Placement items, resolved in order (ids follow this order).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub layout: Vec<Item>,
+    /// Edits applied to the resolved layout, in order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub edits: Vec<Edit>,
+}
+
+/// How an asset looks: primitives, an OBJ mesh, or both.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename = "Asset", deny_unknown_fields)]
+pub struct AssetDef {
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub parts: Vec<Part>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub obj: Option<ObjSource>,
+    /// Category name; defaults to the asset name. Assets of one category are the same object.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub category: Option<String>,
+    /// The turn after which the asset looks the same: 360 = none, 180 or 90 = n-fold,
+    /// 0 = rotationally symmetric (a round table).
+    #[serde(default = "full_turn", skip_serializing_if = "is_full_turn")]
+    pub yaw_symmetry_deg: f32,
+    /// Background (a floor, a room shell): rendered, but not an object to mine.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub container: bool,
+}
+
+/// An OBJ mesh (with its MTL colours and diffuse textures).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename = "Obj", deny_unknown_fields)]
+pub struct ObjSource {
+    /// Path relative to the script that defines the asset.
+    pub path: String,
+    /// Uniform scale applied to the mesh.
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub scale: f32,
+    /// Which mesh axis points up (many OBJ exporters use +Y).
+    #[serde(default, skip_serializing_if = "Axis::is_z")]
+    pub up: Axis,
+    /// Turn about the up axis (degrees) after levelling, to make the front face +X.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub yaw_deg: f32,
+    /// Move the mesh so its footprint is centred on the origin and it stands on z = 0.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub recenter: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+fn is_true(v: &bool) -> bool {
+    *v
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Axis {
+    X,
+    Y,
+    #[default]
+    Z,
+}
+
+impl Axis {
+    fn is_z(&self) -> bool {
+        *self == Axis::Z
+    }
+}
+
+/// A primitive part of an asset, in the asset's local frame (metres, z up).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum Part {
+    /// A box with the given centre and full size, turned by `yaw` degrees about its vertical axis.
+    Box {
+        center: V3,
+        size: V3,
+        color: Color,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        yaw: f32,
+    },
+    /// A cylinder standing on `base` (the centre of its lower cap) along `axis`.
+    Cylinder {
+        base: V3,
+        radius: f32,
+        height: f32,
+        color: Color,
+        #[serde(default, skip_serializing_if = "Axis::is_z")]
+        axis: Axis,
+    },
+    /// A cone or frustum standing on `base` (lower cap centre), narrowing to `top_radius`.
+    Cone {
+        base: V3,
+        radius: f32,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        top_radius: f32,
+        height: f32,
+        color: Color,
+    },
+    Sphere {
+        center: V3,
+        radius: f32,
+        color: Color,
+    },
+}
+
+/// Where a generator's instances face. The asset's front is its local +X axis; `yaw` of the
+/// item is added on top of the rule.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub enum Facing {
+    /// Every instance gets the item's `yaw`.
+    #[default]
+    Fixed,
+    /// Front towards the generator's centre (rings).
+    Center,
+    /// Front away from the centre.
+    Outward,
+    /// Front along the direction of travel (rows, polylines, rings counter-clockwise).
+    Path,
+    /// Front towards a point `(x, y)` in the item's frame.
+    Toward(f32, f32),
+}
+
+impl Facing {
+    fn is_fixed(&self) -> bool {
+        *self == Facing::Fixed
+    }
+}
+
+/// Seeded per-instance variation.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Variation {
+    /// Uniform yaw jitter in `[-j, +j]` degrees (180 gives any direction).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub yaw_jitter_deg: f32,
+    /// Pick the yaw offset uniformly from these angles (degrees), e.g. `[0, 90, 180, 270]`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub yaw_choices: Vec<f32>,
+    /// Relative scale jitter: scale times a factor in `[1 - s, 1 + s]`.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub scale_jitter: f32,
+    /// Position jitter in `[-p, +p]` along x and y.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub position_jitter: f32,
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// A region of the ground plane (in the item's frame).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Region {
+    Rect { min: V2, max: V2 },
+    Circle { center: V2, radius: f32 },
+    Polygon(Vec<V2>),
+}
+
+/// A placement item. Every item may carry a `name`; instance keys are built from it
+/// (`chairs[3]`, `dining/chairs[3]`) and edits refer to instances by key.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum Item {
+    /// One instance.
+    Instance {
+        asset: String,
+        at: V2,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        yaw: f32,
+        #[serde(default = "one", skip_serializing_if = "is_one")]
+        scale: f32,
+        /// Height of the instance's floor above its frame (objects on shelves, tables).
+        #[serde(default, skip_serializing_if = "is_zero")]
+        base: f32,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
+    },
+    /// `count` instances evenly spaced from `from` to `to` (both ends included).
+    Row {
+        asset: String,
+        from: V2,
+        to: V2,
+        count: u32,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        yaw: f32,
+        #[serde(default, skip_serializing_if = "Facing::is_fixed")]
+        face: Facing,
+        #[serde(default = "one", skip_serializing_if = "is_one")]
+        scale: f32,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        vary: Option<Variation>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
+    },
+    /// `rows x cols` instances centred on `center`, `spacing` apart.
+    Grid {
+        asset: String,
+        center: V2,
+        rows: u32,
+        cols: u32,
+        spacing: V2,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        yaw: f32,
+        #[serde(default = "one", skip_serializing_if = "is_one")]
+        scale: f32,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        vary: Option<Variation>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
+    },
+    /// `count` instances on a circle, starting at angle `start_deg`, counter-clockwise.
+    Ring {
+        asset: String,
+        center: V2,
+        radius: f32,
+        count: u32,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        start_deg: f32,
+        #[serde(default, skip_serializing_if = "Facing::is_fixed")]
+        face: Facing,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        yaw: f32,
+        #[serde(default = "one", skip_serializing_if = "is_one")]
+        scale: f32,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        vary: Option<Variation>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
+    },
+    /// `count` instances at seeded random places inside `region`, at least `min_distance`
+    /// apart, and (unless `overlap: true`) clear of the footprints already placed.
+    Scatter {
+        asset: String,
+        region: Region,
+        count: u32,
+        min_distance: f32,
+        #[serde(default)]
+        seed: u64,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        yaw: f32,
+        #[serde(default = "one", skip_serializing_if = "is_one")]
+        scale: f32,
+        #[serde(default, skip_serializing_if = "is_false")]
+        overlap: bool,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        vary: Option<Variation>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
+    },
+    /// Instances along a polyline: `count` evenly spread over its length, or one every
+    /// `spacing`; `offset` shifts them sideways (left of the direction of travel).
+    Along {
+        asset: String,
+        path: Vec<V2>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        count: Option<u32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        spacing: Option<f32>,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        offset: f32,
+        #[serde(default, skip_serializing_if = "Facing::is_fixed")]
+        face: Facing,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        yaw: f32,
+        #[serde(default = "one", skip_serializing_if = "is_one")]
+        scale: f32,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        vary: Option<Variation>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
+    },
+    /// Items in a frame of their own. With `on: "pattern"` the children are placed on top of
+    /// every instance whose key matches (once per match), in that instance's frame: they
+    /// stand on it and move with it. With `around: "pattern"` they are placed once per match
+    /// in the matching instance's frame at its floor level (chairs around every table).
+    Group {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
+        #[serde(default = "origin", skip_serializing_if = "is_origin")]
+        at: V2,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        yaw: f32,
+        #[serde(default = "one", skip_serializing_if = "is_one")]
+        scale: f32,
+        #[serde(default, skip_serializing_if = "is_zero")]
+        base: f32,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        on: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        around: Option<String>,
+        children: Vec<Item>,
+    },
+}
+
+fn origin() -> V2 {
+    (0.0, 0.0)
+}
+fn is_origin(v: &V2) -> bool {
+    *v == (0.0, 0.0)
+}
+
+impl Item {
+    /// The RON variant name (used to locate the item in its file).
+    pub fn variant(&self) -> &'static str {
+        match self {
+            Item::Instance { .. } => "Instance",
+            Item::Row { .. } => "Row",
+            Item::Grid { .. } => "Grid",
+            Item::Ring { .. } => "Ring",
+            Item::Scatter { .. } => "Scatter",
+            Item::Along { .. } => "Along",
+            Item::Group { .. } => "Group",
+        }
+    }
+
+    pub fn name(&self) -> Option<&str> {
+        match self {
+            Item::Instance { name, .. }
+            | Item::Row { name, .. }
+            | Item::Grid { name, .. }
+            | Item::Ring { name, .. }
+            | Item::Scatter { name, .. }
+            | Item::Along { name, .. }
+            | Item::Group { name, .. } => name.as_deref(),
+        }
+    }
+}
+
+/// An edit of the resolved layout. `target` is an instance key pattern (`*` and `?`
+/// wildcards, e.g. `"chairs[*]"`) or `#ID`. Positions and yaws are in world coordinates;
+/// instances standing on a target move, turn, duplicate and disappear with it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum Edit {
+    /// Delete the matching instances.
+    Remove(String),
+    /// Delete every instance of a category.
+    RemoveCategory(String),
+    /// Show every instance of `category` with asset `with` instead (same placement).
+    ReplaceAsset { category: String, with: String },
+    /// Move to a world position, or by an offset.
+    Move {
+        target: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        to: Option<V2>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        by: Option<V2>,
+    },
+    /// Turn to a world yaw, or by an angle (degrees, counter-clockwise).
+    Rotate {
+        target: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        to: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        by: Option<f32>,
+    },
+    /// Set the scale, or multiply it.
+    Scale {
+        target: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        to: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        by: Option<f32>,
+    },
+    /// Copy the matching instances (with what stands on them), placed at `at` or shifted by
+    /// `by`, optionally turned to `yaw`.
+    Duplicate {
+        target: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        at: Option<V2>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        by: Option<V2>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        yaw: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
+    },
+    /// Set any of an instance's properties.
+    Override {
+        target: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        asset: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        at: Option<V2>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        yaw: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        scale: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        base: Option<f32>,
+    },
+}
+
+impl Edit {
+    pub fn variant(&self) -> &'static str {
+        match self {
+            Edit::Remove(_) => "Remove",
+            Edit::RemoveCategory(_) => "RemoveCategory",
+            Edit::ReplaceAsset { .. } => "ReplaceAsset",
+            Edit::Move { .. } => "Move",
+            Edit::Rotate { .. } => "Rotate",
+            Edit::Scale { .. } => "Scale",
+            Edit::Duplicate { .. } => "Duplicate",
+            Edit::Override { .. } => "Override",
+        }
+    }
+}
+
+/// The default camera rig of `assetfield synth` for this scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewSettings {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub count: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub test: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resolution: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elevation_deg: Option<(f32, f32)>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fov_deg: Option<f32>,
+}
+
+/// A fixed directional light with Lambert shading and some ambient light.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Lighting {
+    /// Direction towards the light (need not be normalised).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction: Option<V3>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ambient: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shadows: Option<bool>,
+}

@@ -1,0 +1,18 @@
+use std::path::PathBuf;
+
+/// Errors of ground-truth synthesis.
+#[derive(Debug, thiserror::Error)]
+pub enum SynthError {
+    #[error(transparent)]
+    Layout(#[from] assetfield_layout::LayoutError),
+    #[error(transparent)]
+    Core(#[from] assetfield_core::CoreError),
+    #[error(transparent)]
+    Data(#[from] assetfield_data::DataError),
+    #[error("{location}: asset \"{asset}\": cannot load OBJ {}: {message}", path.display())]
+    Obj { location: assetfield_layout::Location, asset: String, path: PathBuf, message: String },
+    #[error("{location}: asset \"{asset}\" has no geometry (give `parts` or `obj`)")]
+    EmptyAsset { location: assetfield_layout::Location, asset: String },
+    #[error("invalid synthesis settings: {0}")]
+    Config(String),
+}

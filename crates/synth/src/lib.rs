@@ -1,0 +1,20 @@
+//! Ground-truth synthesis: turns layout scripts into multi-view datasets of known layout.
+//!
+//! - [`geometry`]: primitives and triangles with materials, in an asset's frame;
+//! - [`bvh`]: the bounding volume hierarchy used for shapes and for instances;
+//! - [`assets`]: builds every asset of a script (OBJ meshes included) and serves it to the
+//!   layout resolver as an [`assetfield_layout::AssetCatalog`];
+//! - [`tracer`]: the CPU ray tracer (Lambert + ambient, anti-aliasing, transparent background);
+//! - [`synth`]: the camera rig and dataset writer behind `assetfield synth`.
+
+pub mod assets;
+pub mod bvh;
+pub mod error;
+pub mod geometry;
+pub mod synth;
+pub mod tracer;
+
+pub use assets::AssetSet;
+pub use error::SynthError;
+pub use synth::{SynthConfig, SynthOptions, SynthReport, camera_rig, load_scene, synthesize};
+pub use tracer::{Light, Scene};

@@ -1,0 +1,374 @@
+//! `assetfield synth`: render a layout script into a NeRF-synthetic dataset with its
+//! ground-truth layout.
+//!
+//! Output folder (written to a staging folder, renamed into place when complete):
+//! `transforms_train.json`, `transforms_test.json`, `train/r_K.png`, `test/r_K.png`,
+//! `gt_layout.json`, `layout.png` (bird's-eye view of the ground truth), `synth.json`
+//! (settings, bounds, timings) and, with an edited layout, `edited/` holding the same test
+//! cameras rendered with the edited layout plus its `gt_layout.json`.
+
+use crate::SynthError;
+use crate::assets::AssetSet;
+use crate::tracer::{Light, Scene};
+use assetfield_core::canvas::{Canvas, GroundView, palette};
+use assetfield_core::fsx::{StagingDir, write_atomic};
+use assetfield_core::{Aabb3, Camera, Intrinsics, interrupt};
+use assetfield_data::{FrameEntry, TransformsFile, write_transforms};
+use assetfield_layout::{GtLayout, LoadedScript, ResolvedLayout, ViewSettings, resolve};
+use glam::{Vec2, Vec3};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Settings of the camera rig and renderer, as the user may give them (unset = scene or
+/// built-in default).
+#[derive(Debug, Clone, Default)]
+pub struct SynthOptions {
+    pub views: Option<u32>,
+    pub test_views: Option<u32>,
+    pub resolution: Option<u32>,
+    pub radius: Option<f32>,
+    pub elevation_deg: Option<(f32, f32)>,
+    pub fov_deg: Option<f32>,
+    pub samples_per_side: Option<u32>,
+}
+
+/// Validated settings, ready to run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SynthConfig {
+    /// Total number of views (train + test). Paper default: 50.
+    pub views: u32,
+    /// Views held out for testing, evenly interleaved. Paper default: 10.
+    pub test_views: u32,
+    /// Square image size in pixels.
+    pub resolution: u32,
+    /// Camera distance from the scene centre; `None` fits the scene's bounding sphere.
+    pub radius: Option<f32>,
+    /// Elevation range of the cameras above the ground, degrees.
+    pub elevation_deg: (f32, f32),
+    /// Horizontal (= vertical) field of view, degrees.
+    pub fov_deg: f32,
+    /// Anti-aliasing: samples per pixel = this squared.
+    pub samples_per_side: u32,
+}
+
+impl SynthConfig {
+    pub const DEFAULT: SynthConfig = SynthConfig {
+        views: 50,
+        test_views: 10,
+        resolution: 400,
+        radius: None,
+        elevation_deg: (15.0, 75.0),
+        fov_deg: 40.0,
+        samples_per_side: 2,
+    };
+
+    /// Command-line options over the scene's `views` settings over the defaults; checked.
+    pub fn resolve(opts: &SynthOptions, scene: Option<&ViewSettings>) -> Result<Self, SynthError> {
+        let d = SynthConfig::DEFAULT;
+        let s = scene.cloned().unwrap_or(ViewSettings {
+            count: None,
+            test: None,
+            resolution: None,
+            radius: None,
+            elevation_deg: None,
+            fov_deg: None,
+        });
+        let cfg = SynthConfig {
+            views: opts.views.or(s.count).unwrap_or(d.views),
+            test_views: opts.test_views.or(s.test).unwrap_or(d.test_views),
+            resolution: opts.resolution.or(s.resolution).unwrap_or(d.resolution),
+            radius: opts.radius.or(s.radius),
+            elevation_deg: opts.elevation_deg.or(s.elevation_deg).unwrap_or(d.elevation_deg),
+            fov_deg: opts.fov_deg.or(s.fov_deg).unwrap_or(d.fov_deg),
+            samples_per_side: opts.samples_per_side.unwrap_or(d.samples_per_side),
+        };
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    pub fn validate(&self) -> Result<(), SynthError> {
+        let bad = |m: String| Err(SynthError::Config(m));
+        if self.views < 2 {
+            return bad(format!("--views must be at least 2, got {}", self.views));
+        }
+        if self.test_views == 0 || self.test_views >= self.views {
+            return bad(format!(
+                "test views must be between 1 and views - 1 ({}), got {}",
+                self.views - 1,
+                self.test_views
+            ));
+        }
+        if !(8..=8192).contains(&self.resolution) {
+            return bad(format!(
+                "--res must be between 8 and 8192 pixels, got {}",
+                self.resolution
+            ));
+        }
+        let (lo, hi) = self.elevation_deg;
+        if !(0.0..=90.0).contains(&lo) || !(0.0..=90.0).contains(&hi) || lo > hi {
+            return bad(format!(
+                "elevation range must satisfy 0 <= min <= max <= 90, got {lo}..{hi}"
+            ));
+        }
+        if !(5.0..=150.0).contains(&self.fov_deg) {
+            return bad(format!("field of view must be 5..150 degrees, got {}", self.fov_deg));
+        }
+        if let Some(r) = self.radius
+            && !(r.is_finite() && r > 0.0)
+        {
+            return bad(format!("--radius must be positive, got {r}"));
+        }
+        if !(1..=8).contains(&self.samples_per_side) {
+            return bad(format!(
+                "--aa must be 1..8 samples per side, got {}",
+                self.samples_per_side
+            ));
+        }
+        Ok(())
+    }
+
+    fn intrinsics(&self) -> Intrinsics {
+        Intrinsics::from_fov_x(self.resolution, self.resolution, self.fov_deg.to_radians())
+    }
+}
+
+/// One camera of the rig.
+#[derive(Debug, Clone, Copy)]
+pub struct RigView {
+    pub camera: Camera,
+    pub test: bool,
+}
+
+/// Cameras on the upper half-sphere around `bounds`, looking at its centre: a Fibonacci
+/// lattice over the spherical band between the elevation limits (even coverage by area), test
+/// views evenly interleaved.
+pub fn camera_rig(bounds: &Aabb3, cfg: &SynthConfig) -> Vec<RigView> {
+    let target = bounds.center();
+    let half_fov = 0.5 * cfg.fov_deg.to_radians();
+    let sphere = 0.5 * bounds.extent().length();
+    let radius = cfg.radius.unwrap_or(sphere / half_fov.sin() * 1.02);
+    let (z0, z1) = (cfg.elevation_deg.0.to_radians().sin(), cfg.elevation_deg.1.to_radians().sin());
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    let n = cfg.views;
+    let test: Vec<u32> = (0..cfg.test_views)
+        .map(|t| (((t as f32 + 0.5) * n as f32) / cfg.test_views as f32) as u32)
+        .collect();
+    (0..n)
+        .map(|k| {
+            let z = z0 + (z1 - z0) * (k as f32 + 0.5) / n as f32;
+            let r_xy = (1.0 - z * z).max(0.0).sqrt();
+            let az = k as f32 * golden;
+            let dir = Vec3::new(r_xy * az.cos(), r_xy * az.sin(), z);
+            let camera = Camera::look_at(cfg.intrinsics(), target + dir * radius, target, Vec3::Z);
+            RigView { camera, test: test.contains(&k) }
+        })
+        .collect()
+}
+
+/// What a synthesis run produced.
+#[derive(Debug, Clone, Serialize)]
+pub struct SynthReport {
+    pub scene: String,
+    pub source: PathBuf,
+    pub out_dir: PathBuf,
+    pub config: SynthConfig,
+    pub train_views: usize,
+    pub test_views: usize,
+    pub edited_views: usize,
+    pub instances: usize,
+    pub categories: Vec<String>,
+    pub scene_aabb: [[f32; 3]; 2],
+    pub camera_radius: f32,
+    pub seconds: f64,
+    pub rays_per_second: f64,
+}
+
+/// Progress of a run: views rendered so far and in all.
+pub type Progress<'a> = &'a mut dyn FnMut(usize, usize);
+
+/// Load and resolve a script with its geometry.
+pub fn load_scene(path: &Path) -> Result<(LoadedScript, AssetSet, ResolvedLayout), SynthError> {
+    let script = assetfield_layout::load(path)?;
+    let assets = AssetSet::from_script(&script)?;
+    let layout = resolve(&script, &assets)?;
+    Ok((script, assets, layout))
+}
+
+fn rel_name(split: &str, k: usize) -> String {
+    format!("./{split}/r_{k}")
+}
+
+fn transforms_for(cameras: &[(String, Camera)], fov: f32) -> TransformsFile {
+    TransformsFile {
+        camera_angle_x: Some(fov),
+        frames: cameras
+            .iter()
+            .map(|(path, c)| FrameEntry {
+                file_path: path.clone(),
+                transform_matrix: c.c2w_matrix().transpose().to_cols_array_2d(),
+                ..Default::default()
+            })
+            .collect(),
+        ..Default::default()
+    }
+}
+
+/// Render the dataset of a scene script into `out` (see the module docs for the layout).
+/// `edited` renders a second layout from the same test cameras into `out/edited`.
+pub fn synthesize(
+    scene: &Path,
+    opts: &SynthOptions,
+    out: &Path,
+    overwrite: bool,
+    edited: Option<&Path>,
+    progress: Progress<'_>,
+) -> Result<SynthReport, SynthError> {
+    let start = Instant::now();
+    let (script, assets, layout) = load_scene(scene)?;
+    let cfg = SynthConfig::resolve(opts, script.views.as_ref())?;
+    let light = Light::from_script(script.lighting.as_ref());
+    let world = Scene::new(&layout, &assets, light);
+    let edited_scene = match edited {
+        Some(p) => {
+            let (escript, eassets, elayout) = load_scene(p)?;
+            let light = Light::from_script(escript.lighting.as_ref().or(script.lighting.as_ref()));
+            Some((Scene::new(&elayout, &eassets, light), elayout))
+        }
+        None => None,
+    };
+
+    let bounds = world.bounds();
+    let rig = camera_rig(&bounds, &cfg);
+    let staging = StagingDir::new(out, overwrite)?;
+    let dir = staging.path().to_path_buf();
+    for sub in ["train", "test"] {
+        std::fs::create_dir_all(dir.join(sub))
+            .map_err(|e| assetfield_core::CoreError::io(dir.join(sub), e))?;
+    }
+    let n_edit = if edited_scene.is_some() { cfg.test_views as usize } else { 0 };
+    let total = rig.len() + n_edit;
+    let (mut train, mut test) = (Vec::new(), Vec::new());
+    for (k, view) in rig.iter().enumerate() {
+        interrupt::check()?;
+        let (split, list) = if view.test { ("test", &mut test) } else { ("train", &mut train) };
+        let name = rel_name(split, list.len());
+        let img = world.render(&view.camera, cfg.samples_per_side);
+        assetfield_core::fsx::save_png(
+            &dir.join(format!("{name}.png")),
+            &image::DynamicImage::ImageRgba8(img),
+        )?;
+        list.push((name, view.camera));
+        progress(k + 1, total);
+    }
+    let fov = cfg.fov_deg.to_radians();
+    write_transforms(&dir.join("transforms_train.json"), &transforms_for(&train, fov))?;
+    write_transforms(&dir.join("transforms_test.json"), &transforms_for(&test, fov))?;
+    let gt = GtLayout::from_resolved(&layout);
+    write_atomic(&dir.join("gt_layout.json"), gt.to_json().as_bytes())?;
+    layout_picture(&layout, &dir.join("layout.png"))?;
+
+    if let Some((escene, elayout)) = &edited_scene {
+        let edir = dir.join("edited");
+        std::fs::create_dir_all(edir.join("test"))
+            .map_err(|e| assetfield_core::CoreError::io(&edir, e))?;
+        for (k, (name, cam)) in test.iter().enumerate() {
+            interrupt::check()?;
+            let img = escene.render(cam, cfg.samples_per_side);
+            assetfield_core::fsx::save_png(
+                &edir.join(format!("{name}.png")),
+                &image::DynamicImage::ImageRgba8(img),
+            )?;
+            progress(rig.len() + k + 1, total);
+        }
+        write_transforms(&edir.join("transforms_test.json"), &transforms_for(&test, fov))?;
+        write_atomic(
+            &edir.join("gt_layout.json"),
+            GtLayout::from_resolved(elayout).to_json().as_bytes(),
+        )?;
+        layout_picture(elayout, &edir.join("layout.png"))?;
+    }
+
+    let seconds = start.elapsed().as_secs_f64();
+    let rays =
+        (total as f64) * (cfg.resolution as f64).powi(2) * (cfg.samples_per_side as f64).powi(2);
+    let report = SynthReport {
+        scene: layout.name.clone(),
+        source: std::fs::canonicalize(scene).unwrap_or_else(|_| scene.to_path_buf()),
+        out_dir: out.to_path_buf(),
+        config: cfg.clone(),
+        train_views: train.len(),
+        test_views: test.len(),
+        edited_views: n_edit,
+        instances: layout.objects().count(),
+        categories: layout.categories(),
+        scene_aabb: [bounds.min.to_array(), bounds.max.to_array()],
+        camera_radius: rig
+            .first()
+            .map(|v| (v.camera.position() - bounds.center()).length())
+            .unwrap_or(0.0),
+        seconds,
+        rays_per_second: rays / seconds.max(1e-9),
+    };
+    let json = serde_json::to_string_pretty(&report).expect("report serialises");
+    write_atomic(&dir.join("synth.json"), json.as_bytes())?;
+    staging.commit()?;
+    Ok(report)
+}
+
+/// A bird's-eye picture of a layout: every footprint outlined in its category's colour and
+/// numbered with its id; containers in grey; a legend of categories.
+pub fn layout_picture(layout: &ResolvedLayout, path: &Path) -> Result<(), SynthError> {
+    let (w, h) = (900u32, 760u32);
+    let mut c = Canvas::new(w, h, [255, 255, 255, 255]);
+    let all = layout.instances.iter().fold(layout.extent, |r, i| r.union(&i.bev_aabb));
+    let view = GroundView::fit(all, w, h - 110, 30.0);
+    let cats = layout.categories();
+    for inst in &layout.instances {
+        let color = if inst.container {
+            [190, 190, 190, 255]
+        } else {
+            palette(cats.iter().position(|k| k == &inst.category).unwrap_or(0))
+        };
+        let t = inst.transform;
+        let fp = inst.footprint;
+        let corners =
+            [fp.min, Vec2::new(fp.max.x, fp.min.y), fp.max, Vec2::new(fp.min.x, fp.max.y), fp.min]
+                .map(|p| view.to_pixel(t.transform_point2(p)));
+        c.polyline(&corners, if inst.container { 1.0 } else { 2.0 }, color);
+        if !inst.container {
+            // front marker: a short line from the centre towards local +X
+            let centre = view.to_pixel(t.position);
+            let front =
+                view.to_pixel(t.transform_point2(Vec2::new(fp.max.x, 0.5 * (fp.min.y + fp.max.y))));
+            c.line(centre, front, 1.0, color);
+            c.text(centre + Vec2::new(3.0, -9.0), &inst.id.to_string(), 1, [0, 0, 0, 255]);
+        }
+    }
+    let mut x = 20.0;
+    let mut y = h as f32 - 95.0;
+    c.text(
+        Vec2::new(20.0, y - 18.0),
+        &format!(
+            "{}: {} objects, {} categories",
+            layout.name,
+            layout.objects().count(),
+            cats.len()
+        ),
+        2,
+        [0, 0, 0, 255],
+    );
+    for (k, cat) in cats.iter().enumerate() {
+        let label = cat.clone();
+        let wpx = Canvas::text_width(&label, 2) as f32 + 40.0;
+        if x + wpx > w as f32 - 10.0 {
+            x = 20.0;
+            y += 24.0;
+        }
+        c.fill_rect(Vec2::new(x, y + 2.0), Vec2::new(x + 14.0, y + 14.0), palette(k));
+        c.text(Vec2::new(x + 20.0, y + 2.0), &label, 2, [0, 0, 0, 255]);
+        x += wpx;
+    }
+    c.save_png(path)?;
+    Ok(())
+}
