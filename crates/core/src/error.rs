@@ -21,6 +21,23 @@ pub enum CoreError {
     InvalidCamera(String),
     #[error("interrupted by the user (Ctrl-C); nothing was written")]
     Interrupted,
+    /// A tensor file lacks a tensor the caller needs.
+    #[error("{}: missing tensor \"{name}\" (present: {present})", path.display())]
+    TensorMissing { path: PathBuf, name: String, present: String },
+    /// A tensor exists but has another shape than the caller expects. (Boxed slices keep
+    /// `CoreError` no larger than its image variant.)
+    #[error("{}: tensor \"{name}\" has shape {actual:?}, expected {expected:?}", path.display())]
+    TensorShape { path: PathBuf, name: String, actual: Box<[usize]>, expected: Box<[usize]> },
+    /// A tensor exists but has another element type than the caller expects.
+    #[error("{}: tensor \"{name}\" has dtype {actual}, expected {expected}", path.display())]
+    TensorDtype { path: PathBuf, name: String, actual: String, expected: String },
+    /// A tensor file cannot be read or written (corrupt file, unsupported dtype, data that
+    /// does not fill its shape).
+    #[error("{}: {message}", path.display())]
+    TensorFormat { path: PathBuf, message: String },
+    /// A metadata entry of a tensor file is missing or is not the JSON the caller expects.
+    #[error("{}: metadata \"{key}\": {message}", path.display())]
+    TensorMeta { path: PathBuf, key: String, message: String },
 }
 
 impl CoreError {

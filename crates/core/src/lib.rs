@@ -13,8 +13,12 @@ pub mod error;
 pub mod fsx;
 pub mod ground;
 pub mod interrupt;
+pub mod metrics;
+pub mod plot;
+pub mod tensors;
 
 pub use bbox::{Aabb3, Rect2};
 pub use camera::{Camera, Distortion, Intrinsics, Ray};
 pub use error::CoreError;
 pub use ground::GroundTransform;
+pub use tensors::{Tensor, TensorData, TensorFile};

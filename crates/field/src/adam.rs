@@ -1,0 +1,57 @@
+//! Adam with a learning rate per parameter group (grids vs networks), applied in parallel
+//! over slices of the flat parameter buffer.
+
+use crate::params::{Group, ParamSet};
+use rayon::prelude::*;
+
+#[derive(Debug, Clone)]
+pub struct Adam {
+    pub beta1: f32,
+    pub beta2: f32,
+    pub eps: f32,
+    m: Vec<f32>,
+    v: Vec<f32>,
+    t: u32,
+}
+
+impl Adam {
+    pub fn new(n: usize) -> Self {
+        Adam { beta1: 0.9, beta2: 0.99, eps: 1e-8, m: vec![0.0; n], v: vec![0.0; n], t: 0 }
+    }
+
+    /// Forget the moments (after the parameter layout changed, as TensoRF does on upsampling).
+    pub fn reset(&mut self, n: usize) {
+        self.m = vec![0.0; n];
+        self.v = vec![0.0; n];
+        self.t = 0;
+    }
+
+    /// One update: `lr(group)` gives each group's current learning rate.
+    pub fn step(&mut self, params: &mut ParamSet, grad: &[f32], lr: impl Fn(Group) -> f32) {
+        self.t += 1;
+        let (b1, b2, eps) = (self.beta1, self.beta2, self.eps);
+        let c1 = 1.0 - b1.powi(self.t as i32);
+        let c2 = 1.0 - b2.powi(self.t as i32);
+        for spec in &params.specs {
+            let r = spec.offset..spec.offset + spec.len;
+            let alpha = lr(spec.group) / c1;
+            let (p, g, m, v) = (
+                &mut params.data[r.clone()],
+                &grad[r.clone()],
+                &mut self.m[r.clone()],
+                &mut self.v[r],
+            );
+            p.par_chunks_mut(4096)
+                .zip(g.par_chunks(4096))
+                .zip(m.par_chunks_mut(4096))
+                .zip(v.par_chunks_mut(4096))
+                .for_each(|(((p, g), m), v)| {
+                    for k in 0..p.len() {
+                        m[k] = b1 * m[k] + (1.0 - b1) * g[k];
+                        v[k] = b2 * v[k] + (1.0 - b2) * g[k] * g[k];
+                        p[k] -= alpha * m[k] / ((v[k] / c2).sqrt() + eps);
+                    }
+                });
+        }
+    }
+}

@@ -1,0 +1,20 @@
+//! Ground feature plane radiance fields (paper Sec. 3.1, 3.3): S-AssetField, I-AssetField and
+//! the TensoRF-VM baseline, built from the same blocks (plane-axis components, a colour basis,
+//! MLP or spherical-harmonics decoders), with hand-written fused forward and backward ray
+//! kernels, training and CPU rendering.
+
+pub mod adam;
+pub mod config;
+pub mod interp;
+pub mod march;
+pub mod mlp;
+pub mod model;
+pub mod occupancy;
+pub mod params;
+pub mod train;
+
+pub use config::{DecoderKind, FieldConfig, ModelKind};
+pub use march::{MarchSettings, MarchWork};
+pub use model::Field;
+pub use occupancy::Occupancy;
+pub use train::{StepStats, TrainConfig, Trainer, render_view};

@@ -1,0 +1,706 @@
+//! A field's tensors, how a point reads them (density per sample, colour in batched tiles),
+//! and the hand-written backward passes.
+
+use crate::config::{DecoderKind, FieldConfig, ModelKind};
+use crate::interp::{Bilinear, Linear};
+use crate::mlp::{dense_backward, dense_forward, relu, relu_backward, sigmoid, softplus};
+use crate::params::{Group, ParamSet};
+use glam::Vec3;
+
+/// A plane-axis pair: a plane over grid axes `axes[0]` (columns) and `axes[1]` (rows), and an
+/// optional line over `axes[2]`. Offsets point into the flat parameter buffer.
+#[derive(Debug, Clone, Copy)]
+pub struct Comp {
+    pub plane: usize,
+    pub line: Option<usize>,
+    pub axes: [usize; 3],
+    pub cols: usize,
+    pub rows: usize,
+    pub len: usize,
+    pub ch: usize,
+}
+
+impl Comp {
+    #[inline]
+    fn plane_at(&self, g: Vec3) -> Bilinear {
+        Bilinear::new(g[self.axes[0]], g[self.axes[1]], self.cols, self.rows, self.ch)
+    }
+    #[inline]
+    fn line_at(&self, g: Vec3) -> Linear {
+        Linear::new(g[self.axes[2]], self.len, self.ch)
+    }
+}
+
+/// A dense layer's weight `[out][inn]` and bias offsets.
+#[derive(Debug, Clone, Copy)]
+pub struct Dense {
+    pub w: usize,
+    pub b: usize,
+    pub inn: usize,
+    pub out: usize,
+}
+
+/// A radiance field on ground feature planes (or the VM baseline).
+#[derive(Debug, Clone)]
+pub struct Field {
+    pub config: FieldConfig,
+    pub params: ParamSet,
+    density: Vec<Comp>,
+    color: Vec<Comp>,
+    basis: usize,
+    decoder: Vec<Dense>,
+    guide: Vec<Dense>,
+    grid_min: Vec3,
+    grid_scale: Vec3,
+}
+
+const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
+
+/// Deterministic normal samples (Box-Muller over SplitMix64).
+struct Normal(u64);
+impl Normal {
+    fn next_u(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn normal(&mut self) -> f32 {
+        let u1 = self.next_u().max(1e-7);
+        let u2 = self.next_u();
+        (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
+    }
+}
+
+impl Field {
+    /// A new field with TensoRF-style random initialisation (grids ~ N(0, 0.1^2), layers
+    /// uniform in +-1/sqrt(fan_in)).
+    pub fn new(config: FieldConfig, seed: u64) -> Self {
+        let mut rng = Normal(seed ^ 0xA55E_7F1E);
+        let mut params = ParamSet::default();
+        let res = config.res;
+        let comps = |params: &mut ParamSet,
+                     rng: &mut Normal,
+                     prefix: &str,
+                     ch: usize,
+                     with_line: bool|
+         -> Vec<Comp> {
+            let sets: &[[usize; 3]] = if config.kind == ModelKind::Vm {
+                &[[0, 1, 2], [0, 2, 1], [1, 2, 0]]
+            } else {
+                &[[0, 1, 2]]
+            };
+            sets.iter()
+                .map(|&axes| {
+                    let (cols, rows, len) = (res[axes[0]], res[axes[1]], res[axes[2]]);
+                    let (pname, lname) = if config.kind == ModelKind::Vm {
+                        (
+                            format!(
+                                "{prefix}.plane_{}{}",
+                                AXIS_NAMES[axes[0]], AXIS_NAMES[axes[1]]
+                            ),
+                            format!("{prefix}.line_{}", AXIS_NAMES[axes[2]]),
+                        )
+                    } else {
+                        (format!("{prefix}.plane"), format!("{prefix}.axis"))
+                    };
+                    let plane =
+                        params.add(&pname, &[rows, cols, ch], Group::Grid, |_| 0.1 * rng.normal());
+                    let line = with_line.then(|| {
+                        params.add(&lname, &[len, ch], Group::Grid, |_| 0.1 * rng.normal())
+                    });
+                    Comp { plane, line, axes, cols, rows, len, ch }
+                })
+                .collect()
+        };
+        let density = comps(&mut params, &mut rng, "density", config.density_channels, true);
+        let color = comps(
+            &mut params,
+            &mut rng,
+            "color",
+            config.color_channels,
+            config.kind != ModelKind::Integrated,
+        );
+        let dense = |params: &mut ParamSet,
+                     rng: &mut Normal,
+                     name: &str,
+                     inn: usize,
+                     out: usize,
+                     with_bias: bool| {
+            let k = 1.0 / (inn as f32).sqrt();
+            let w = params.add(&format!("{name}.weight"), &[out, inn], Group::Network, |_| {
+                k * (2.0 * rng.next_u() - 1.0)
+            });
+            let b = if with_bias {
+                params.add(&format!("{name}.bias"), &[out], Group::Network, |_| {
+                    k * (2.0 * rng.next_u() - 1.0)
+                })
+            } else {
+                usize::MAX
+            };
+            Dense { w, b, inn, out }
+        };
+        let guide = if config.kind == ModelKind::Integrated {
+            vec![
+                dense(
+                    &mut params,
+                    &mut rng,
+                    "guide.0",
+                    config.density_channels,
+                    config.guide_hidden,
+                    true,
+                ),
+                dense(
+                    &mut params,
+                    &mut rng,
+                    "guide.1",
+                    config.guide_hidden,
+                    config.color_channels,
+                    true,
+                ),
+            ]
+        } else {
+            Vec::new()
+        };
+        let basis = dense(
+            &mut params,
+            &mut rng,
+            "color.basis",
+            config.app_dim(),
+            config.features_dim(),
+            false,
+        )
+        .w;
+        let decoder = match &config.decoder {
+            DecoderKind::Mlp { hidden, .. } => {
+                let mut inn = config.features_dim() + config.view_encoding_dim();
+                let mut layers = Vec::new();
+                for (k, &h) in hidden.iter().chain(std::iter::once(&3)).enumerate() {
+                    layers.push(dense(
+                        &mut params,
+                        &mut rng,
+                        &format!("decoder.{k}"),
+                        inn,
+                        h,
+                        true,
+                    ));
+                    inn = h;
+                }
+                layers
+            }
+            DecoderKind::Sh { .. } => Vec::new(),
+        };
+        let mut f = Field {
+            config,
+            params,
+            density,
+            color,
+            basis,
+            decoder,
+            guide,
+            grid_min: Vec3::ZERO,
+            grid_scale: Vec3::ONE,
+        };
+        f.update_grid_transform();
+        f
+    }
+
+    fn update_grid_transform(&mut self) {
+        let a = self.config.aabb();
+        let res = self.config.res;
+        self.grid_min = a.min;
+        self.grid_scale = Vec3::new((res[0] - 1) as f32, (res[1] - 1) as f32, (res[2] - 1) as f32)
+            / a.extent().max(Vec3::splat(1e-9));
+    }
+
+    /// World position to continuous grid coordinates.
+    #[inline]
+    pub fn to_grid(&self, p: Vec3) -> Vec3 {
+        (p - self.grid_min) * self.grid_scale
+    }
+
+    /// Density feature (before shift and softplus) at a world point.
+    #[inline]
+    pub fn density_feature(&self, p: Vec3) -> f32 {
+        let g = self.to_grid(p);
+        let d = &self.params.data;
+        let mut s = 0.0;
+        for c in &self.density {
+            let b = c.plane_at(g);
+            let l = c.line_at(g);
+            let line = c.line.expect("density components have lines");
+            let ch = c.ch;
+            let (p0, p1, p2, p3) = (
+                &d[c.plane + b.idx[0]..][..ch],
+                &d[c.plane + b.idx[1]..][..ch],
+                &d[c.plane + b.idx[2]..][..ch],
+                &d[c.plane + b.idx[3]..][..ch],
+            );
+            let (l0, l1) = (&d[line + l.idx[0]..][..ch], &d[line + l.idx[1]..][..ch]);
+            for k in 0..ch {
+                let m = b.w[0] * p0[k] + b.w[1] * p1[k] + b.w[2] * p2[k] + b.w[3] * p3[k];
+                let h = l.w[0] * l0[k] + l.w[1] * l1[k];
+                s += m * h;
+            }
+        }
+        s
+    }
+
+    /// Volume density at a world point.
+    #[inline]
+    pub fn density(&self, p: Vec3) -> f32 {
+        softplus(self.density_feature(p) + self.config.density_shift)
+    }
+
+    /// `d density_feature / d params * d_feat`, accumulated into `grad`.
+    #[inline]
+    pub fn density_backward(&self, p: Vec3, d_feat: f32, grad: &mut [f32]) {
+        let g = self.to_grid(p);
+        let d = &self.params.data;
+        for c in &self.density {
+            let b = c.plane_at(g);
+            let l = c.line_at(g);
+            let line = c.line.expect("density components have lines");
+            for k in 0..c.ch {
+                let m: f32 = (0..4).map(|t| b.w[t] * d[c.plane + b.idx[t] + k]).sum();
+                let h = l.w[0] * d[line + l.idx[0] + k] + l.w[1] * d[line + l.idx[1] + k];
+                let (dm, dh) = (d_feat * h, d_feat * m);
+                for t in 0..4 {
+                    grad[c.plane + b.idx[t] + k] += b.w[t] * dm;
+                }
+                grad[line + l.idx[0] + k] += l.w[0] * dh;
+                grad[line + l.idx[1] + k] += l.w[1] * dh;
+            }
+        }
+    }
+
+    /// Evaluate colours of the tile's samples (`work.pos`, `work.dir`) into `work.rgb`.
+    pub fn color_forward(&self, w: &mut ColorWork) {
+        let n = w.pos.len();
+        let cfg = &self.config;
+        let d = &self.params.data;
+        let app_dim = cfg.app_dim();
+        let fdim = cfg.features_dim();
+        w.resize(n, cfg, &self.decoder);
+        // 1. appearance features
+        match cfg.kind {
+            ModelKind::Standard | ModelKind::Vm => {
+                for j in 0..n {
+                    let g = self.to_grid(w.pos[j]);
+                    let mut off = 0;
+                    for c in &self.color {
+                        let (m, h) = (
+                            &mut w.m[j * app_dim + off..][..c.ch],
+                            &mut w.h[j * app_dim + off..][..c.ch],
+                        );
+                        c.plane_at(g).gather(&d[c.plane..], m);
+                        c.line_at(g).gather(&d[c.line.expect("colour line")..], h);
+                        let app = &mut w.app[j * app_dim + off..][..c.ch];
+                        for k in 0..c.ch {
+                            app[k] = m[k] * h[k];
+                        }
+                        off += c.ch;
+                    }
+                }
+            }
+            ModelKind::Integrated => {
+                let dc = &self.density[0];
+                let (nd, gh) = (dc.ch, cfg.guide_hidden);
+                for j in 0..n {
+                    let g = self.to_grid(w.pos[j]);
+                    let (gm, gl) = (&mut w.gm[j * nd..][..nd], &mut w.gh[j * nd..][..nd]);
+                    dc.plane_at(g).gather(&d[dc.plane..], gm);
+                    dc.line_at(g).gather(&d[dc.line.expect("density line")..], gl);
+                    for k in 0..nd {
+                        w.gin[j * nd + k] = gm[k] * gl[k];
+                    }
+                    let cc = &self.color[0];
+                    cc.plane_at(g).gather(&d[cc.plane..], &mut w.m[j * app_dim..][..app_dim]);
+                }
+                let (l0, l1) = (self.guide[0], self.guide[1]);
+                dense_forward(
+                    &d[l0.w..][..l0.inn * l0.out],
+                    Some(&d[l0.b..][..l0.out]),
+                    &w.gin,
+                    &mut w.ghid,
+                    n,
+                    nd,
+                    gh,
+                );
+                relu(&mut w.ghid[..n * gh]);
+                dense_forward(
+                    &d[l1.w..][..l1.inn * l1.out],
+                    Some(&d[l1.b..][..l1.out]),
+                    &w.ghid,
+                    &mut w.h,
+                    n,
+                    gh,
+                    app_dim,
+                );
+                for k in 0..n * app_dim {
+                    w.app[k] = w.m[k] * w.h[k];
+                }
+            }
+        }
+        // 2. basis
+        dense_forward(
+            &d[self.basis..][..fdim * app_dim],
+            None,
+            &w.app,
+            &mut w.feat,
+            n,
+            app_dim,
+            fdim,
+        );
+        // 3. decoder
+        match &cfg.decoder {
+            DecoderKind::Mlp { view_freqs, .. } => {
+                let inn = fdim + cfg.view_encoding_dim();
+                for j in 0..n {
+                    let x = &mut w.acts[0][j * inn..(j + 1) * inn];
+                    x[..fdim].copy_from_slice(&w.feat[j * fdim..(j + 1) * fdim]);
+                    encode_view(w.dir[j], *view_freqs, &mut x[fdim..]);
+                }
+                let last = self.decoder.len() - 1;
+                for (k, l) in self.decoder.iter().enumerate() {
+                    let (head, tail) = w.acts.split_at_mut(k + 1);
+                    let (x, y) = (&head[k], &mut tail[0]);
+                    dense_forward(
+                        &d[l.w..][..l.inn * l.out],
+                        Some(&d[l.b..][..l.out]),
+                        x,
+                        y,
+                        n,
+                        l.inn,
+                        l.out,
+                    );
+                    if k < last {
+                        relu(&mut y[..n * l.out]);
+                    }
+                }
+                let out = &w.acts[last + 1];
+                for k in 0..n * 3 {
+                    w.rgb[k] = sigmoid(out[k]);
+                }
+            }
+            DecoderKind::Sh { degree } => {
+                let kk = (degree + 1) * (degree + 1);
+                let mut y = [0.0f32; 9];
+                for j in 0..n {
+                    sh_basis(w.dir[j], *degree, &mut y);
+                    for c in 0..3 {
+                        let f = &w.feat[j * fdim + c * kk..][..kk];
+                        let z: f32 = (0..kk).map(|k| y[k] * f[k]).sum();
+                        w.rgb[j * 3 + c] = sigmoid(z);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Backward of [`Field::color_forward`] for `d_rgb` (`[n][3]`), accumulated into `grad`.
+    pub fn color_backward(&self, w: &mut ColorWork, d_rgb: &[f32], grad: &mut [f32]) {
+        let n = w.pos.len();
+        let cfg = &self.config;
+        let d = &self.params.data;
+        let app_dim = cfg.app_dim();
+        let fdim = cfg.features_dim();
+        // decoder
+        match &cfg.decoder {
+            DecoderKind::Mlp { .. } => {
+                let last = self.decoder.len() - 1;
+                // d pre-sigmoid
+                let mut dy = std::mem::take(&mut w.dtmp[last + 1]);
+                dy.resize(n * 3, 0.0);
+                for k in 0..n * 3 {
+                    dy[k] = d_rgb[k] * w.rgb[k] * (1.0 - w.rgb[k]);
+                }
+                for (k, l) in self.decoder.iter().enumerate().rev() {
+                    let mut dx = std::mem::take(&mut w.dtmp[k]);
+                    dx.resize(n * l.inn, 0.0);
+                    let (gw, gb) = split_wb(grad, l);
+                    dense_backward(
+                        &d[l.w..][..l.inn * l.out],
+                        &w.acts[k],
+                        &dy,
+                        Some(&mut dx),
+                        gw,
+                        Some(gb),
+                        n,
+                        l.inn,
+                        l.out,
+                    );
+                    if k > 0 {
+                        relu_backward(&w.acts[k][..n * l.inn], &mut dx);
+                    }
+                    w.dtmp[k + 1] = dy;
+                    dy = dx;
+                }
+                let inn = fdim + cfg.view_encoding_dim();
+                for j in 0..n {
+                    w.dfeat[j * fdim..(j + 1) * fdim].copy_from_slice(&dy[j * inn..j * inn + fdim]);
+                }
+                w.dtmp[0] = dy;
+            }
+            DecoderKind::Sh { degree } => {
+                let kk = (degree + 1) * (degree + 1);
+                let mut y = [0.0f32; 9];
+                for j in 0..n {
+                    sh_basis(w.dir[j], *degree, &mut y);
+                    for c in 0..3 {
+                        let r = w.rgb[j * 3 + c];
+                        let dz = d_rgb[j * 3 + c] * r * (1.0 - r);
+                        for k in 0..kk {
+                            w.dfeat[j * fdim + c * kk + k] = dz * y[k];
+                        }
+                    }
+                }
+            }
+        }
+        // basis
+        dense_backward(
+            &d[self.basis..][..fdim * app_dim],
+            &w.app,
+            &w.dfeat,
+            Some(&mut w.dapp),
+            &mut grad[self.basis..][..fdim * app_dim],
+            None,
+            n,
+            app_dim,
+            fdim,
+        );
+        // appearance features
+        match cfg.kind {
+            ModelKind::Standard | ModelKind::Vm => {
+                let mut dm = vec![0.0f32; 0];
+                for j in 0..n {
+                    let g = self.to_grid(w.pos[j]);
+                    let mut off = 0;
+                    for c in &self.color {
+                        dm.clear();
+                        dm.extend(
+                            (0..c.ch).map(|k| {
+                                w.dapp[j * app_dim + off + k] * w.h[j * app_dim + off + k]
+                            }),
+                        );
+                        c.plane_at(g).scatter(&mut grad[c.plane..], &dm);
+                        dm.clear();
+                        dm.extend(
+                            (0..c.ch).map(|k| {
+                                w.dapp[j * app_dim + off + k] * w.m[j * app_dim + off + k]
+                            }),
+                        );
+                        c.line_at(g).scatter(&mut grad[c.line.expect("colour line")..], &dm);
+                        off += c.ch;
+                    }
+                }
+            }
+            ModelKind::Integrated => {
+                let dc = self.density[0];
+                let (nd, gh) = (dc.ch, cfg.guide_hidden);
+                // d m_c = dapp * v ; d v = dapp * m_c
+                for k in 0..n * app_dim {
+                    w.dv[k] = w.dapp[k] * w.m[k];
+                    w.dapp[k] *= w.h[k];
+                }
+                let (l0, l1) = (self.guide[0], self.guide[1]);
+                let (gw, gb) = split_wb(grad, &l1);
+                dense_backward(
+                    &d[l1.w..][..l1.inn * l1.out],
+                    &w.ghid,
+                    &w.dv,
+                    Some(&mut w.dghid),
+                    gw,
+                    Some(gb),
+                    n,
+                    gh,
+                    app_dim,
+                );
+                relu_backward(&w.ghid[..n * gh], &mut w.dghid[..n * gh]);
+                let (gw, gb) = split_wb(grad, &l0);
+                dense_backward(
+                    &d[l0.w..][..l0.inn * l0.out],
+                    &w.gin,
+                    &w.dghid,
+                    Some(&mut w.dgin),
+                    gw,
+                    Some(gb),
+                    n,
+                    nd,
+                    gh,
+                );
+                let cc = self.color[0];
+                let mut tmp = vec![0.0f32; nd];
+                for j in 0..n {
+                    let g = self.to_grid(w.pos[j]);
+                    cc.plane_at(g)
+                        .scatter(&mut grad[cc.plane..], &w.dapp[j * app_dim..][..app_dim]);
+                    for k in 0..nd {
+                        tmp[k] = w.dgin[j * nd + k] * w.gh[j * nd + k];
+                    }
+                    dc.plane_at(g).scatter(&mut grad[dc.plane..], &tmp);
+                    for k in 0..nd {
+                        tmp[k] = w.dgin[j * nd + k] * w.gm[j * nd + k];
+                    }
+                    dc.line_at(g).scatter(&mut grad[dc.line.expect("density line")..], &tmp);
+                }
+            }
+        }
+    }
+
+    /// Components of the density field (for pictures and mining).
+    pub fn density_components(&self) -> &[Comp] {
+        &self.density
+    }
+    pub fn color_components(&self) -> &[Comp] {
+        &self.color
+    }
+}
+
+fn split_wb<'a>(grad: &'a mut [f32], l: &Dense) -> (&'a mut [f32], &'a mut [f32]) {
+    // weights and bias are adjacent (bias right after the weight) in the flat layout
+    debug_assert_eq!(l.b, l.w + l.inn * l.out);
+    let (w, rest) = grad[l.w..].split_at_mut(l.inn * l.out);
+    (w, &mut rest[..l.out])
+}
+
+/// View direction followed by `sin(2^k d)`, `cos(2^k d)` for `k < freqs`.
+#[inline]
+pub fn encode_view(d: Vec3, freqs: usize, out: &mut [f32]) {
+    out[..3].copy_from_slice(&d.to_array());
+    for k in 0..freqs {
+        let f = (1u32 << k) as f32;
+        for a in 0..3 {
+            out[3 + k * 6 + a] = (d[a] * f).sin();
+            out[3 + k * 6 + 3 + a] = (d[a] * f).cos();
+        }
+    }
+}
+
+/// Real spherical harmonics up to degree 2 (9 values) of a unit direction.
+#[inline]
+pub fn sh_basis(d: Vec3, degree: usize, y: &mut [f32; 9]) {
+    let (x, yy, z) = (d.x, d.y, d.z);
+    y[0] = 0.282_094_8;
+    if degree >= 1 {
+        y[1] = -0.488_602_5 * yy;
+        y[2] = 0.488_602_5 * z;
+        y[3] = -0.488_602_5 * x;
+    }
+    if degree >= 2 {
+        y[4] = 1.092_548_4 * x * yy;
+        y[5] = -1.092_548_4 * yy * z;
+        y[6] = 0.315_391_57 * (2.0 * z * z - x * x - yy * yy);
+        y[7] = -1.092_548_4 * x * z;
+        y[8] = 0.546_274_2 * (x * x - yy * yy);
+    }
+}
+
+/// Reusable buffers for a tile of colour samples (no allocation per sample).
+#[derive(Debug, Default, Clone)]
+pub struct ColorWork {
+    pub pos: Vec<Vec3>,
+    pub dir: Vec<Vec3>,
+    pub rgb: Vec<f32>,
+    m: Vec<f32>,
+    h: Vec<f32>,
+    app: Vec<f32>,
+    feat: Vec<f32>,
+    acts: Vec<Vec<f32>>,
+    dtmp: Vec<Vec<f32>>,
+    dfeat: Vec<f32>,
+    dapp: Vec<f32>,
+    gm: Vec<f32>,
+    gh: Vec<f32>,
+    gin: Vec<f32>,
+    ghid: Vec<f32>,
+    dv: Vec<f32>,
+    dghid: Vec<f32>,
+    dgin: Vec<f32>,
+}
+
+impl ColorWork {
+    pub fn clear(&mut self) {
+        self.pos.clear();
+        self.dir.clear();
+    }
+
+    fn resize(&mut self, n: usize, cfg: &FieldConfig, decoder: &[Dense]) {
+        let a = cfg.app_dim();
+        let f = cfg.features_dim();
+        for (v, len) in [
+            (&mut self.rgb, n * 3),
+            (&mut self.m, n * a),
+            (&mut self.h, n * a),
+            (&mut self.app, n * a),
+            (&mut self.feat, n * f),
+            (&mut self.dfeat, n * f),
+            (&mut self.dapp, n * a),
+            (&mut self.dv, n * a),
+        ] {
+            v.resize(len, 0.0);
+        }
+        if cfg.kind == ModelKind::Integrated {
+            let (nd, gh) = (cfg.density_channels, cfg.guide_hidden);
+            for (v, len) in [
+                (&mut self.gm, n * nd),
+                (&mut self.gh, n * nd),
+                (&mut self.gin, n * nd),
+                (&mut self.ghid, n * gh),
+                (&mut self.dghid, n * gh),
+                (&mut self.dgin, n * nd),
+            ] {
+                v.resize(len, 0.0);
+            }
+        }
+        if !decoder.is_empty() {
+            self.acts.resize(decoder.len() + 1, Vec::new());
+            self.dtmp.resize(decoder.len() + 2, Vec::new());
+            self.acts[0].resize(n * decoder[0].inn, 0.0);
+            for (k, l) in decoder.iter().enumerate() {
+                self.acts[k + 1].resize(n * l.out, 0.0);
+            }
+        }
+    }
+}
+
+impl Field {
+    /// The same field at another plane resolution (coarse-to-fine): grids are resampled
+    /// bilinearly (align corners), networks copied.
+    pub fn resized(&self, plane_res: usize) -> Field {
+        let mut cfg = self.config.clone();
+        cfg.res = cfg.resolution_for(plane_res);
+        let mut out = Field::new(cfg, 0);
+        for spec in out.params.specs.clone() {
+            let old = self.params.spec(&spec.name).expect("same model kind, same tensor names");
+            let src = &self.params.data[old.offset..old.offset + old.len];
+            let dst = match (spec.group, spec.shape.as_slice()) {
+                (Group::Grid, [rows, cols, ch]) => crate::interp::resample_plane(
+                    src,
+                    old.shape[1],
+                    old.shape[0],
+                    *ch,
+                    *cols,
+                    *rows,
+                ),
+                (Group::Grid, [len, ch]) => {
+                    crate::interp::resample_line(src, old.shape[0], *ch, *len)
+                }
+                _ => src.to_vec(),
+            };
+            out.params.data[spec.offset..spec.offset + spec.len].copy_from_slice(&dst);
+        }
+        out
+    }
+
+    /// Offsets and lengths of the density grid tensors (for L1 regularisation).
+    pub fn density_grid_ranges(&self) -> Vec<std::ops::Range<usize>> {
+        self.params
+            .specs
+            .iter()
+            .filter(|s| s.name.starts_with("density."))
+            .map(|s| s.offset..s.offset + s.len)
+            .collect()
+    }
+}

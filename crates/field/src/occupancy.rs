@@ -1,0 +1,72 @@
+//! An occupancy grid over the scene box: cells where the field is (nearly) transparent are
+//! skipped while marching. Rebuilt from the density every few hundred iterations.
+
+use crate::model::Field;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// A boolean grid over the field's bounds.
+#[derive(Debug, Clone)]
+pub struct Occupancy {
+    pub res: [usize; 3],
+    min: Vec3,
+    scale: Vec3,
+    cells: Vec<bool>,
+}
+
+impl Occupancy {
+    /// Every cell occupied (the state before any training).
+    pub fn full(field: &Field, res: [usize; 3]) -> Self {
+        let a = field.config.aabb();
+        let scale = Vec3::new(res[0] as f32, res[1] as f32, res[2] as f32)
+            / a.extent().max(Vec3::splat(1e-9));
+        Occupancy { res, min: a.min, scale, cells: vec![true; res[0] * res[1] * res[2]] }
+    }
+
+    /// Mark a cell occupied when the opacity of one march step, at the cell's centre or at
+    /// any of its corners, exceeds `alpha_threshold`.
+    pub fn from_field(field: &Field, res: [usize; 3], alpha_threshold: f32) -> Self {
+        let mut o = Occupancy::full(field, res);
+        let step = field.config.step_size() * field.config.distance_scale;
+        let cell = Vec3::ONE / o.scale;
+        let min = o.min;
+        let [nx, ny, _] = res;
+        o.cells.par_chunks_mut(nx * ny).enumerate().for_each(|(k, slab)| {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let lo = min + Vec3::new(i as f32, j as f32, k as f32) * cell;
+                    let probes = [
+                        Vec3::splat(0.5),
+                        Vec3::ZERO,
+                        Vec3::X,
+                        Vec3::Y,
+                        Vec3::Z,
+                        Vec3::new(1.0, 1.0, 0.0),
+                        Vec3::new(1.0, 0.0, 1.0),
+                        Vec3::new(0.0, 1.0, 1.0),
+                        Vec3::ONE,
+                    ];
+                    slab[j * nx + i] = probes.iter().any(|p| {
+                        let sigma = field.density(lo + *p * cell);
+                        1.0 - (-sigma * step).exp() > alpha_threshold
+                    });
+                }
+            }
+        });
+        o
+    }
+
+    #[inline]
+    pub fn occupied(&self, p: Vec3) -> bool {
+        let g = (p - self.min) * self.scale;
+        let i = (g.x as isize).clamp(0, self.res[0] as isize - 1) as usize;
+        let j = (g.y as isize).clamp(0, self.res[1] as isize - 1) as usize;
+        let k = (g.z as isize).clamp(0, self.res[2] as isize - 1) as usize;
+        self.cells[(k * self.res[1] + j) * self.res[0] + i]
+    }
+
+    /// Fraction of occupied cells.
+    pub fn fill(&self) -> f32 {
+        self.cells.iter().filter(|c| **c).count() as f32 / self.cells.len().max(1) as f32
+    }
+}

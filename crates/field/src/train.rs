@@ -1,0 +1,391 @@
+//! Training a field from posed images: random ray batches over all training views, the fused
+//! forward/backward kernel in deterministic chunks across threads, Adam with TensoRF-style
+//! rates and exponential decay, coarse-to-fine plane resolution, an occupancy grid for empty
+//! space, L1 and TV regularisers.
+
+use crate::adam::Adam;
+use crate::config::{FieldConfig, ModelKind};
+use crate::march::{self, MarchSettings, MarchWork};
+use crate::model::Field;
+use crate::occupancy::Occupancy;
+use crate::params::Group;
+use assetfield_core::{Camera, Ray};
+use assetfield_data::Dataset;
+use glam::Vec3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// Training settings, validated and ready to run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainConfig {
+    pub kind: ModelKind,
+    /// Rays per iteration.
+    pub batch: usize,
+    /// Stop after this many iterations (or when the time budget runs out, if set).
+    pub iters: u64,
+    /// Time budget in seconds.
+    pub seconds: Option<f64>,
+    /// Plane resolution at the start and at the end of coarse-to-fine training.
+    pub plane_res_start: usize,
+    pub plane_res_final: usize,
+    /// Progress fractions (0..1) at which the resolution steps up, evenly in voxel count.
+    pub upsample_at: Vec<f64>,
+    /// Progress fractions at which the occupancy grid is rebuilt.
+    pub occupancy_at: Vec<f64>,
+    pub lr_grid: f32,
+    pub lr_network: f32,
+    /// Learning rates decay exponentially to this fraction at the end.
+    pub lr_decay_target: f32,
+    pub l1_weight: f32,
+    pub tv_weight_density: f32,
+    pub tv_weight_color: f32,
+    pub background: [f32; 3],
+    pub seed: u64,
+    /// Chunks per batch (fixed so results do not depend on scheduling).
+    pub chunks: usize,
+}
+
+impl TrainConfig {
+    /// TensoRF-style defaults (final plane 300 x 300 as in the paper).
+    pub fn new(kind: ModelKind) -> Self {
+        TrainConfig {
+            kind,
+            batch: 4096,
+            iters: 30_000,
+            seconds: None,
+            plane_res_start: 128,
+            plane_res_final: 300,
+            upsample_at: vec![0.07, 0.1, 0.14, 0.18, 0.23],
+            occupancy_at: vec![0.07, 0.14, 0.3, 0.5],
+            lr_grid: 0.02,
+            lr_network: 1e-3,
+            lr_decay_target: 0.1,
+            l1_weight: 8e-5,
+            tv_weight_density: 0.0,
+            tv_weight_color: 0.0,
+            background: [1.0; 3],
+            seed: 20230,
+            chunks: 8,
+        }
+    }
+}
+
+/// Iterations before the first occupancy grid, unless the whole run is shorter.
+const MIN_ITERS_BEFORE_OCCUPANCY: u64 = 1000;
+
+/// One training image in memory: camera and RGB pixels.
+#[derive(Debug, Clone)]
+struct View {
+    camera: Camera,
+    rgb: Vec<f32>,
+}
+
+/// What one iteration did.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StepStats {
+    pub iter: u64,
+    pub loss: f32,
+    pub psnr: f32,
+    pub samples: usize,
+    pub seconds: f64,
+}
+
+/// A training run in progress.
+#[derive(Debug)]
+pub struct Trainer {
+    pub config: TrainConfig,
+    pub field: Field,
+    pub occupancy: Option<Occupancy>,
+    pub iter: u64,
+    /// (elapsed seconds, iteration, batch PSNR) every few iterations.
+    pub history: Vec<(f64, u64, f32)>,
+    adam: Adam,
+    views: Vec<View>,
+    width: u32,
+    height: u32,
+    rng: u64,
+    work: Vec<(MarchWork, Vec<f32>)>,
+    grad: Vec<f32>,
+    elapsed_before: f64,
+    started: Instant,
+    upsampled: usize,
+    occupancy_done: usize,
+}
+
+fn split_mix(s: &mut u64) -> u64 {
+    *s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *s;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+impl Trainer {
+    /// Start training on `data` within the scene box `aabb` of `field_config`.
+    pub fn new(data: &Dataset, field_config: FieldConfig, config: TrainConfig) -> Self {
+        let views: Vec<View> = data
+            .frames
+            .iter()
+            .map(|f| View { camera: f.camera, rgb: f.image.rgb.clone() })
+            .collect();
+        let (width, height) = data.resolution();
+        let mut fc = field_config;
+        fc.kind = config.kind;
+        fc.res = fc.resolution_for(config.plane_res_start);
+        let field = Field::new(fc, config.seed);
+        let n = field.params.len();
+        Trainer {
+            adam: Adam::new(n),
+            grad: vec![0.0; n],
+            work: (0..config.chunks).map(|_| (MarchWork::default(), vec![0.0; n])).collect(),
+            rng: config.seed,
+            config,
+            field,
+            occupancy: None,
+            iter: 0,
+            history: Vec::new(),
+            views,
+            width,
+            height,
+            elapsed_before: 0.0,
+            started: Instant::now(),
+            upsampled: 0,
+            occupancy_done: 0,
+        }
+    }
+
+    /// Seconds of training so far (across resumes).
+    pub fn elapsed(&self) -> f64 {
+        self.elapsed_before + self.started.elapsed().as_secs_f64()
+    }
+
+    /// Fraction of the run done: iterations or time, whichever is further along.
+    pub fn progress(&self) -> f64 {
+        let by_iter = self.iter as f64 / self.config.iters.max(1) as f64;
+        let by_time = self.config.seconds.map_or(0.0, |s| self.elapsed() / s.max(1e-9));
+        by_iter.max(by_time).min(1.0)
+    }
+
+    pub fn finished(&self) -> bool {
+        self.progress() >= 1.0
+    }
+
+    fn plane_res_at(&self, stage: usize) -> usize {
+        // evenly spaced in voxel count (cubed resolution), as TensoRF's upsampling list
+        let (a, b) = (self.config.plane_res_start as f64, self.config.plane_res_final as f64);
+        let n = self.config.upsample_at.len().max(1) as f64;
+        let t = stage as f64 / n;
+        (a.powi(3) + (b.powi(3) - a.powi(3)) * t).cbrt().round() as usize
+    }
+
+    fn resize_to(&mut self, plane_res: usize) {
+        self.field = self.field.resized(plane_res);
+        let n = self.field.params.len();
+        self.adam.reset(n);
+        self.grad = vec![0.0; n];
+        for (_, g) in &mut self.work {
+            *g = vec![0.0; n];
+        }
+        if self.occupancy.is_some() {
+            self.rebuild_occupancy();
+        }
+    }
+
+    /// Rebuild the occupancy grid from the current density (half the plane resolution). A
+    /// grid with almost nothing occupied means the density has not formed yet: it is not
+    /// used (marching everything is slow but never loses the scene).
+    pub fn rebuild_occupancy(&mut self) {
+        let r = self.field.config.res;
+        let res = [(r[0] / 2).max(8), (r[1] / 2).max(8), (r[2] / 2).max(8)];
+        let occ = Occupancy::from_field(&self.field, res, 1e-4);
+        self.occupancy = (occ.fill() > 1e-4).then_some(occ);
+    }
+
+    fn learning_rate(&self, g: Group) -> f32 {
+        let base = match g {
+            Group::Grid => self.config.lr_grid,
+            Group::Network => self.config.lr_network,
+        };
+        base * self.config.lr_decay_target.powf(self.progress() as f32)
+    }
+
+    /// One iteration: a batch of random training rays, forward, backward, Adam.
+    pub fn step(&mut self) -> StepStats {
+        let t0 = Instant::now();
+        // scheduled events
+        while self.upsampled < self.config.upsample_at.len()
+            && self.progress() >= self.config.upsample_at[self.upsampled]
+        {
+            self.upsampled += 1;
+            let r = self.plane_res_at(self.upsampled);
+            self.resize_to(r);
+        }
+        // the first grid waits until the density has had time to form (TensoRF: 2000 its)
+        while self.occupancy_done < self.config.occupancy_at.len()
+            && self.progress() >= self.config.occupancy_at[self.occupancy_done]
+            && self.iter >= MIN_ITERS_BEFORE_OCCUPANCY.min(self.config.iters / 4)
+        {
+            self.occupancy_done += 1;
+            self.rebuild_occupancy();
+        }
+        let batch = self.config.batch;
+        let (w, h) = (self.width as u64, self.height as u64);
+        let n_views = self.views.len() as u64;
+        let picks: Vec<(u32, u32, u32, f32)> = (0..batch)
+            .map(|_| {
+                let r = split_mix(&mut self.rng);
+                let v = (r % n_views) as u32;
+                let px = (r / n_views) % (w * h);
+                let j = split_mix(&mut self.rng);
+                (v, (px % w) as u32, (px / w) as u32, (j >> 40) as f32 / (1u64 << 24) as f32)
+            })
+            .collect();
+        let chunk = batch.div_ceil(self.work.len());
+        let bg = Vec3::from(self.config.background);
+        let settings = MarchSettings::default();
+        let scale = 2.0 / (batch as f32 * 3.0);
+        let (field, occ, views) = (&self.field, self.occupancy.as_ref(), &self.views);
+        let results: Vec<(f32, usize)> = self
+            .work
+            .par_iter_mut()
+            .zip(picks.par_chunks(chunk))
+            .map(|((work, grad), picks)| {
+                grad.fill(0.0);
+                let mut rays = Vec::with_capacity(picks.len());
+                let mut targets = Vec::with_capacity(picks.len());
+                let mut jitter = Vec::with_capacity(picks.len());
+                for &(v, i, j, jit) in picks {
+                    let view = &views[v as usize];
+                    rays.push(view.camera.pixel_ray(i, j));
+                    let k = ((j as usize) * view.camera.intrinsics.width as usize + i as usize) * 3;
+                    targets.push(Vec3::new(view.rgb[k], view.rgb[k + 1], view.rgb[k + 2]));
+                    jitter.push(jit);
+                }
+                march::forward(field, occ, &rays, Some(&jitter), bg, &settings, work);
+                let mut sse = 0.0;
+                let d: Vec<Vec3> = work
+                    .rgb
+                    .iter()
+                    .zip(&targets)
+                    .map(|(c, t)| {
+                        sse += (*c - *t).length_squared();
+                        (*c - *t) * scale
+                    })
+                    .collect();
+                march::backward(field, bg, &d, work, grad);
+                (sse, work.samples)
+            })
+            .collect();
+        // deterministic reduction: chunk buffers summed in order
+        let bufs: Vec<&Vec<f32>> = self.work.iter().map(|(_, g)| g).collect();
+        self.grad.par_chunks_mut(8192).enumerate().for_each(|(c, out)| {
+            let (off, len) = (c * 8192, out.len());
+            out.copy_from_slice(&bufs[0][off..off + len]);
+            for b in &bufs[1..] {
+                for (o, v) in out.iter_mut().zip(&b[off..off + len]) {
+                    *o += v;
+                }
+            }
+        });
+        self.regularise();
+        let lr = |g| self.learning_rate(g);
+        let (lg, ln) = (lr(Group::Grid), lr(Group::Network));
+        self.adam.step(&mut self.field.params, &self.grad, |g| match g {
+            Group::Grid => lg,
+            Group::Network => ln,
+        });
+        self.iter += 1;
+        let sse: f32 = results.iter().map(|r| r.0).sum();
+        let mse = sse / (batch as f32 * 3.0);
+        let psnr = -10.0 * mse.max(1e-12).log10();
+        if self.iter.is_multiple_of(10) || self.iter == 1 {
+            self.history.push((self.elapsed(), self.iter, psnr));
+        }
+        StepStats {
+            iter: self.iter,
+            loss: mse,
+            psnr,
+            samples: results.iter().map(|r| r.1).sum(),
+            seconds: t0.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// L1 on the density grids (sparsity) and total variation on the planes.
+    fn regularise(&mut self) {
+        let l1 = self.config.l1_weight;
+        if l1 > 0.0 {
+            for r in self.field.density_grid_ranges() {
+                let k = l1 / r.len() as f32;
+                for i in r {
+                    self.grad[i] += k * self.field.params.data[i].signum();
+                }
+            }
+        }
+        for (prefix, weight) in
+            [("density.", self.config.tv_weight_density), ("color.", self.config.tv_weight_color)]
+        {
+            if weight <= 0.0 {
+                continue;
+            }
+            for spec in self
+                .field
+                .params
+                .specs
+                .iter()
+                .filter(|s| s.name.starts_with(prefix) && s.shape.len() == 3)
+            {
+                let (rows, cols, ch) = (spec.shape[0], spec.shape[1], spec.shape[2]);
+                let p = &self.field.params.data[spec.offset..spec.offset + spec.len];
+                let g = &mut self.grad[spec.offset..spec.offset + spec.len];
+                let k = 2.0 * weight / spec.len as f32;
+                for r in 0..rows {
+                    for c in 0..cols {
+                        for q in 0..ch {
+                            let i = (r * cols + c) * ch + q;
+                            if c + 1 < cols {
+                                let d = p[i + ch] - p[i];
+                                g[i + ch] += k * d;
+                                g[i] -= k * d;
+                            }
+                            if r + 1 < rows {
+                                let d = p[i + cols * ch] - p[i];
+                                g[i + cols * ch] += k * d;
+                                g[i] -= k * d;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Render a full view with the field (rows in parallel, chunks of rays).
+pub fn render_view(
+    field: &Field,
+    occ: Option<&Occupancy>,
+    camera: &Camera,
+    background: Vec3,
+) -> Vec<f32> {
+    let (w, h) = (camera.intrinsics.width as usize, camera.intrinsics.height as usize);
+    let mut out = vec![0.0f32; w * h * 3];
+    let settings = MarchSettings::default();
+    let rows_per_task = (1024 / w.max(1)).max(1);
+    out.par_chunks_mut(w * 3 * rows_per_task).enumerate().for_each_init(
+        MarchWork::default,
+        |work, (t, dst)| {
+            let j0 = t * rows_per_task;
+            let rows = dst.len() / (w * 3);
+            let rays: Vec<Ray> = (0..rows)
+                .flat_map(|dj| (0..w).map(move |i| (i, j0 + dj)))
+                .map(|(i, j)| camera.pixel_ray(i as u32, j as u32))
+                .collect();
+            march::forward(field, occ, &rays, None, background, &settings, work);
+            for (k, c) in work.rgb.iter().enumerate() {
+                dst[k * 3..k * 3 + 3].copy_from_slice(&c.to_array());
+            }
+        },
+    );
+    out
+}
