@@ -6,7 +6,9 @@ mod commands;
 use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 
-pub use commands::{InspectArgs, LayoutArgs, SynthArgs};
+pub use commands::{
+    EvalArgs, InspectArgs, LayoutArgs, PlanesArgs, RenderArgs, SynthArgs, TrainArgs,
+};
 
 /// AssetField: editable neural scenes on ground feature planes.
 ///
@@ -47,6 +49,30 @@ pub enum Command {
     /// Check a layout script without rendering: resolve it and list every instance with its
     /// id, key, category and world transform; optionally draw it from above.
     Layout(LayoutArgs),
+    /// Train a radiance field on ground feature planes from a dataset.
+    ///
+    /// S-AssetField (--model s), I-AssetField (i) or the TensoRF-VM baseline (vm), Z up, planes
+    /// on the ground (XY). Shows a progress bar (iteration, loss, batch PSNR, rays/s, plane
+    /// resolution, time left); saves a checkpoint next to the output every few minutes, on
+    /// Ctrl-C (exit 130; continue with --resume) and at the end. Writes the field file
+    /// (safetensors: tensors, model config and metadata: training history, dataset, box,
+    /// background, ground alignment) only when training is complete.
+    Train(TrainArgs),
+    /// Render held-out views with a trained field and measure PSNR and SSIM.
+    ///
+    /// Writes DIR/metrics.json (mean psnr and ssim, per-view values, seconds per view, model,
+    /// resolution), DIR/render/r_K.png and DIR/error/r_K.png (absolute error, dark = exact,
+    /// yellow >= 0.25). SSIM as TensoRF / mip-NeRF: 11x11 Gaussian window, sigma 1.5.
+    Eval(EvalArgs),
+    /// Render a trained field from a dataset's cameras or on a turntable into PNGs.
+    Render(RenderArgs),
+    /// Draw a field's ground feature planes and training curve (the paper's Fig. 3).
+    ///
+    /// density.png (max opacity over each vertical column), density_pca.png and color_pca.png
+    /// (PCA false colour of the ground planes; for VM the XY planes, for I-AssetField the
+    /// integrated colour plane), curve.png (PSNR against seconds) and planes.json. Seen from
+    /// above: +x right, +y up.
+    Planes(PlanesArgs),
 }
 
 /// Run the CLI on the given arguments (first = program name); returns the exit code:
@@ -99,6 +125,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Synth(a) => commands::synth(a),
         Command::Inspect(a) => commands::inspect(a),
         Command::Layout(a) => commands::layout(a),
+        Command::Train(a) => commands::train(a),
+        Command::Eval(a) => commands::eval(a),
+        Command::Render(a) => commands::render(a),
+        Command::Planes(a) => commands::planes(a),
     }
 }
 

@@ -194,6 +194,10 @@ pub enum DataError {
     #[error("invalid load option: {0}")]
     InvalidOption(String),
 
+    /// The cameras cannot be levelled (too few, degenerate positions).
+    #[error("cannot level the cameras (--align-ground pca): {0}")]
+    Alignment(String),
+
     /// An error from the core layer (writing files, pictures).
     #[error(transparent)]
     Core(#[from] CoreError),

@@ -3,8 +3,10 @@
 //! Reads NeRF-synthetic (`transforms_{train,val,test}.json`) and nerfstudio / instant-ngp
 //! (`transforms.json`) datasets into cameras ([`assetfield_core::Camera`], OpenGL camera axes,
 //! camera-to-world) and floating-point images composited onto a background; writes the same
-//! schema; produces rays, a summary for `assetfield inspect` and a top-down camera map.
+//! schema; produces rays, a summary for `assetfield inspect` and a top-down camera map;
+//! levels captures whose up axis is unknown and guesses scene bounds from cameras.
 
+pub mod align;
 pub mod dataset;
 pub mod error;
 pub mod image_f32;
@@ -13,6 +15,7 @@ pub mod rays;
 pub mod schema;
 pub mod summary;
 
+pub use align::{GroundAlignment, bounds_from_cameras};
 pub use dataset::{Dataset, DatasetCameras, Format, Frame, LoadOptions, Split, View};
 pub use error::{DataError, FrameRef};
 pub use image_f32::ImageF32;

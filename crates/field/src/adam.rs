@@ -19,6 +19,18 @@ impl Adam {
         Adam { beta1: 0.9, beta2: 0.99, eps: 1e-8, m: vec![0.0; n], v: vec![0.0; n], t: 0 }
     }
 
+    /// The optimiser state `(m, v, t)` for checkpoints.
+    pub fn state(&self) -> (&[f32], &[f32], u32) {
+        (&self.m, &self.v, self.t)
+    }
+
+    /// Restore a state saved with [`Adam::state`].
+    pub fn set_state(&mut self, m: Vec<f32>, v: Vec<f32>, t: u32) {
+        self.m = m;
+        self.v = v;
+        self.t = t;
+    }
+
     /// Forget the moments (after the parameter layout changed, as TensoRF does on upsampling).
     pub fn reset(&mut self, n: usize) {
         self.m = vec![0.0; n];

@@ -6,6 +6,7 @@
 pub mod adam;
 pub mod config;
 pub mod interp;
+pub mod io;
 pub mod march;
 pub mod mlp;
 pub mod model;
@@ -14,7 +15,10 @@ pub mod params;
 pub mod train;
 
 pub use config::{DecoderKind, FieldConfig, ModelKind};
+pub use io::FieldError;
 pub use march::{MarchSettings, MarchWork};
 pub use model::Field;
 pub use occupancy::Occupancy;
 pub use train::{StepStats, TrainConfig, Trainer, render_view};
+pub mod eval;
+pub mod pictures;

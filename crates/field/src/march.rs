@@ -88,7 +88,7 @@ pub fn forward(
                 }
                 let feat = field.density_feature(p);
                 let sigma = crate::mlp::softplus(feat + shift);
-                let alpha = 1.0 - (-sigma * delta).exp();
+                let alpha = -crate::mlp::fast_expm1(-sigma * delta);
                 if alpha <= 0.0 {
                     continue;
                 }

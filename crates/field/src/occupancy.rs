@@ -48,7 +48,7 @@ impl Occupancy {
                     ];
                     slab[j * nx + i] = probes.iter().any(|p| {
                         let sigma = field.density(lo + *p * cell);
-                        1.0 - (-sigma * step).exp() > alpha_threshold
+                        -crate::mlp::fast_expm1(-sigma * step) > alpha_threshold
                     });
                 }
             }
@@ -63,6 +63,18 @@ impl Occupancy {
         let j = (g.y as isize).clamp(0, self.res[1] as isize - 1) as usize;
         let k = (g.z as isize).clamp(0, self.res[2] as isize - 1) as usize;
         self.cells[(k * self.res[1] + j) * self.res[0] + i]
+    }
+
+    /// Cells as bytes (1 = occupied), x fastest, then y, then z.
+    pub fn cells_u8(&self) -> Vec<u8> {
+        self.cells.iter().map(|c| u8::from(*c)).collect()
+    }
+
+    /// A grid from stored cells (see [`Occupancy::cells_u8`]).
+    pub fn from_cells(field: &Field, res: [usize; 3], cells: &[u8]) -> Self {
+        let mut o = Occupancy::full(field, res);
+        o.cells = cells.iter().map(|c| *c != 0).collect();
+        o
     }
 
     /// Fraction of occupied cells.

@@ -5,10 +5,12 @@
 
 use crate::adam::Adam;
 use crate::config::{FieldConfig, ModelKind};
+use crate::io::FieldError;
 use crate::march::{self, MarchSettings, MarchWork};
 use crate::model::Field;
 use crate::occupancy::Occupancy;
 use crate::params::Group;
+use assetfield_core::TensorFile;
 use assetfield_core::{Camera, Ray};
 use assetfield_data::Dataset;
 use glam::Vec3;
@@ -66,13 +68,14 @@ impl TrainConfig {
             tv_weight_color: 0.0,
             background: [1.0; 3],
             seed: 20230,
-            chunks: 8,
+            chunks: 4,
         }
     }
 }
 
-/// Iterations before the first occupancy grid, unless the whole run is shorter.
-const MIN_ITERS_BEFORE_OCCUPANCY: u64 = 1000;
+/// Iterations before the first occupancy grid: before that the density has not formed and
+/// a grid would mark the scene empty for good (short runs never use one).
+const MIN_ITERS_BEFORE_OCCUPANCY: u64 = 500;
 
 /// One training image in memory: camera and RGB pixels.
 #[derive(Debug, Clone)]
@@ -224,7 +227,7 @@ impl Trainer {
         // the first grid waits until the density has had time to form (TensoRF: 2000 its)
         while self.occupancy_done < self.config.occupancy_at.len()
             && self.progress() >= self.config.occupancy_at[self.occupancy_done]
-            && self.iter >= MIN_ITERS_BEFORE_OCCUPANCY.min(self.config.iters / 4)
+            && self.iter >= MIN_ITERS_BEFORE_OCCUPANCY
         {
             self.occupancy_done += 1;
             self.rebuild_occupancy();
@@ -358,6 +361,87 @@ impl Trainer {
                 }
             }
         }
+    }
+}
+
+/// Everything besides tensors that a checkpoint must restore.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct TrainState {
+    config: TrainConfig,
+    iter: u64,
+    elapsed: f64,
+    rng: u64,
+    upsampled: usize,
+    occupancy_done: usize,
+    adam_t: u32,
+    history: Vec<(f64, u64, f32)>,
+}
+
+impl Trainer {
+    /// The field, the optimiser moments and the run's state in one tensor file (the field's
+    /// own tensors keep their names, so a checkpoint also opens as a field).
+    pub fn checkpoint(&self) -> Result<TensorFile, FieldError> {
+        let mut f = self.field.to_tensor_file(self.occupancy.as_ref())?;
+        let (m, v, t) = self.adam.state();
+        f.insert_f32("train.adam_m", &[m.len()], m.to_vec());
+        f.insert_f32("train.adam_v", &[v.len()], v.to_vec());
+        let state = TrainState {
+            config: self.config.clone(),
+            iter: self.iter,
+            elapsed: self.elapsed(),
+            rng: self.rng,
+            upsampled: self.upsampled,
+            occupancy_done: self.occupancy_done,
+            adam_t: t,
+            history: self.history.clone(),
+        };
+        f.set_meta_json("train", &state)?;
+        Ok(f)
+    }
+
+    /// Save a checkpoint atomically.
+    pub fn save_checkpoint(&self, path: &std::path::Path) -> Result<(), FieldError> {
+        self.checkpoint()?.save(path)?;
+        Ok(())
+    }
+
+    /// Continue a run from a checkpoint. `iters` and `seconds` may be raised to train
+    /// longer than first planned.
+    pub fn resume(
+        data: &Dataset,
+        path: &std::path::Path,
+        iters: Option<u64>,
+        seconds: Option<f64>,
+    ) -> Result<Self, FieldError> {
+        let mut file = TensorFile::load(path)?;
+        let state: TrainState = file.meta_json("train")?;
+        let (field, occupancy) = Field::from_tensor_file(&mut file)?;
+        let n = field.params.len();
+        let m = file.take_f32("train.adam_m", &[n])?;
+        let v = file.take_f32("train.adam_v", &[n])?;
+        let mut t = Trainer::new(data, field.config.clone(), state.config.clone());
+        t.field = field;
+        t.occupancy = occupancy;
+        t.adam = Adam::new(n);
+        t.adam.set_state(m, v, state.adam_t);
+        t.grad = vec![0.0; n];
+        for (_, g) in &mut t.work {
+            *g = vec![0.0; n];
+        }
+        t.iter = state.iter;
+        t.elapsed_before = state.elapsed;
+        t.started = Instant::now();
+        t.rng = state.rng;
+        t.upsampled = state.upsampled;
+        t.occupancy_done = state.occupancy_done;
+        t.history = state.history;
+        if let Some(i) = iters {
+            t.config.iters = i;
+        }
+        if seconds.is_some() {
+            t.config.seconds = seconds;
+        }
+        Ok(t)
     }
 }
 

@@ -118,3 +118,66 @@ fn training_is_deterministic_for_a_seed() {
     };
     assert_eq!(run(), run());
 }
+
+#[test]
+fn checkpoints_resume_exactly_and_field_files_round_trip() {
+    let dir = dataset();
+    let train = Dataset::load(dir, Split::Train, &LoadOptions::default()).unwrap();
+    let aabb = Aabb3::new(Vec3::new(-1.3, -1.3, -0.05), Vec3::new(1.3, 1.3, 0.9));
+    let make = || {
+        let mut cfg = TrainConfig::new(ModelKind::Integrated);
+        cfg.batch = 256;
+        cfg.iters = 30;
+        cfg.plane_res_start = 12;
+        cfg.plane_res_final = 20;
+        cfg.upsample_at = vec![0.5];
+        cfg.chunks = 2;
+        let mut fc = FieldConfig::new(ModelKind::Integrated, aabb, 20);
+        fc.density_channels = 4;
+        fc.color_channels = 6;
+        Trainer::new(&train, fc, cfg)
+    };
+    // straight through
+    let mut a = make();
+    while !a.finished() {
+        a.step();
+    }
+    // stopped half way, saved, resumed
+    let mut b = make();
+    for _ in 0..20 {
+        b.step();
+    }
+    let ckpt = dir.join("../half.ckpt.safetensors");
+    b.save_checkpoint(&ckpt).unwrap();
+    let mut c = Trainer::resume(&train, &ckpt, None, None).unwrap();
+    assert_eq!(c.iter, 20);
+    while !c.finished() {
+        c.step();
+    }
+    assert_eq!(
+        a.field.params.data, c.field.params.data,
+        "resumed run must match the uninterrupted one"
+    );
+    // field files round trip, and a checkpoint opens as a field
+    let path = dir.join("../field.safetensors");
+    c.field.save(&path, None).unwrap();
+    let (back, occ) = Field::load(&path).unwrap();
+    assert!(occ.is_none());
+    assert_eq!(back.params.data, c.field.params.data);
+    assert_eq!(back.config, c.field.config);
+    assert!(Field::load(&ckpt).is_ok());
+    // a tensor with the wrong shape is a clear error
+    let mut f = assetfield_core::TensorFile::load(&path).unwrap();
+    let shape = f.shape_of("density.plane").unwrap().to_vec();
+    f.insert_f32(
+        "density.plane",
+        &[shape[0], shape[1], shape[2] + 1],
+        vec![0.0; shape[0] * shape[1] * (shape[2] + 1)],
+    );
+    let bad = dir.join("../bad.safetensors");
+    f.save(&bad).unwrap();
+    let e = Field::load(&bad).unwrap_err().to_string();
+    assert!(e.contains("density.plane") && e.contains("expected"), "{e}");
+    let e = Field::load(&dir.join("transforms_train.json")).unwrap_err().to_string();
+    assert!(e.contains("transforms_train.json"), "{e}");
+}

@@ -1,8 +1,10 @@
+//! Dataset commands: `synth`, `inspect`, `layout`.
+
+use super::util::progress_bar;
 use anyhow::{Context, Result};
 use assetfield_data::{Dataset, DatasetSummary, LoadOptions, Split};
 use assetfield_synth::{SynthOptions, synthesize};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Args)]
@@ -46,19 +48,6 @@ pub struct SynthArgs {
     /// Print the run report as JSON on stdout instead of the text summary.
     #[arg(long)]
     pub json: bool,
-}
-
-fn progress_bar(len: u64, what: &str) -> ProgressBar {
-    let pb = ProgressBar::new(len);
-    pb.set_style(
-        ProgressStyle::with_template(
-            "{spinner:.green} {msg} [{bar:40.cyan/blue}] {pos}/{len} {elapsed_precise} (eta {eta})",
-        )
-        .expect("valid progress template")
-        .progress_chars("=> "),
-    );
-    pb.set_message(what.to_string());
-    pb
 }
 
 fn stem(p: &Path) -> String {

@@ -1,0 +1,96 @@
+//! Field training and rendering throughput: one 4096-ray training iteration (forward, backward
+//! and Adam) and one full-frame render, on the default scene (synthesised on the fly at
+//! 400 x 400) and on the real lego scene when ../shared/data is present.
+//!
+//! Each field is first trained for a short warm-up at the final plane resolution (300) so that
+//! the density has formed, then its occupancy grid is built: the most expensive stage of a
+//! real run.
+//!
+//! `cargo bench -p assetfield-benches --bench field`
+
+use assetfield_benches::scene;
+use assetfield_core::Aabb3;
+use assetfield_data::{Dataset, LoadOptions, Split};
+use assetfield_field::{FieldConfig, ModelKind, TrainConfig, Trainer, render_view};
+use assetfield_synth::{SynthOptions, synthesize};
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use glam::Vec3;
+use std::hint::black_box;
+use std::path::PathBuf;
+
+const WARMUP_ITERS: u64 = 300;
+
+fn default_scene() -> (PathBuf, Aabb3) {
+    let dir = std::env::temp_dir().join("assetfield-bench-conference_room");
+    if !dir.join("transforms_train.json").exists() {
+        synthesize(
+            &scene("conference_room"),
+            &SynthOptions::default(),
+            &dir,
+            true,
+            None,
+            &mut |_, _| {},
+        )
+        .unwrap();
+    }
+    let synth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("synth.json")).unwrap()).unwrap();
+    let v = |k: usize| {
+        Vec3::from(std::array::from_fn::<f32, 3, _>(|a| {
+            synth["scene_aabb"][k][a].as_f64().unwrap() as f32
+        }))
+    };
+    (dir, Aabb3::new(v(0) - 0.05, v(1) + 0.05))
+}
+
+fn lego() -> Option<(PathBuf, Aabb3)> {
+    let dir =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/nerf_synthetic_lego_400");
+    dir.is_dir().then(|| (dir, Aabb3::new(Vec3::splat(-1.5), Vec3::splat(1.5))))
+}
+
+fn bench_scene(c: &mut Criterion, name: &str, dir: PathBuf, aabb: Aabb3) {
+    let train = Dataset::load(&dir, Split::Train, &LoadOptions::default()).unwrap();
+    let test = Dataset::load(
+        &dir,
+        Split::Test,
+        &LoadOptions { max_frames: Some(1), ..Default::default() },
+    )
+    .unwrap();
+    for kind in [ModelKind::Standard, ModelKind::Vm] {
+        // the most expensive stage of a run: final plane resolution, occupancy grid in use
+        let mut cfg = TrainConfig::new(kind);
+        cfg.iters = 30_000;
+        cfg.plane_res_start = 300;
+        let mut t = Trainer::new(&train, FieldConfig::new(kind, aabb, 300), cfg);
+        for _ in 0..WARMUP_ITERS {
+            t.step();
+        }
+        t.rebuild_occupancy();
+        let mut g = c.benchmark_group(format!("{name} {}", kind.name()));
+        g.sample_size(10);
+        g.throughput(Throughput::Elements(4096));
+        g.bench_function("train iteration, 4096 rays (elements = rays)", |b| {
+            b.iter(|| black_box(t.step()))
+        });
+        let cam = test.frames[0].camera;
+        let (w, h) = (cam.intrinsics.width as u64, cam.intrinsics.height as u64);
+        g.throughput(Throughput::Elements(w * h));
+        g.bench_function(format!("render {w}x{h} frame (elements = rays)"), |b| {
+            b.iter(|| render_view(black_box(&t.field), t.occupancy.as_ref(), &cam, Vec3::ONE))
+        });
+        g.finish();
+    }
+}
+
+fn fields(c: &mut Criterion) {
+    let (dir, aabb) = default_scene();
+    bench_scene(c, "conference_room", dir, aabb);
+    match lego() {
+        Some((dir, aabb)) => bench_scene(c, "lego", dir, aabb),
+        None => eprintln!("skipping lego: ../shared/data/nerf_synthetic_lego_400 not found"),
+    }
+}
+
+criterion_group!(benches, fields);
+criterion_main!(benches);

@@ -1,0 +1,14 @@
+//! The subcommands, one module per group; shared helpers in `util`.
+
+mod eval;
+mod planes;
+mod render;
+mod scene;
+mod train;
+mod util;
+
+pub use eval::{EvalArgs, eval};
+pub use planes::{PlanesArgs, planes};
+pub use render::{RenderArgs, render};
+pub use scene::{InspectArgs, LayoutArgs, SynthArgs, inspect, layout, synth};
+pub use train::{TrainArgs, train};

@@ -1,0 +1,549 @@
+//! `assetfield train`: fit a ground-feature-plane field to a dataset, with a progress bar,
+//! periodic checkpoints, resume and Ctrl-C handling.
+
+use super::util::{fmt_duration, fmt_vec, parse_aabb, parse_color};
+use anyhow::{Context, Result, anyhow, bail};
+use assetfield_core::{Aabb3, TensorFile, interrupt};
+use assetfield_data::{
+    Dataset, Format, Frame, GroundAlignment, LoadOptions, Split, bounds_from_cameras,
+};
+use assetfield_field::eval::{FieldInfo, History, keys, mean_psnr};
+use assetfield_field::{DecoderKind, FieldConfig, ModelKind, TrainConfig, Trainer};
+use clap::{Args, ValueEnum};
+use glam::Vec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Which factorisation to train.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModelArg {
+    /// S-AssetField: density plane + vertical axis, colour plane + vertical axis.
+    S,
+    /// I-AssetField: density plane + axis, one integrated colour plane (no colour axis).
+    I,
+    /// The TensoRF-VM baseline: three plane-line pairs.
+    Vm,
+}
+
+impl ModelArg {
+    fn kind(self) -> ModelKind {
+        match self {
+            ModelArg::S => ModelKind::Standard,
+            ModelArg::I => ModelKind::Integrated,
+            ModelArg::Vm => ModelKind::Vm,
+        }
+    }
+}
+
+/// How colour features become RGB.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DecoderArg {
+    /// A small MLP (64 hidden units) on the features and the encoded view direction.
+    Mlp,
+    /// Degree-2 spherical harmonics (27 coefficients), no network.
+    Sh,
+}
+
+/// How to find the ground plane when the data's up axis is unknown.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum AlignArg {
+    /// Fit a plane to the camera positions (PCA) and make its normal +Z.
+    Pca,
+    /// Use the poses as they are (the default; world Z is up).
+    None,
+}
+
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// The dataset folder (NeRF-synthetic transforms_{train,test}.json, or nerfstudio /
+    /// instant-ngp transforms.json), e.g. one written by `assetfield synth`.
+    pub data: PathBuf,
+    /// The field file to write (safetensors), e.g. runs/cr/field.safetensors. Its checkpoint
+    /// lives next to it as FIELD.ckpt.safetensors.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Model: s (S-AssetField), i (I-AssetField) or vm (TensoRF-VM baseline).
+    #[arg(long, value_enum, default_value = "s")]
+    pub model: ModelArg,
+    /// Time budget in minutes. With --minutes alone there is no iteration limit; with both,
+    /// training stops at whichever limit comes first. Schedules (resolution steps, learning
+    /// rate decay) follow the limit that is further along.
+    #[arg(long)]
+    pub minutes: Option<f64>,
+    /// Number of iterations [default: 30000 unless --minutes is given].
+    #[arg(long)]
+    pub iters: Option<u64>,
+    /// Final ground plane resolution (texels along the longer side of the scene box); training
+    /// starts at 128/300 of it and steps up coarse to fine, as TensoRF does.
+    #[arg(long, default_value_t = 300)]
+    pub res: usize,
+    /// Rays per iteration.
+    #[arg(long, default_value_t = 4096)]
+    pub batch: usize,
+    /// Colour decoder: mlp or sh (spherical harmonics, degree 2).
+    #[arg(long, value_enum, default_value = "mlp")]
+    pub decoder: DecoderArg,
+    /// Scene box xmin,ymin,zmin,xmax,ymax,zmax in world units (after --align-ground).
+    /// Default, in order: synth.json's scene_aabb padded by 2% of its extent (datasets written
+    /// by `assetfield synth`); the cube [-1.5, 1.5]^3 for other NeRF-synthetic folders (as
+    /// TensoRF); otherwise the region the cameras look at: a cube centred on the point where
+    /// the optical axes pass closest together, half size = mean camera distance to it x
+    /// tan(half the field of view), grown to hold each axis's closest approach to that point.
+    #[arg(long, allow_hyphen_values = true, value_name = "X0,Y0,Z0,X1,Y1,Z1")]
+    pub aabb: Option<String>,
+    /// Level data whose up axis is unknown: pca fits a plane to the camera positions (normal =
+    /// the direction of least variance, signed along the mean camera up vector), rotates it to
+    /// +Z and moves the look-at point to the origin. The transform is stored in the field file
+    /// and re-applied by eval and render.
+    #[arg(long, value_enum, default_value = "none")]
+    pub align_ground: AlignArg,
+    /// Background that transparent pixels are composited onto, also used behind the field:
+    /// white, black, grey or R,G,B in [0, 1]. Stored in the field file.
+    #[arg(long, default_value = "white")]
+    pub background: String,
+    /// Random seed (initialisation and ray batches).
+    #[arg(long, default_value_t = 20230)]
+    pub seed: u64,
+    /// Save a checkpoint to FIELD.ckpt.safetensors this often (wall-clock minutes; 0 = only
+    /// at the end and on Ctrl-C).
+    #[arg(long, default_value_t = 5.0)]
+    pub checkpoint_every_minutes: f64,
+    /// Continue the run saved in FIELD.ckpt.safetensors. Model, resolution, box,
+    /// background, downscale and alignment come from the checkpoint; --iters / --minutes
+    /// (totals, counted from the start of the run) may raise its limits to train longer.
+    #[arg(long)]
+    pub resume: bool,
+    /// Every N iterations, render up to 2 test views and report their PSNR (progress bar,
+    /// "val_history" in the field file). Needs a test split.
+    #[arg(long, value_name = "N")]
+    pub val_every: Option<u64>,
+    /// Downscale the images by this integer factor (area average) before training.
+    #[arg(long, default_value_t = 1)]
+    pub downscale: u32,
+    /// Replace an existing field file (and start afresh even if a checkpoint exists).
+    #[arg(long)]
+    pub force: bool,
+    /// Delete the checkpoint when the run finishes (by default it is kept so that
+    /// `--resume --iters MORE` can extend the run).
+    #[arg(long)]
+    pub discard_checkpoint: bool,
+}
+
+/// `FIELD.safetensors` -> `FIELD.ckpt.safetensors` (same folder).
+pub fn checkpoint_path(out: &Path) -> PathBuf {
+    let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = name.strip_suffix(".safetensors").unwrap_or(&name);
+    out.with_file_name(format!("{stem}.ckpt.safetensors"))
+}
+
+/// The scene box and where it came from.
+fn scene_bounds(
+    data: &Path,
+    format: Format,
+    cameras: &[assetfield_core::Camera],
+    align: Option<&GroundAlignment>,
+) -> Result<(Aabb3, String)> {
+    let moved = |b: Aabb3, what: &str| match align {
+        Some(g) => (g.transform_aabb(&b), format!("{what}, moved by the ground alignment")),
+        None => (b, what.to_string()),
+    };
+    let synth = data.join("synth.json");
+    if synth.is_file() {
+        let text = std::fs::read_to_string(&synth)
+            .with_context(|| format!("reading {}", synth.display()))?;
+        let v: serde_json::Value = serde_json::from_str(&text)
+            .with_context(|| format!("{}: invalid JSON", synth.display()))?;
+        let a: [[f32; 3]; 2] =
+            serde_json::from_value(v["scene_aabb"].clone()).with_context(|| {
+                format!(
+                    "{}: \"scene_aabb\" is not [[xmin, ymin, zmin], [xmax, ymax, zmax]]",
+                    synth.display()
+                )
+            })?;
+        let (lo, hi) = (Vec3::from(a[0]), Vec3::from(a[1]));
+        let pad = (hi - lo).max(Vec3::ZERO) * 0.02;
+        return Ok(moved(Aabb3::new(lo - pad, hi + pad), "synth.json scene_aabb + 2%"));
+    }
+    if format == Format::NerfSynthetic {
+        let b = Aabb3::new(Vec3::splat(-1.5), Vec3::splat(1.5));
+        return Ok(moved(b, "NeRF-synthetic default cube [-1.5, 1.5]^3"));
+    }
+    let b = bounds_from_cameras(cameras)
+        .ok_or_else(|| anyhow!("no cameras to derive the scene box from; pass --aabb"))?;
+    Ok((b, "the region the cameras look at".into()))
+}
+
+fn bar(total_iters: Option<u64>) -> ProgressBar {
+    let pb = ProgressBar::new(1000);
+    pb.set_style(
+        ProgressStyle::with_template("{spinner:.green} [{bar:30.cyan/blue}] {percent:>3}% {msg}")
+            .expect("valid progress template")
+            .progress_chars("=> "),
+    );
+    pb.enable_steady_tick(Duration::from_millis(200));
+    if let Some(n) = total_iters {
+        pb.set_message(format!("starting ({n} iterations)"));
+    }
+    pb
+}
+
+/// Per-run state the CLI keeps besides the trainer.
+struct Run {
+    ckpt: PathBuf,
+    info: FieldInfo,
+    val_history: History,
+}
+
+impl Run {
+    fn save_checkpoint(&self, t: &Trainer) -> Result<()> {
+        let mut f: TensorFile = t.checkpoint()?;
+        let mut info = self.info.clone();
+        info.val_history = Some(self.val_history.clone());
+        info.write(&mut f)?;
+        f.save(&self.ckpt).with_context(|| format!("saving checkpoint {}", self.ckpt.display()))?;
+        Ok(())
+    }
+}
+
+pub fn train(a: TrainArgs) -> Result<()> {
+    // cheap checks first, before anything is loaded
+    if a.res < 8 {
+        bail!("--res {} is too small (at least 8)", a.res);
+    }
+    if a.batch == 0 {
+        bail!("--batch must be at least 1");
+    }
+    if a.downscale == 0 {
+        bail!("--downscale must be at least 1");
+    }
+    if let Some(m) = a.minutes
+        && !(m.is_finite() && m > 0.0)
+    {
+        bail!("--minutes {m} must be a positive number");
+    }
+    if a.iters == Some(0) {
+        bail!("--iters must be at least 1");
+    }
+    if a.val_every == Some(0) {
+        bail!("--val-every must be at least 1");
+    }
+    if !(a.checkpoint_every_minutes.is_finite() && a.checkpoint_every_minutes >= 0.0) {
+        bail!("--checkpoint-every-minutes must be 0 or more");
+    }
+    let background = parse_color(&a.background).context("--background")?;
+    let user_aabb = a.aabb.as_deref().map(parse_aabb).transpose()?;
+    if a.out.is_dir() {
+        bail!(
+            "--out {} is a folder; give the field file to write, e.g. {}/field.safetensors",
+            a.out.display(),
+            a.out.display()
+        );
+    }
+    let ckpt = checkpoint_path(&a.out);
+    if a.resume {
+        if !ckpt.is_file() {
+            bail!(
+                "--resume: no checkpoint at {} (train writes it next to --out {}); run without --resume to start afresh",
+                ckpt.display(),
+                a.out.display()
+            );
+        }
+    } else if !a.force {
+        if a.out.exists() {
+            bail!(
+                "{} already exists (pass --force to replace it, or --resume to continue its run)",
+                a.out.display()
+            );
+        }
+        if ckpt.exists() {
+            bail!(
+                "a checkpoint of an earlier run exists at {}: continue it with --resume, or pass --force to start afresh",
+                ckpt.display()
+            );
+        }
+    }
+
+    // what a resumed run keeps from its checkpoint
+    let stored = if a.resume {
+        let f = TensorFile::load(&ckpt)
+            .with_context(|| format!("reading checkpoint {}", ckpt.display()))?;
+        if f.meta(keys::TRAIN_STATE).is_none() {
+            bail!("{} is not a training checkpoint (no training state in it)", ckpt.display());
+        }
+        Some(FieldInfo::read(&f)?)
+    } else {
+        None
+    };
+    let (background, downscale) = match &stored {
+        Some(s) => (s.background.unwrap_or(background), s.downscale.unwrap_or(a.downscale)),
+        None => (background, a.downscale),
+    };
+    let opts = LoadOptions { background, downscale, ..LoadOptions::default() };
+    let all_cams = Dataset::load_cameras_only(&a.data, Split::All, &opts)
+        .with_context(|| format!("reading dataset {}", a.data.display()))?;
+    let alignment = match &stored {
+        Some(s) => s.ground_transform,
+        None => match a.align_ground {
+            AlignArg::Pca => Some(GroundAlignment::fit_pca(&all_cams.cameras())?),
+            AlignArg::None => None,
+        },
+    };
+    let t_load = Instant::now();
+    let mut data = Dataset::load(&a.data, Split::Train, &opts)
+        .with_context(|| format!("loading the training views of {}", a.data.display()))?;
+    if let Some(g) = &alignment {
+        g.apply_to_dataset(&mut data);
+    }
+    let (w, h) = data.resolution();
+    eprintln!(
+        "loaded {} training views ({w}x{h}) from {} in {:.1} s",
+        data.len(),
+        data.root.display(),
+        t_load.elapsed().as_secs_f64()
+    );
+    if let Some(g) = &alignment
+        && stored.is_none()
+    {
+        eprintln!(
+            "ground alignment (pca): normal {} -> +Z, look-at {} -> origin (flatness {:.3})",
+            fmt_vec(g.normal),
+            fmt_vec(g.look_at),
+            g.flatness
+        );
+        if g.up_cosine < 0.5 {
+            eprintln!(
+                "warning: the fitted ground normal is {:.0} degrees from the cameras' mean up \
+                 vector: the cameras may not circle the scene (a forward-facing capture?), so \
+                 the plane of their positions may not be the ground; consider training without \
+                 --align-ground",
+                g.up_cosine.clamp(0.0, 1.0).acos().to_degrees()
+            );
+        }
+    }
+    let val_frames: Vec<Frame> = match a.val_every {
+        None => Vec::new(),
+        Some(_) => {
+            let vopts = LoadOptions { max_frames: Some(2), ..opts.clone() };
+            match Dataset::load(&a.data, Split::Test, &vopts) {
+                Ok(mut d) => {
+                    if let Some(g) = &alignment {
+                        g.apply_to_dataset(&mut d);
+                    }
+                    d.frames
+                }
+                Err(e) => {
+                    eprintln!("note: --val-every ignored: no test views ({e})");
+                    Vec::new()
+                }
+            }
+        }
+    };
+
+    let seconds = a.minutes.map(|m| m * 60.0);
+    let (mut trainer, info) = if a.resume {
+        let t = Trainer::resume(&data, &ckpt, a.iters, seconds)
+            .with_context(|| format!("resuming from {}", ckpt.display()))?;
+        eprintln!(
+            "resuming {} at iteration {} ({} trained) from {}",
+            t.field.config.kind.name(),
+            t.iter,
+            fmt_duration(t.elapsed()),
+            ckpt.display()
+        );
+        let s = stored.clone().unwrap_or_default();
+        if let Some(d) = s.dataset.as_ref().filter(|d| **d != data.root) {
+            eprintln!(
+                "note: the checkpoint was trained on {}; continuing on {}",
+                d.display(),
+                data.root.display()
+            );
+        }
+        (t, FieldInfo { history: None, val_history: None, ..s })
+    } else {
+        let kind = a.model.kind();
+        let (aabb, source) = match user_aabb {
+            Some(b) => (b, "--aabb".to_string()),
+            None => {
+                let mut cams = all_cams.clone();
+                if let Some(g) = &alignment {
+                    g.apply_to_cameras(&mut cams);
+                }
+                scene_bounds(&data.root, data.format, &cams.cameras(), alignment.as_ref())?
+            }
+        };
+        eprintln!(
+            "scene box {} .. {} ({source})",
+            fmt_vec(aabb.min.to_array()),
+            fmt_vec(aabb.max.to_array())
+        );
+        let mut fc = FieldConfig::new(kind, aabb, a.res);
+        if a.decoder == DecoderArg::Sh {
+            fc.decoder = DecoderKind::Sh { degree: 2 };
+        }
+        let mut tc = TrainConfig::new(kind);
+        tc.batch = a.batch;
+        tc.iters = match (a.iters, seconds) {
+            (Some(n), _) => n,
+            (None, Some(_)) => u64::MAX,
+            (None, None) => 30_000,
+        };
+        tc.seconds = seconds;
+        tc.plane_res_final = a.res;
+        tc.plane_res_start = ((a.res as f64 * 128.0 / 300.0).round() as usize).clamp(8, a.res);
+        if tc.plane_res_start == tc.plane_res_final {
+            tc.upsample_at.clear();
+        }
+        tc.background = background;
+        tc.seed = a.seed;
+        let info = FieldInfo {
+            dataset: Some(data.root.clone()),
+            aabb: Some([aabb.min.to_array(), aabb.max.to_array()]),
+            aabb_source: Some(source),
+            ground_transform: alignment,
+            background: Some(background),
+            downscale: Some(downscale),
+            ..FieldInfo::default()
+        };
+        (Trainer::new(&data, fc, tc), info)
+    };
+    let mut run = Run {
+        ckpt: ckpt.clone(),
+        info,
+        val_history: stored.as_ref().and_then(|s| s.val_history.clone()).unwrap_or_default(),
+    };
+
+    let limit_iters = (trainer.config.iters != u64::MAX).then_some(trainer.config.iters);
+    if trainer.finished() {
+        eprintln!(
+            "the checkpoint has already reached its limit ({} iterations{}); pass a larger --iters or --minutes to train longer",
+            trainer.iter,
+            trainer.config.seconds.map(|s| format!(", {}", fmt_duration(s))).unwrap_or_default()
+        );
+    }
+    let pb = bar(limit_iters);
+    let start_iter = trainer.iter;
+    let session = Instant::now();
+    let mut last_ckpt = Instant::now();
+    let every = Duration::from_secs_f64(a.checkpoint_every_minutes * 60.0);
+    let mut step_time = 0.0f64; // smoothed seconds per iteration
+    let mut last_psnr = trainer.history.last().map_or(f32::NAN, |h| h.2);
+    let mut val_text = String::new();
+    let batch = trainer.config.batch as f64;
+    while !trainer.finished() {
+        if interrupt::requested() {
+            pb.finish_and_clear();
+            run.save_checkpoint(&trainer)?;
+            return Err(anyhow!(
+                "interrupted at iteration {}: checkpoint saved to {}; the field file was not written. Continue with: assetfield train {} --out {} --resume",
+                trainer.iter,
+                ckpt.display(),
+                a.data.display(),
+                a.out.display()
+            ));
+        }
+        let s = trainer.step();
+        last_psnr = s.psnr;
+        let k = if step_time == 0.0 { 1.0 } else { 0.05 };
+        step_time += k * (s.seconds - step_time);
+        let rays_per_s = batch / step_time.max(1e-9);
+        if let Some(n) = a.val_every
+            && !val_frames.is_empty()
+            && s.iter.is_multiple_of(n)
+        {
+            let bg = Vec3::from(trainer.config.background);
+            let p = mean_psnr(&trainer.field, trainer.occupancy.as_ref(), &val_frames, bg);
+            run.val_history.push((trainer.elapsed(), s.iter, p));
+            val_text = format!(" | test {p:.2} dB");
+        }
+        if !every.is_zero() && last_ckpt.elapsed() >= every {
+            run.save_checkpoint(&trainer)?;
+            last_ckpt = Instant::now();
+        }
+        let left_iters = limit_iters.map(|n| n.saturating_sub(s.iter) as f64 * step_time);
+        let left_time = trainer.config.seconds.map(|b| (b - trainer.elapsed()).max(0.0));
+        let left = match (left_iters, left_time) {
+            (Some(x), Some(y)) => x.min(y),
+            (Some(x), None) | (None, Some(x)) => x,
+            (None, None) => f64::NAN,
+        };
+        pb.set_position((trainer.progress() * 1000.0) as u64);
+        pb.set_message(format!(
+            "it {}{} | loss {:.5} | psnr {:.2} | {:.2} M rays/s | plane {} | left {}{val_text}",
+            s.iter,
+            limit_iters.map(|n| format!("/{n}")).unwrap_or_default(),
+            s.loss,
+            s.psnr,
+            rays_per_s / 1e6,
+            trainer.field.config.res[0].max(trainer.field.config.res[1]),
+            fmt_duration(left)
+        ));
+    }
+    pb.finish_and_clear();
+    let session_s = session.elapsed().as_secs_f64();
+    let done = trainer.iter - start_iter;
+
+    // the field file, then the final checkpoint (or its removal)
+    let mut file = trainer.field.to_tensor_file(trainer.occupancy.as_ref())?;
+    let mut info = run.info.clone();
+    info.history = Some(trainer.history.clone());
+    info.val_history = (!run.val_history.is_empty()).then(|| run.val_history.clone());
+    info.iterations = Some(trainer.iter);
+    info.seconds = Some(trainer.elapsed());
+    info.write(&mut file)?;
+    file.set_meta_json(keys::TRAIN_CONFIG, &trainer.config)?;
+    file.save(&a.out).with_context(|| format!("writing {}", a.out.display()))?;
+    if a.discard_checkpoint {
+        if ckpt.exists() {
+            std::fs::remove_file(&ckpt).with_context(|| format!("removing {}", ckpt.display()))?;
+        }
+    } else {
+        run.save_checkpoint(&trainer)?;
+    }
+
+    let cfg = &trainer.field.config;
+    println!(
+        "trained {} ({}) for {} iterations in {} ({} this session){}",
+        cfg.kind.name(),
+        match cfg.decoder {
+            DecoderKind::Mlp { .. } => "mlp decoder",
+            DecoderKind::Sh { .. } => "sh decoder",
+        },
+        trainer.iter,
+        fmt_duration(trainer.elapsed()),
+        fmt_duration(session_s),
+        if done > 0 { format!(", {done} new") } else { String::new() }
+    );
+    let rays = if done > 0 && session_s > 0.0 {
+        format!(", {:.2} M rays/s", done as f64 * batch / session_s / 1e6)
+    } else {
+        String::new()
+    };
+    println!(
+        "final batch PSNR {:.2} dB{rays}, plane {}x{}, vertical axis {}{}",
+        last_psnr,
+        cfg.res[0],
+        cfg.res[1],
+        cfg.res[2],
+        run.val_history.last().map(|v| format!(", test PSNR {:.2} dB", v.2)).unwrap_or_default()
+    );
+    println!("wrote {}", a.out.display());
+    if !a.discard_checkpoint {
+        println!("checkpoint {} (extend the run with --resume --iters N)", ckpt.display());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checkpoint_sits_next_to_the_field() {
+        assert_eq!(
+            checkpoint_path(Path::new("runs/a/field.safetensors")),
+            PathBuf::from("runs/a/field.ckpt.safetensors")
+        );
+        assert_eq!(checkpoint_path(Path::new("f")), PathBuf::from("f.ckpt.safetensors"));
+    }
+}

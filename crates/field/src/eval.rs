@@ -1,0 +1,357 @@
+//! Using a trained field: what `assetfield train` stores next to its tensors
+//! ([`FieldInfo`]), image-quality evaluation on posed views (PSNR and SSIM as TensoRF and
+//! mip-NeRF report them) and turntable cameras around the scene box.
+
+use crate::io::FieldError;
+use crate::model::Field;
+use crate::occupancy::Occupancy;
+use crate::train::render_view;
+use assetfield_core::{Aabb3, Camera, Intrinsics, TensorFile, metrics};
+use assetfield_data::{Frame, GroundAlignment};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// `(seconds since the start of training, iteration, PSNR)` samples of a run.
+pub type History = Vec<(f64, u64, f32)>;
+
+/// Metadata keys of a field file written by `assetfield train`.
+pub mod keys {
+    /// Batch PSNR during training, [`super::History`] as JSON.
+    pub const HISTORY: &str = "history";
+    /// PSNR on held-out views during training (`--val-every`), [`super::History`] as JSON.
+    pub const VAL_HISTORY: &str = "val_history";
+    /// The dataset folder trained on (absolute path, JSON string).
+    pub const DATASET: &str = "dataset";
+    /// The scene box `[[xmin, ymin, zmin], [xmax, ymax, zmax]]`.
+    pub const AABB: &str = "aabb";
+    /// Where the scene box came from (`--aabb`, `synth.json`, ...), free text.
+    pub const AABB_SOURCE: &str = "aabb_source";
+    /// The levelling applied to the dataset's poses ([`assetfield_data::GroundAlignment`]).
+    pub const GROUND_TRANSFORM: &str = "ground_transform";
+    /// Background colour the images were composited onto, `[r, g, b]`.
+    pub const BACKGROUND: &str = "background";
+    /// Image downscale factor used for training.
+    pub const DOWNSCALE: &str = "downscale";
+    /// Iterations trained.
+    pub const ITERATIONS: &str = "iterations";
+    /// Seconds trained (across resumes).
+    pub const SECONDS: &str = "seconds";
+    /// The training settings (`TrainConfig` as JSON).
+    pub const TRAIN_CONFIG: &str = "train_config";
+    /// Checkpoints: the training state written by `Trainer::checkpoint` (holds a history).
+    pub const TRAIN_STATE: &str = "train";
+}
+
+/// What `assetfield train` stores in a field file besides the tensors and the model config.
+/// Every entry is optional: a field saved by other code simply has none of them.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FieldInfo {
+    pub history: Option<History>,
+    pub val_history: Option<History>,
+    pub dataset: Option<PathBuf>,
+    pub aabb: Option<[[f32; 3]; 2]>,
+    pub aabb_source: Option<String>,
+    pub ground_transform: Option<GroundAlignment>,
+    pub background: Option<[f32; 3]>,
+    pub downscale: Option<u32>,
+    pub iterations: Option<u64>,
+    pub seconds: Option<f64>,
+}
+
+fn opt_json<T: serde::de::DeserializeOwned>(
+    file: &TensorFile,
+    key: &str,
+) -> Result<Option<T>, FieldError> {
+    match file.meta(key) {
+        None => Ok(None),
+        Some(_) => Ok(Some(file.meta_json(key)?)),
+    }
+}
+
+impl FieldInfo {
+    /// Read the entries present in `file`. A checkpoint without a `history` entry gives the
+    /// history of its training state. An entry that is present but malformed is an error.
+    pub fn read(file: &TensorFile) -> Result<Self, FieldError> {
+        let mut history: Option<History> = opt_json(file, keys::HISTORY)?;
+        if history.is_none()
+            && let Some(state) = opt_json::<serde_json::Value>(file, keys::TRAIN_STATE)?
+        {
+            history = serde_json::from_value(state["history"].clone()).ok();
+        }
+        Ok(FieldInfo {
+            history,
+            val_history: opt_json(file, keys::VAL_HISTORY)?,
+            dataset: opt_json(file, keys::DATASET)?,
+            aabb: opt_json(file, keys::AABB)?,
+            aabb_source: opt_json(file, keys::AABB_SOURCE)?,
+            ground_transform: opt_json(file, keys::GROUND_TRANSFORM)?,
+            background: opt_json(file, keys::BACKGROUND)?,
+            downscale: opt_json(file, keys::DOWNSCALE)?,
+            iterations: opt_json(file, keys::ITERATIONS)?,
+            seconds: opt_json(file, keys::SECONDS)?,
+        })
+    }
+
+    /// Store the entries that are set (as JSON metadata).
+    pub fn write(&self, file: &mut TensorFile) -> Result<(), FieldError> {
+        fn put<T: Serialize>(
+            f: &mut TensorFile,
+            key: &str,
+            v: &Option<T>,
+        ) -> Result<(), FieldError> {
+            if let Some(v) = v {
+                f.set_meta_json(key, v)?;
+            }
+            Ok(())
+        }
+        put(file, keys::HISTORY, &self.history)?;
+        put(file, keys::VAL_HISTORY, &self.val_history)?;
+        put(file, keys::DATASET, &self.dataset)?;
+        put(file, keys::AABB, &self.aabb)?;
+        put(file, keys::AABB_SOURCE, &self.aabb_source)?;
+        put(file, keys::GROUND_TRANSFORM, &self.ground_transform)?;
+        put(file, keys::BACKGROUND, &self.background)?;
+        put(file, keys::DOWNSCALE, &self.downscale)?;
+        put(file, keys::ITERATIONS, &self.iterations)?;
+        put(file, keys::SECONDS, &self.seconds)?;
+        Ok(())
+    }
+
+    /// The background to render on: the stored one, else white (the loader's default).
+    pub fn background_or_white(&self) -> Vec3 {
+        Vec3::from(self.background.unwrap_or([1.0; 3]))
+    }
+}
+
+/// A field file loaded with everything in it.
+#[derive(Debug, Clone)]
+pub struct LoadedField {
+    pub field: Field,
+    pub occupancy: Option<Occupancy>,
+    pub info: FieldInfo,
+    /// Whether the file is a training checkpoint (it holds optimiser state too).
+    pub is_checkpoint: bool,
+}
+
+/// Load a field file (or a training checkpoint) with its [`FieldInfo`].
+pub fn load_field(path: &Path) -> Result<LoadedField, FieldError> {
+    let mut file = TensorFile::load(path)?;
+    // the format check comes first so that any other safetensors file gets a clear message
+    let info = match file.meta("format") {
+        Some(crate::io::FORMAT) => FieldInfo::read(&file)?,
+        _ => FieldInfo::default(),
+    };
+    let is_checkpoint = file.meta(keys::TRAIN_STATE).is_some();
+    let (field, occupancy) = Field::from_tensor_file(&mut file)?;
+    Ok(LoadedField { field, occupancy, info, is_checkpoint })
+}
+
+/// Quality of one rendered view.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ViewMetrics {
+    /// Index of the frame in its JSON file.
+    pub index: usize,
+    /// The frame's `file_path`.
+    pub file_path: String,
+    pub psnr: f32,
+    pub ssim: f32,
+}
+
+/// Quality over a set of views (what `assetfield eval` writes as `metrics.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalReport {
+    /// Mean of the per-view PSNRs (dB), as TensoRF reports it.
+    pub psnr: f32,
+    /// Mean of the per-view SSIMs.
+    pub ssim: f32,
+    pub views: Vec<ViewMetrics>,
+    /// Rendering time per view (metrics excluded).
+    pub seconds_per_view: f64,
+    /// Model kind (`s`, `i` or `vm`).
+    pub model: String,
+    /// `[width, height]` of the views.
+    pub resolution: [u32; 2],
+}
+
+/// Render `frame`'s view and compare it with the frame's image: the rendered RGB, its
+/// metrics and the seconds spent rendering.
+pub fn evaluate_frame(
+    field: &Field,
+    occupancy: Option<&Occupancy>,
+    frame: &Frame,
+    background: Vec3,
+) -> (Vec<f32>, ViewMetrics, f64) {
+    let t0 = Instant::now();
+    let rgb = render_view(field, occupancy, &frame.camera, background);
+    let seconds = t0.elapsed().as_secs_f64();
+    let (w, h) = (frame.image.width as usize, frame.image.height as usize);
+    let m = ViewMetrics {
+        index: frame.index,
+        file_path: frame.file_path.clone(),
+        psnr: metrics::psnr(&rgb, &frame.image.rgb),
+        ssim: metrics::ssim(&rgb, &frame.image.rgb, w, h, 3),
+    };
+    (rgb, m, seconds)
+}
+
+/// Evaluate `frames` one after another; `each(frame, rendered_rgb, metrics)` is called after
+/// every view (to save pictures, advance a progress bar). Stops with
+/// `CoreError::Interrupted` when an interrupt is requested between views.
+pub fn evaluate<E: From<FieldError>>(
+    field: &Field,
+    occupancy: Option<&Occupancy>,
+    frames: &[&Frame],
+    background: Vec3,
+    mut each: impl FnMut(&Frame, &[f32], &ViewMetrics) -> Result<(), E>,
+) -> Result<EvalReport, E> {
+    let mut views = Vec::with_capacity(frames.len());
+    let mut seconds = 0.0;
+    for frame in frames {
+        assetfield_core::interrupt::check().map_err(FieldError::from)?;
+        let (rgb, m, s) = evaluate_frame(field, occupancy, frame, background);
+        seconds += s;
+        each(frame, &rgb, &m)?;
+        views.push(m);
+    }
+    let n = views.len().max(1) as f64;
+    let mean =
+        |f: fn(&ViewMetrics) -> f32| (views.iter().map(|v| f(v) as f64).sum::<f64>() / n) as f32;
+    let resolution = frames.first().map_or([0, 0], |f| [f.image.width, f.image.height]);
+    Ok(EvalReport {
+        psnr: mean(|v| v.psnr),
+        ssim: mean(|v| v.ssim),
+        seconds_per_view: seconds / n,
+        views,
+        model: field.config.kind.name().to_string(),
+        resolution,
+    })
+}
+
+/// Mean PSNR of the field on `frames` (validation during training).
+pub fn mean_psnr(
+    field: &Field,
+    occupancy: Option<&Occupancy>,
+    frames: &[Frame],
+    background: Vec3,
+) -> f32 {
+    if frames.is_empty() {
+        return f32::NAN;
+    }
+    let sum: f64 = frames
+        .iter()
+        .map(|f| {
+            let rgb = render_view(field, occupancy, &f.camera, background);
+            metrics::psnr(&rgb, &f.image.rgb) as f64
+        })
+        .sum();
+    (sum / frames.len() as f64) as f32
+}
+
+/// A turntable: cameras on a circle around `center`, looking at it, Z up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Orbit {
+    pub center: Vec3,
+    /// Distance from the centre.
+    pub radius: f32,
+    /// Angle above the ground plane, degrees.
+    pub elevation_deg: f32,
+    /// Number of views, evenly spaced in azimuth starting at `start_deg` (from +X,
+    /// counter-clockwise seen from above).
+    pub views: usize,
+    pub start_deg: f32,
+    pub width: u32,
+    pub height: u32,
+    /// Horizontal field of view, degrees.
+    pub fov_deg: f32,
+}
+
+impl Orbit {
+    /// An orbit around the box centre, 30 degrees up, at the distance where the box's
+    /// bounding sphere fits the view, `res` x `res` pixels, 40 degree field of view.
+    pub fn around(aabb: &Aabb3, views: usize, res: u32) -> Self {
+        let fov_deg = 40.0;
+        Orbit {
+            center: aabb.center(),
+            radius: fitting_radius(aabb, fov_deg),
+            elevation_deg: 30.0,
+            views,
+            start_deg: 0.0,
+            width: res,
+            height: res,
+            fov_deg,
+        }
+    }
+
+    /// The cameras.
+    pub fn cameras(&self) -> Vec<Camera> {
+        let k = Intrinsics::from_fov_x(self.width, self.height, self.fov_deg.to_radians());
+        let el = self.elevation_deg.to_radians();
+        (0..self.views)
+            .map(|i| {
+                let az =
+                    (self.start_deg + 360.0 * i as f32 / self.views.max(1) as f32).to_radians();
+                let dir = Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                Camera::look_at(k, self.center + dir * self.radius, self.center, Vec3::Z)
+            })
+            .collect()
+    }
+}
+
+/// Camera distance at which the bounding sphere of `aabb` fills a view of horizontal field
+/// of view `fov_deg` (square images), with a 5% margin.
+pub fn fitting_radius(aabb: &Aabb3, fov_deg: f32) -> f32 {
+    let r = (aabb.extent().length() * 0.5).max(1e-3);
+    let half = (0.5 * fov_deg.clamp(1.0, 170.0)).to_radians();
+    1.05 * r / half.sin()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn orbit_cameras_look_at_the_centre_from_above() {
+        let aabb = Aabb3::new(Vec3::new(-2.0, -1.0, 0.0), Vec3::new(2.0, 3.0, 1.0));
+        let o = Orbit::around(&aabb, 4, 32);
+        let cams = o.cameras();
+        assert_eq!(cams.len(), 4);
+        for c in &cams {
+            let to_centre = (aabb.center() - c.position()).normalize();
+            assert!(c.forward().dot(to_centre) > 0.9999);
+            assert!((c.position() - aabb.center()).length() - o.radius < 1e-3);
+            let up = (c.position().z - aabb.center().z) / o.radius;
+            assert!((up - 30f32.to_radians().sin()).abs() < 1e-4);
+            // every corner of the box projects inside the image
+            for p in aabb.corners() {
+                let px = c.project(p).unwrap();
+                assert!(px.x > 0.0 && px.y > 0.0 && px.x < 32.0 && px.y < 32.0, "{px}");
+            }
+        }
+        // the first view is on +X, the second on +Y (counter-clockwise from above)
+        assert!(cams[0].position().x > aabb.center().x + 1.0);
+        assert!(cams[1].position().y > aabb.center().y + 1.0);
+    }
+
+    #[test]
+    fn info_round_trips_and_is_optional() {
+        let mut f = TensorFile::new();
+        assert_eq!(FieldInfo::read(&f).unwrap(), FieldInfo::default());
+        let info = FieldInfo {
+            history: Some(vec![(0.5, 10, 12.0), (1.0, 20, 14.5)]),
+            dataset: Some(PathBuf::from("/data/x")),
+            aabb: Some([[-1.0; 3], [1.0; 3]]),
+            background: Some([0.0; 3]),
+            ground_transform: Some(GroundAlignment::identity()),
+            iterations: Some(20),
+            ..Default::default()
+        };
+        info.write(&mut f).unwrap();
+        assert_eq!(FieldInfo::read(&f).unwrap(), info);
+        assert_eq!(info.background_or_white(), Vec3::ZERO);
+        f.set_meta(keys::AABB, "not json");
+        let e = FieldInfo::read(&f).unwrap_err().to_string();
+        assert!(e.contains("aabb"), "{e}");
+    }
+}
