@@ -29,6 +29,14 @@ impl Comp {
     fn line_at(&self, g: Vec3) -> Linear {
         Linear::new(g[self.axes[2]], self.len, self.ch)
     }
+
+    /// The four plane texels and two line samples (each `ch` channels) that `b` and `l` read.
+    #[inline]
+    fn taps<'a>(&self, d: &'a [f32], b: &Bilinear, l: &Linear) -> ([&'a [f32]; 4], [&'a [f32]; 2]) {
+        let ch = self.ch;
+        let line = self.line.expect("density components have lines");
+        (b.idx.map(|i| &d[self.plane + i..][..ch]), l.idx.map(|i| &d[line + i..][..ch]))
+    }
 }
 
 /// A dense layer's weight `[out][inn]` and bias offsets.
@@ -233,14 +241,8 @@ impl Field {
         for c in &self.density {
             let b = c.plane_at(g);
             let l = c.line_at(g);
-            let line = c.line.expect("density components have lines");
             let ch = c.ch;
-            let p0 = &d[c.plane + b.idx[0]..][..ch];
-            let p1 = &d[c.plane + b.idx[1]..][..ch];
-            let p2 = &d[c.plane + b.idx[2]..][..ch];
-            let p3 = &d[c.plane + b.idx[3]..][..ch];
-            let l0 = &d[line + l.idx[0]..][..ch];
-            let l1 = &d[line + l.idx[1]..][..ch];
+            let ([p0, p1, p2, p3], [l0, l1]) = c.taps(d, &b, &l);
             let [w0, w1, w2, w3] = b.w;
             let [v0, v1] = l.w;
             // eight independent lanes so the channel loop vectorises
@@ -279,12 +281,7 @@ impl Field {
             let line = c.line.expect("density components have lines");
             let ch = c.ch;
             {
-                let p0 = &d[c.plane + b.idx[0]..][..ch];
-                let p1 = &d[c.plane + b.idx[1]..][..ch];
-                let p2 = &d[c.plane + b.idx[2]..][..ch];
-                let p3 = &d[c.plane + b.idx[3]..][..ch];
-                let l0 = &d[line + l.idx[0]..][..ch];
-                let l1 = &d[line + l.idx[1]..][..ch];
+                let ([p0, p1, p2, p3], [l0, l1]) = c.taps(d, &b, &l);
                 let [w0, w1, w2, w3] = b.w;
                 let [v0, v1] = l.w;
                 for i in 0..ch {
