@@ -16,6 +16,19 @@ pub struct Linear {
     pub w: [f32; 2],
 }
 
+/// `grad[idx_k ..] += w_k * g` for every tap with a non-zero weight.
+#[inline]
+fn scatter_taps(idx: &[usize], w: &[f32], grad: &mut [f32], g: &[f32]) {
+    let n = g.len();
+    for (t, &wt) in idx.iter().zip(w) {
+        if wt != 0.0 {
+            for (dst, src) in grad[*t..*t + n].iter_mut().zip(g) {
+                *dst += wt * src;
+            }
+        }
+    }
+}
+
 #[inline]
 fn split(g: f32, res: usize) -> (usize, f32) {
     let max = (res - 1) as f32;
@@ -59,14 +72,7 @@ impl Bilinear {
     /// `grad[idx_k ..] += w_k * g`.
     #[inline]
     pub fn scatter(&self, grad: &mut [f32], g: &[f32]) {
-        let n = g.len();
-        for (t, &w) in self.idx.iter().zip(&self.w) {
-            if w != 0.0 {
-                for (dst, src) in grad[*t..*t + n].iter_mut().zip(g) {
-                    *dst += w * src;
-                }
-            }
-        }
+        scatter_taps(&self.idx, &self.w, grad, g);
     }
 }
 
@@ -90,14 +96,7 @@ impl Linear {
 
     #[inline]
     pub fn scatter(&self, grad: &mut [f32], g: &[f32]) {
-        let n = g.len();
-        for (t, &w) in self.idx.iter().zip(&self.w) {
-            if w != 0.0 {
-                for (dst, src) in grad[*t..*t + n].iter_mut().zip(g) {
-                    *dst += w * src;
-                }
-            }
-        }
+        scatter_taps(&self.idx, &self.w, grad, g);
     }
 }
 

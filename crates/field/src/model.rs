@@ -48,6 +48,22 @@ pub struct Dense {
     pub out: usize,
 }
 
+impl Dense {
+    /// `y = W x + b` over a tile of `n` samples, reading the layer from the parameters `d`.
+    #[inline]
+    fn forward(&self, d: &[f32], x: &[f32], y: &mut [f32], n: usize) {
+        dense_forward(
+            &d[self.w..][..self.inn * self.out],
+            Some(&d[self.b..][..self.out]),
+            x,
+            y,
+            n,
+            self.inn,
+            self.out,
+        );
+    }
+}
+
 /// A radiance field on ground feature planes (or the VM baseline).
 #[derive(Debug, Clone)]
 pub struct Field {
@@ -352,25 +368,9 @@ impl Field {
                     cc.plane_at(g).gather(&d[cc.plane..], &mut w.m[j * app_dim..][..app_dim]);
                 }
                 let (l0, l1) = (self.guide[0], self.guide[1]);
-                dense_forward(
-                    &d[l0.w..][..l0.inn * l0.out],
-                    Some(&d[l0.b..][..l0.out]),
-                    &w.gin,
-                    &mut w.ghid,
-                    n,
-                    nd,
-                    gh,
-                );
+                l0.forward(d, &w.gin, &mut w.ghid, n);
                 relu(&mut w.ghid[..n * gh]);
-                dense_forward(
-                    &d[l1.w..][..l1.inn * l1.out],
-                    Some(&d[l1.b..][..l1.out]),
-                    &w.ghid,
-                    &mut w.h,
-                    n,
-                    gh,
-                    app_dim,
-                );
+                l1.forward(d, &w.ghid, &mut w.h, n);
                 for k in 0..n * app_dim {
                     w.app[k] = w.m[k] * w.h[k];
                 }
@@ -399,15 +399,7 @@ impl Field {
                 for (k, l) in self.decoder.iter().enumerate() {
                     let (head, tail) = w.acts.split_at_mut(k + 1);
                     let (x, y) = (&head[k], &mut tail[0]);
-                    dense_forward(
-                        &d[l.w..][..l.inn * l.out],
-                        Some(&d[l.b..][..l.out]),
-                        x,
-                        y,
-                        n,
-                        l.inn,
-                        l.out,
-                    );
+                    l.forward(d, x, y, n);
                     if k < last {
                         relu(&mut y[..n * l.out]);
                     }
