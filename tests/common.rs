@@ -41,22 +41,27 @@ pub fn scratch(name: &str) -> PathBuf {
     d
 }
 
-/// The `assetfield` binary next to the test executable (built by `cargo test --workspace`),
-/// built on demand when a narrower `cargo test` did not build it.
+/// The `assetfield` binary next to the test executable, brought up to date once per test
+/// process.
 pub fn assetfield_bin() -> PathBuf {
-    let exe = std::env::current_exe().expect("test executable path");
-    let dir = exe.parent().and_then(Path::parent).expect("target/<profile>/deps");
-    let bin = dir.join(format!("assetfield{}", std::env::consts::EXE_SUFFIX));
-    if !bin.exists() {
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let status = Command::new(cargo)
-            .args(["build", "-p", "assetfield-cli", "--bin", "assetfield"])
-            .current_dir(repo())
-            .status()
-            .expect("cargo runs");
-        assert!(status.success(), "building the assetfield binary failed");
-    }
-    bin
+    static BUILT: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    BUILT
+        .get_or_init(|| {
+            let exe = std::env::current_exe().expect("test executable path");
+            let dir = exe.parent().and_then(Path::parent).expect("target/<profile>/deps");
+            let bin = dir.join(format!("assetfield{}", std::env::consts::EXE_SUFFIX));
+            // always (re)build once per test process: a stale binary from an earlier build
+            // would test old code (cheap when it is up to date)
+            let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+            let status = Command::new(cargo)
+                .args(["build", "-p", "assetfield-cli", "--bin", "assetfield"])
+                .current_dir(repo())
+                .status()
+                .expect("cargo runs");
+            assert!(status.success(), "building the assetfield binary failed");
+            bin
+        })
+        .clone()
 }
 
 /// Run `assetfield ARGS...` in `cwd`; returns (exit code, stdout, stderr).

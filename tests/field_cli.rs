@@ -313,6 +313,24 @@ fn bad_input_fails_clearly() {
         fail(&dir, &["train", "d", "--out", "f.safetensors", "--aabb", aabb], &["--aabb", needle]);
     }
     fail(&dir, &["train", "d", "--out", "f.safetensors", "--background", "pink"], &["colour"]);
+    // feature maps: only I-AssetField has a semantic field; every training image needs one
+    std::fs::create_dir_all(dir.join("feats")).unwrap();
+    fail(
+        &dir,
+        &["train", "d", "--out", "f.safetensors", "--features", "feats"],
+        &["--features", "--model i"],
+    );
+    fail(
+        &dir,
+        &["train", "d", "--out", "f.safetensors", "--model", "i", "--features", "feats"],
+        &["no feature map for image", "r_0.png", "r_0.npy"],
+    );
+    std::fs::write(dir.join("feats/r_0.npy"), "not numpy").unwrap();
+    fail(
+        &dir,
+        &["train", "d", "--out", "f.safetensors", "--model", "i", "--features", "feats"],
+        &["feature map", "r_0.npy", "magic"],
+    );
     // not a field file
     std::fs::write(dir.join("notes.safetensors"), "hello").unwrap();
     for file in ["d/synth.json", "d/train/r_0.png", "notes.safetensors", "absent.safetensors"] {

@@ -148,6 +148,8 @@ pub struct Frame {
     pub camera: Camera,
     /// The pixels, composited onto the background and downscaled.
     pub image: ImageF32,
+    /// A per-view feature map (see [`Dataset::load_features`]).
+    pub features: Option<crate::FeatureMap>,
 }
 
 /// A loaded posed-image dataset: cameras and images, all of one resolution.
@@ -380,9 +382,51 @@ impl Dataset {
                 image_path: v.image_path,
                 camera: v.camera,
                 image: img?,
+                features: None,
             });
         }
         Ok(Dataset { root: cams.root, format: cams.format, frames, aabb_scale: cams.aabb_scale })
+    }
+
+    /// Attach a feature map to every frame from `dir`: the file named like the frame's image
+    /// with a `.npy` or `.safetensors` extension (see [`crate::features`]). Every frame must
+    /// have one, all with the same channel count. Returns the channel count.
+    pub fn load_features(&mut self, dir: &Path) -> Result<usize, DataError> {
+        let found: Vec<Result<crate::FeatureMap, DataError>> =
+            self.frames
+                .par_iter()
+                .map(|f| {
+                    let path = crate::features::find_feature_file(dir, &f.image_path).map_err(
+                        |tried| DataError::FeatureNotFound {
+                            image: f.image_path.clone(),
+                            index: f.index,
+                            tried,
+                        },
+                    )?;
+                    crate::FeatureMap::load(&path)
+                })
+                .collect();
+        let mut channels = None;
+        for (frame, map) in self.frames.iter_mut().zip(found) {
+            let map = map?;
+            let first =
+                channels.get_or_insert_with(|| (map.channels, frame.image_path.clone())).clone();
+            if map.channels != first.0 {
+                let path =
+                    crate::features::find_feature_file(dir, &frame.image_path).unwrap_or_default();
+                return Err(DataError::Features {
+                    path,
+                    reason: format!(
+                        "has {} channels, expected {} like the map of {}",
+                        map.channels,
+                        first.0,
+                        first.1.display()
+                    ),
+                });
+            }
+            frame.features = Some(map);
+        }
+        Ok(channels.map_or(0, |c: (usize, PathBuf)| c.0))
     }
 
     /// Load only the cameras: parse the JSON, validate poses and intrinsics and read the

@@ -190,6 +190,30 @@ pub enum DataError {
         why: String,
     },
 
+    /// A feature map file cannot be used.
+    #[error("feature map {}: {reason}", path.display())]
+    Features {
+        /// The feature file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+
+    /// A view has no feature map in the features folder.
+    #[error(
+        "no feature map for image {} (frame {index}): tried {}",
+        image.display(),
+        tried.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+    )]
+    FeatureNotFound {
+        /// The view's image file.
+        image: PathBuf,
+        /// Index of the frame in its JSON file.
+        index: usize,
+        /// The files looked for.
+        tried: Vec<PathBuf>,
+    },
+
     /// A load option is out of range.
     #[error("invalid load option: {0}")]
     InvalidOption(String),

@@ -9,6 +9,7 @@
 pub mod align;
 pub mod dataset;
 pub mod error;
+pub mod features;
 pub mod image_f32;
 pub mod map;
 pub mod rays;
@@ -18,6 +19,7 @@ pub mod summary;
 pub use align::{GroundAlignment, bounds_from_cameras};
 pub use dataset::{Dataset, DatasetCameras, Format, Frame, LoadOptions, Split, View};
 pub use error::{DataError, FrameRef};
+pub use features::FeatureMap;
 pub use image_f32::ImageF32;
 pub use map::{camera_map, camera_map_canvas};
 pub use rays::{PixelRays, fill_rays, rays_flat};

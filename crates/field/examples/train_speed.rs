@@ -17,20 +17,30 @@ fn main() {
     let iters: u64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(30_000);
     let steps: u64 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(iters);
     let data = Dataset::load(&dir, Split::Train, &LoadOptions::default()).expect("dataset");
-    let synth: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("synth.json")).expect("synth.json"))
-            .unwrap();
-    let a = &synth["scene_aabb"];
-    let v = |i: usize| {
-        glam::Vec3::new(
-            a[i][0].as_f64().unwrap() as f32,
-            a[i][1].as_f64().unwrap() as f32,
-            a[i][2].as_f64().unwrap() as f32,
-        )
+    // synth.json's scene box, else the NeRF-synthetic cube
+    let aabb = match std::fs::read_to_string(dir.join("synth.json")) {
+        Ok(text) => {
+            let synth: serde_json::Value = serde_json::from_str(&text).expect("synth.json");
+            let a = &synth["scene_aabb"];
+            let v = |i: usize| {
+                glam::Vec3::new(
+                    a[i][0].as_f64().unwrap() as f32,
+                    a[i][1].as_f64().unwrap() as f32,
+                    a[i][2].as_f64().unwrap() as f32,
+                )
+            };
+            assetfield_core::Aabb3::new(v(0) - 0.05, v(1) + 0.05)
+        }
+        Err(_) => assetfield_core::Aabb3::new(glam::Vec3::splat(-1.5), glam::Vec3::splat(1.5)),
     };
-    let aabb = assetfield_core::Aabb3::new(v(0) - 0.05, v(1) + 0.05);
     let mut cfg = TrainConfig::new(kind);
     cfg.iters = iters;
+    if let Some(e) = std::env::var("EARLY").ok().and_then(|m| m.parse::<u64>().ok()) {
+        cfg.occupancy_every_early = e;
+    }
+    if std::env::var("CLOCK").is_ok_and(|c| c == "cpu") {
+        cfg.clock = assetfield_field::Clock::Cpu;
+    }
     cfg.seconds =
         std::env::var("MINUTES").ok().and_then(|m| m.parse::<f64>().ok()).map(|m| m * 60.0);
     let fc = FieldConfig::new(kind, aabb, 300);
@@ -56,7 +66,9 @@ fn main() {
     if let Ok(test) = Dataset::load(&dir, Split::Test, &LoadOptions::default()) {
         let (mut p, mut s) = (0.0, 0.0);
         let t0 = std::time::Instant::now();
-        for f in &test.frames {
+        let every = std::env::var("TEST_EVERY").ok().and_then(|m| m.parse().ok()).unwrap_or(1);
+        let frames: Vec<_> = test.frames.iter().step_by(every).collect();
+        for f in &frames {
             let img = assetfield_field::render_view(
                 &t.field,
                 t.occupancy.as_ref(),
@@ -72,12 +84,12 @@ fn main() {
                 3,
             );
         }
-        let n = test.frames.len() as f32;
+        let n = frames.len() as f32;
         println!(
             "test: PSNR {:.2} dB, SSIM {:.4} over {} views ({:.2} s per view)",
             p / n,
             s / n,
-            test.frames.len(),
+            frames.len(),
             t0.elapsed().as_secs_f64() / n as f64
         );
     }

@@ -50,8 +50,13 @@ pub struct FieldConfig {
     /// Output size of the colour basis (the decoder's feature input).
     pub basis_dim: usize,
     pub decoder: DecoderKind,
-    /// Hidden width of the I-AssetField guidance MLP (density features -> colour feature).
+    /// Hidden width of the I-AssetField guidance MLPs (density features -> colour feature,
+    /// and -> semantic feature).
     pub guide_hidden: usize,
+    /// I-AssetField only: channels of the semantic field decoded from the integrated plane
+    /// (0: no semantic field). Set to the channel count of the training feature maps.
+    #[serde(default)]
+    pub semantic_channels: usize,
     /// Added to the density feature before softplus (keeps empty space empty at the start).
     pub density_shift: f32,
     /// Multiplies sample spacing in the opacity `1 - exp(-sigma * step * scale)`.
@@ -73,6 +78,7 @@ impl FieldConfig {
             basis_dim: 27,
             decoder: DecoderKind::Mlp { hidden: vec![64], view_freqs: 2 },
             guide_hidden: 32,
+            semantic_channels: 0,
             density_shift: -10.0,
             distance_scale: 25.0 * 3.0 / aabb.extent().max_element().max(1e-6),
             step_ratio: 0.5,
@@ -123,6 +129,11 @@ impl FieldConfig {
             DecoderKind::Mlp { .. } => self.basis_dim,
             DecoderKind::Sh { degree } => 3 * (degree + 1) * (degree + 1),
         }
+    }
+
+    /// Semantic channels the model actually has (only I-AssetField decodes them).
+    pub fn semantic_dim(&self) -> usize {
+        if self.kind == ModelKind::Integrated { self.semantic_channels } else { 0 }
     }
 
     /// Colour feature size before the basis (per-component channels times components).

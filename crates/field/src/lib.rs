@@ -19,6 +19,8 @@ pub use io::FieldError;
 pub use march::{MarchSettings, MarchWork};
 pub use model::Field;
 pub use occupancy::Occupancy;
-pub use train::{StepStats, TrainConfig, Trainer, render_view};
+pub use train::{
+    Clock, StepStats, TrainConfig, Trainer, process_cpu_seconds, render_semantic_view, render_view,
+};
 pub mod eval;
 pub mod pictures;

@@ -44,7 +44,12 @@ pub struct MarchWork {
     pub depth: Vec<f32>,
     /// Samples marched in the last chunk (after occupancy skipping).
     pub samples: usize,
+    /// Also composite the semantic field (fields that have one): `semantic` then holds
+    /// `[rays][semantic_channels]`, weighted like colour, with no background term.
+    pub want_semantic: bool,
+    pub semantic: Vec<f32>,
     d_rgb: Vec<f32>,
+    d_sem: Vec<f32>,
 }
 
 const NO_COLOR: u32 = u32::MAX;
@@ -115,9 +120,11 @@ pub fn forward(
     }
     w.ray_first.push(w.s_pos.len() as u32);
     w.samples = w.s_pos.len();
+    w.color.want_semantic = w.want_semantic && field.has_semantic();
     field.color_forward(&mut w.color);
     // composite
     w.rgb.clear();
+    w.semantic.clear();
     w.opacity.clear();
     w.depth.clear();
     for (r, ray) in rays.iter().enumerate() {
@@ -134,17 +141,34 @@ pub fn forward(
         }
         let end = w.ray_end_t[r];
         w.rgb.push(c + end * background);
+        if w.color.want_semantic {
+            let nc = cfg.semantic_channels;
+            let base = w.semantic.len();
+            w.semantic.resize(base + nc, 0.0);
+            for i in a..b {
+                if w.s_color[i] != NO_COLOR {
+                    let wt = w.s_trans[i] * w.s_alpha[i];
+                    let src = &w.color.sem[w.s_color[i] as usize * nc..][..nc];
+                    for (o, v) in w.semantic[base..].iter_mut().zip(src) {
+                        *o += wt * v;
+                    }
+                }
+            }
+        }
         w.opacity.push(1.0 - end);
         w.depth.push(depth);
     }
 }
 
-/// Backward pass for `d_rgb` (gradient of the loss w.r.t. each ray's composited colour),
-/// after [`forward`] on the same rays; accumulates into `grad` (the field's flat layout).
+/// Backward pass for `d_rgb` (gradient of the loss w.r.t. each ray's composited colour) and
+/// optionally `d_sem` (w.r.t. each ray's composited semantic feature, `[rays][channels]`;
+/// needs a forward pass with `want_semantic`), after [`forward`] on the same rays;
+/// accumulates into `grad` (the field's flat layout).
 pub fn backward(
     field: &Field,
     background: Vec3,
     d_rgb: &[Vec3],
+    d_sem: Option<&[f32]>,
     w: &mut MarchWork,
     grad: &mut [f32],
 ) {
@@ -152,8 +176,14 @@ pub fn backward(
     let delta = cfg.step_size() * cfg.distance_scale;
     let shift = cfg.density_shift;
     let n_color = w.color.pos.len();
+    let nc = cfg.semantic_channels;
+    let d_sem = d_sem.filter(|_| w.color.want_semantic);
     w.d_rgb.clear();
     w.d_rgb.resize(n_color * 3, 0.0);
+    w.d_sem.clear();
+    if d_sem.is_some() {
+        w.d_sem.resize(n_color * nc, 0.0);
+    }
     let rays = w.ray_first.len() - 1;
     for r in 0..rays {
         let (a, b) = (w.ray_first[r] as usize, w.ray_first[r + 1] as usize);
@@ -169,7 +199,17 @@ pub fn backward(
                 w.d_rgb[k] = weight * dc.x;
                 w.d_rgb[k + 1] = weight * dc.y;
                 w.d_rgb[k + 2] = weight * dc.z;
-                dc.dot(c)
+                let mut g = dc.dot(c);
+                if let Some(ds) = d_sem {
+                    let ci = w.s_color[i] as usize * nc;
+                    let dray = &ds[r * nc..][..nc];
+                    let s = &w.color.sem[ci..][..nc];
+                    for q in 0..nc {
+                        g += dray[q] * s[q];
+                        w.d_sem[ci + q] = weight * dray[q];
+                    }
+                }
+                g
             } else {
                 0.0
             };
@@ -182,6 +222,8 @@ pub fn backward(
         }
     }
     let d = std::mem::take(&mut w.d_rgb);
-    field.color_backward(&mut w.color, &d, grad);
+    let ds = std::mem::take(&mut w.d_sem);
+    field.color_backward(&mut w.color, &d, d_sem.map(|_| ds.as_slice()), grad);
     w.d_rgb = d;
+    w.d_sem = ds;
 }

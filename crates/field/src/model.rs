@@ -74,6 +74,9 @@ pub struct Field {
     basis: usize,
     decoder: Vec<Dense>,
     guide: Vec<Dense>,
+    /// I-AssetField's semantic head: guidance MLP (2 layers) and linear decoder.
+    guide_sem: Vec<Dense>,
+    semantic: Option<Dense>,
     grid_min: Vec3,
     grid_scale: Vec3,
 }
@@ -218,6 +221,20 @@ impl Field {
             }
             DecoderKind::Sh { .. } => Vec::new(),
         };
+        // the semantic head comes last so fields without one keep their layout
+        let sem = config.semantic_dim();
+        let (guide_sem, semantic) = if sem > 0 {
+            let (nd, gh, app) = (config.density_channels, config.guide_hidden, config.app_dim());
+            (
+                vec![
+                    dense(&mut params, &mut rng, "guide_semantic.0", nd, gh, true),
+                    dense(&mut params, &mut rng, "guide_semantic.1", gh, app, true),
+                ],
+                Some(dense(&mut params, &mut rng, "semantic.decoder", app, sem, true)),
+            )
+        } else {
+            (Vec::new(), None)
+        };
         let mut f = Field {
             config,
             params,
@@ -226,6 +243,8 @@ impl Field {
             basis,
             decoder,
             guide,
+            guide_sem,
+            semantic,
             grid_min: Vec3::ZERO,
             grid_scale: Vec3::ONE,
         };
@@ -374,6 +393,16 @@ impl Field {
                 for k in 0..n * app_dim {
                     w.app[k] = w.m[k] * w.h[k];
                 }
+                if let Some(sem) = self.semantic.filter(|_| w.want_semantic) {
+                    let (s0, s1) = (self.guide_sem[0], self.guide_sem[1]);
+                    s0.forward(d, &w.gin, &mut w.shid, n);
+                    relu(&mut w.shid[..n * gh]);
+                    s1.forward(d, &w.shid, &mut w.sv, n);
+                    for k in 0..n * app_dim {
+                        w.sapp[k] = w.m[k] * w.sv[k];
+                    }
+                    sem.forward(d, &w.sapp, &mut w.sem, n);
+                }
             }
         }
         // 2. basis
@@ -424,8 +453,16 @@ impl Field {
         }
     }
 
-    /// Backward of [`Field::color_forward`] for `d_rgb` (`[n][3]`), accumulated into `grad`.
-    pub fn color_backward(&self, w: &mut ColorWork, d_rgb: &[f32], grad: &mut [f32]) {
+    /// Backward of [`Field::color_forward`] for `d_rgb` (`[n][3]`) and, when the field has a
+    /// semantic head and the forward pass evaluated it, `d_sem` (`[n][semantic_channels]`),
+    /// accumulated into `grad`.
+    pub fn color_backward(
+        &self,
+        w: &mut ColorWork,
+        d_rgb: &[f32],
+        d_sem: Option<&[f32]>,
+        grad: &mut [f32],
+    ) {
         let n = w.pos.len();
         let cfg = &self.config;
         let d = &self.params.data;
@@ -529,6 +566,55 @@ impl Field {
                     w.dv[k] = w.dapp[k] * w.m[k];
                     w.dapp[k] *= w.h[k];
                 }
+                // semantic head: d s -> d sapp -> (d m_c, d v_sem) -> guidance -> d gin
+                let sem_head = match (self.semantic, d_sem) {
+                    (Some(sem), Some(ds)) if w.want_semantic => Some((sem, ds)),
+                    _ => None,
+                };
+                if let Some((sem, ds)) = sem_head {
+                    let (gw, gb) = split_wb(grad, &sem);
+                    dense_backward(
+                        &d[sem.w..][..sem.inn * sem.out],
+                        &w.sapp,
+                        ds,
+                        Some(&mut w.dsapp),
+                        gw,
+                        Some(gb),
+                        n,
+                        app_dim,
+                        sem.out,
+                    );
+                    for k in 0..n * app_dim {
+                        w.dsv[k] = w.dsapp[k] * w.m[k];
+                        w.dapp[k] += w.dsapp[k] * w.sv[k];
+                    }
+                    let (s0, s1) = (self.guide_sem[0], self.guide_sem[1]);
+                    let (gw, gb) = split_wb(grad, &s1);
+                    dense_backward(
+                        &d[s1.w..][..s1.inn * s1.out],
+                        &w.shid,
+                        &w.dsv,
+                        Some(&mut w.dshid),
+                        gw,
+                        Some(gb),
+                        n,
+                        gh,
+                        app_dim,
+                    );
+                    relu_backward(&w.shid[..n * gh], &mut w.dshid[..n * gh]);
+                    let (gw, gb) = split_wb(grad, &s0);
+                    dense_backward(
+                        &d[s0.w..][..s0.inn * s0.out],
+                        &w.gin,
+                        &w.dshid,
+                        Some(&mut w.dsgin),
+                        gw,
+                        Some(gb),
+                        n,
+                        nd,
+                        gh,
+                    );
+                }
                 let (l0, l1) = (self.guide[0], self.guide[1]);
                 let (gw, gb) = split_wb(grad, &l1);
                 dense_backward(
@@ -555,6 +641,11 @@ impl Field {
                     nd,
                     gh,
                 );
+                if sem_head.is_some() {
+                    for k in 0..n * nd {
+                        w.dgin[k] += w.dsgin[k];
+                    }
+                }
                 let cc = self.color[0];
                 let mut tmp = vec![0.0f32; nd];
                 for j in 0..n {
@@ -580,6 +671,10 @@ impl Field {
     }
     pub fn color_components(&self) -> &[Comp] {
         &self.color
+    }
+    /// Whether the field decodes a semantic feature (I-AssetField trained on feature maps).
+    pub fn has_semantic(&self) -> bool {
+        self.semantic.is_some()
     }
 }
 
@@ -628,6 +723,10 @@ pub struct ColorWork {
     pub pos: Vec<Vec3>,
     pub dir: Vec<Vec3>,
     pub rgb: Vec<f32>,
+    /// Evaluate the semantic head too (fields that have one).
+    pub want_semantic: bool,
+    /// Semantic features `[n][semantic_channels]` (when evaluated).
+    pub sem: Vec<f32>,
     m: Vec<f32>,
     h: Vec<f32>,
     app: Vec<f32>,
@@ -643,6 +742,13 @@ pub struct ColorWork {
     dv: Vec<f32>,
     dghid: Vec<f32>,
     dgin: Vec<f32>,
+    shid: Vec<f32>,
+    sv: Vec<f32>,
+    sapp: Vec<f32>,
+    dsapp: Vec<f32>,
+    dsv: Vec<f32>,
+    dshid: Vec<f32>,
+    dsgin: Vec<f32>,
 }
 
 impl ColorWork {
@@ -677,6 +783,21 @@ impl ColorWork {
                 (&mut self.dgin, n * nd),
             ] {
                 v.resize(len, 0.0);
+            }
+            let sem = cfg.semantic_dim();
+            if sem > 0 && self.want_semantic {
+                for (v, len) in [
+                    (&mut self.sem, n * sem),
+                    (&mut self.shid, n * gh),
+                    (&mut self.dshid, n * gh),
+                    (&mut self.sv, n * a),
+                    (&mut self.sapp, n * a),
+                    (&mut self.dsapp, n * a),
+                    (&mut self.dsv, n * a),
+                    (&mut self.dsgin, n * nd),
+                ] {
+                    v.resize(len, 0.0);
+                }
             }
         }
         if !decoder.is_empty() {

@@ -28,6 +28,9 @@ pub struct TrainConfig {
     pub iters: u64,
     /// Time budget in seconds.
     pub seconds: Option<f64>,
+    /// How the time budget and the curve's time axis are measured.
+    #[serde(default)]
+    pub clock: Clock,
     /// Plane resolution at the start and at the end of coarse-to-fine training.
     pub plane_res_start: usize,
     pub plane_res_final: usize,
@@ -35,6 +38,14 @@ pub struct TrainConfig {
     pub upsample_at: Vec<f64>,
     /// Progress fractions at which the occupancy grid is rebuilt.
     pub occupancy_at: Vec<f64>,
+    /// Before the first scheduled rebuild, the grid is also rebuilt every this many
+    /// iterations (0: never) while rays take more than `early_occupancy_samples` samples on
+    /// average (or once such a grid exists), so that scenes whose box is mostly empty stop
+    /// marching empty space early on.
+    #[serde(default)]
+    pub occupancy_every_early: u64,
+    #[serde(default = "default_early_samples")]
+    pub early_occupancy_samples: f32,
     pub lr_grid: f32,
     pub lr_network: f32,
     /// Learning rates decay exponentially to this fraction at the end.
@@ -43,6 +54,10 @@ pub struct TrainConfig {
     pub tv_weight_density: f32,
     pub tv_weight_color: f32,
     pub background: [f32; 3],
+    /// Weight of the semantic feature loss (mean squared error per channel) against the
+    /// colour loss, for I-AssetField trained with feature maps.
+    #[serde(default = "default_semantic_weight")]
+    pub semantic_weight: f32,
     pub seed: u64,
     /// Chunks per batch (fixed so results do not depend on scheduling).
     pub chunks: usize,
@@ -56,10 +71,13 @@ impl TrainConfig {
             batch: 4096,
             iters: 30_000,
             seconds: None,
+            clock: Clock::Wall,
             plane_res_start: 128,
             plane_res_final: 300,
             upsample_at: vec![0.07, 0.1, 0.14, 0.18, 0.23],
             occupancy_at: vec![0.07, 0.14, 0.3, 0.5],
+            occupancy_every_early: 25,
+            early_occupancy_samples: default_early_samples(),
             lr_grid: 0.02,
             lr_network: 1e-3,
             lr_decay_target: 0.1,
@@ -67,10 +85,42 @@ impl TrainConfig {
             tv_weight_density: 0.0,
             tv_weight_color: 0.0,
             background: [1.0; 3],
+            semantic_weight: default_semantic_weight(),
             seed: 20230,
             chunks: 4,
         }
     }
+}
+
+fn default_early_samples() -> f32 {
+    64.0
+}
+
+fn default_semantic_weight() -> f32 {
+    0.1
+}
+
+/// How a run's time is measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Clock {
+    /// Wall-clock time.
+    #[default]
+    Wall,
+    /// The process's CPU time divided by the worker threads: equal to wall time on an idle
+    /// machine, and a fair budget on a shared one (other jobs slow the run but do not eat
+    /// its budget). Falls back to wall time where `/proc/self/stat` cannot be read.
+    Cpu,
+}
+
+/// CPU seconds (user + system, all threads) this process has used, from `/proc/self/stat`.
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // fields after the parenthesised command name: state is field 3, utime 14, stime 15
+    let rest = &stat[stat.rfind(')')? + 1..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    // USER_HZ is 100 on every Linux architecture
+    Some(ticks / 100.0)
 }
 
 /// Iterations before the first occupancy grid: before that the density has not formed and
@@ -82,6 +132,7 @@ const MIN_ITERS_BEFORE_OCCUPANCY: u64 = 500;
 struct View {
     camera: Camera,
     rgb: Vec<f32>,
+    features: Option<assetfield_data::FeatureMap>,
 }
 
 /// What one iteration did.
@@ -90,6 +141,8 @@ pub struct StepStats {
     pub iter: u64,
     pub loss: f32,
     pub psnr: f32,
+    /// Semantic feature loss (mean squared error per channel), when trained.
+    pub semantic_loss: Option<f32>,
     pub samples: usize,
     pub seconds: f64,
 }
@@ -112,8 +165,11 @@ pub struct Trainer {
     grad: Vec<f32>,
     elapsed_before: f64,
     started: Instant,
+    cpu_started: Option<f64>,
     upsampled: usize,
     occupancy_done: usize,
+    /// Mean samples per ray of the last iteration.
+    samples_per_ray: f32,
 }
 
 fn split_mix(s: &mut u64) -> u64 {
@@ -130,7 +186,11 @@ impl Trainer {
         let views: Vec<View> = data
             .frames
             .iter()
-            .map(|f| View { camera: f.camera, rgb: f.image.rgb.clone() })
+            .map(|f| View {
+                camera: f.camera,
+                rgb: f.image.rgb.clone(),
+                features: f.features.clone(),
+            })
             .collect();
         let (width, height) = data.resolution();
         let mut fc = field_config;
@@ -153,14 +213,20 @@ impl Trainer {
             height,
             elapsed_before: 0.0,
             started: Instant::now(),
+            cpu_started: process_cpu_seconds(),
             upsampled: 0,
             occupancy_done: 0,
+            samples_per_ray: 0.0,
         }
     }
 
     /// Seconds of training so far (across resumes).
     pub fn elapsed(&self) -> f64 {
-        self.elapsed_before + self.started.elapsed().as_secs_f64()
+        let run = match (self.config.clock, self.cpu_started, process_cpu_seconds()) {
+            (Clock::Cpu, Some(a), Some(b)) => (b - a) / rayon::current_num_threads() as f64,
+            _ => self.started.elapsed().as_secs_f64(),
+        };
+        self.elapsed_before + run
     }
 
     /// Fraction of the run done: iterations or time, whichever is further along.
@@ -217,14 +283,29 @@ impl Trainer {
     pub fn step(&mut self) -> StepStats {
         let t0 = Instant::now();
         // scheduled events
-        while self.upsampled < self.config.upsample_at.len()
+        // a finer grid without empty-space skipping would make every later step slow: the
+        // steps wait for the first occupancy grid (or for enough iterations without one)
+        let can_upsample = self.occupancy.is_some() || self.iter >= MIN_ITERS_BEFORE_OCCUPANCY;
+        while can_upsample
+            && self.upsampled < self.config.upsample_at.len()
             && self.progress() >= self.config.upsample_at[self.upsampled]
         {
             self.upsampled += 1;
             let r = self.plane_res_at(self.upsampled);
             self.resize_to(r);
         }
-        // the first grid waits until the density has had time to form (TensoRF: 2000 its)
+        // early grids, every few iterations, until the first scheduled one
+        let early = self.config.occupancy_every_early;
+        if early > 0
+            && self.occupancy_done == 0
+            && self.iter > 0
+            && self.iter.is_multiple_of(early)
+            && (self.occupancy.is_some()
+                || self.samples_per_ray > self.config.early_occupancy_samples)
+        {
+            self.rebuild_occupancy();
+        }
+        // scheduled grids wait until the density has had time to form
         while self.occupancy_done < self.config.occupancy_at.len()
             && self.progress() >= self.config.occupancy_at[self.occupancy_done]
             && self.iter >= MIN_ITERS_BEFORE_OCCUPANCY
@@ -249,7 +330,10 @@ impl Trainer {
         let settings = MarchSettings::default();
         let scale = 2.0 / (batch as f32 * 3.0);
         let (field, occ, views) = (&self.field, self.occupancy.as_ref(), &self.views);
-        let results: Vec<(f32, usize)> = self
+        let nc = field.config.semantic_dim();
+        let semantic = nc > 0 && views.iter().all(|v| v.features.is_some());
+        let sem_scale = 2.0 * self.config.semantic_weight / (batch * nc.max(1)) as f32;
+        let results: Vec<(f32, f32, usize)> = self
             .work
             .par_iter_mut()
             .zip(picks.par_chunks(chunk))
@@ -258,13 +342,25 @@ impl Trainer {
                 let mut rays = Vec::with_capacity(picks.len());
                 let mut targets = Vec::with_capacity(picks.len());
                 let mut jitter = Vec::with_capacity(picks.len());
-                for &(v, i, j, jit) in picks {
+                let mut sem_targets = vec![0.0f32; if semantic { picks.len() * nc } else { 0 }];
+                for (r, &(v, i, j, jit)) in picks.iter().enumerate() {
                     let view = &views[v as usize];
                     rays.push(view.camera.pixel_ray(i, j));
                     let k = ((j as usize) * view.camera.intrinsics.width as usize + i as usize) * 3;
                     targets.push(Vec3::new(view.rgb[k], view.rgb[k + 1], view.rgb[k + 2]));
                     jitter.push(jit);
+                    if let Some(f) = view.features.as_ref().filter(|_| semantic) {
+                        let size = &view.camera.intrinsics;
+                        f.sample_pixel(
+                            i,
+                            j,
+                            size.width,
+                            size.height,
+                            &mut sem_targets[r * nc..][..nc],
+                        );
+                    }
                 }
+                work.want_semantic = semantic;
                 march::forward(field, occ, &rays, Some(&jitter), bg, &settings, work);
                 let mut sse = 0.0;
                 let d: Vec<Vec3> = work
@@ -276,8 +372,19 @@ impl Trainer {
                         (*c - *t) * scale
                     })
                     .collect();
-                march::backward(field, bg, &d, work, grad);
-                (sse, work.samples)
+                let mut sem_sse = 0.0;
+                let d_sem: Option<Vec<f32>> = semantic.then(|| {
+                    work.semantic
+                        .iter()
+                        .zip(&sem_targets)
+                        .map(|(f, t)| {
+                            sem_sse += (f - t) * (f - t);
+                            (f - t) * sem_scale
+                        })
+                        .collect()
+                });
+                march::backward(field, bg, &d, d_sem.as_deref(), work, grad);
+                (sse, sem_sse, work.samples)
             })
             .collect();
         // deterministic reduction: chunk buffers summed in order
@@ -305,11 +412,15 @@ impl Trainer {
         if self.iter.is_multiple_of(10) || self.iter == 1 {
             self.history.push((self.elapsed(), self.iter, psnr));
         }
+        let samples: usize = results.iter().map(|r| r.2).sum();
+        self.samples_per_ray = samples as f32 / batch as f32;
         StepStats {
             iter: self.iter,
             loss: mse,
             psnr,
-            samples: results.iter().map(|r| r.1).sum(),
+            semantic_loss: semantic
+                .then(|| results.iter().map(|r| r.1).sum::<f32>() / (batch * nc) as f32),
+            samples,
             seconds: t0.elapsed().as_secs_f64(),
         }
     }
@@ -375,6 +486,8 @@ struct TrainState {
     occupancy_done: usize,
     adam_t: u32,
     history: Vec<(f64, u64, f32)>,
+    #[serde(default)]
+    samples_per_ray: f32,
 }
 
 impl Trainer {
@@ -394,6 +507,7 @@ impl Trainer {
             occupancy_done: self.occupancy_done,
             adam_t: t,
             history: self.history.clone(),
+            samples_per_ray: self.samples_per_ray,
         };
         f.set_meta_json("train", &state)?;
         Ok(f)
@@ -431,10 +545,12 @@ impl Trainer {
         t.iter = state.iter;
         t.elapsed_before = state.elapsed;
         t.started = Instant::now();
+        t.cpu_started = process_cpu_seconds();
         t.rng = state.rng;
         t.upsampled = state.upsampled;
         t.occupancy_done = state.occupancy_done;
         t.history = state.history;
+        t.samples_per_ray = state.samples_per_ray;
         if let Some(i) = iters {
             t.config.iters = i;
         }
@@ -472,4 +588,39 @@ pub fn render_view(
         },
     );
     out
+}
+
+/// Render a view's semantic features (`[height][width][semantic_channels]`) with a field
+/// that has a semantic head; `None` for fields without one.
+pub fn render_semantic_view(
+    field: &Field,
+    occ: Option<&Occupancy>,
+    camera: &Camera,
+) -> Option<Vec<f32>> {
+    if !field.has_semantic() {
+        return None;
+    }
+    let nc = field.config.semantic_channels;
+    let (w, h) = (camera.intrinsics.width as usize, camera.intrinsics.height as usize);
+    let mut out = vec![0.0f32; w * h * nc];
+    let settings = MarchSettings::default();
+    let rows_per_task = (1024 / w.max(1)).max(1);
+    out.par_chunks_mut(w * nc * rows_per_task).enumerate().for_each_init(
+        || {
+            let mut w = MarchWork::default();
+            w.want_semantic = true;
+            w
+        },
+        |work, (t, dst)| {
+            let j0 = t * rows_per_task;
+            let rows = dst.len() / (w * nc);
+            let rays: Vec<Ray> = (0..rows)
+                .flat_map(|dj| (0..w).map(move |i| (i, j0 + dj)))
+                .map(|(i, j)| camera.pixel_ray(i as u32, j as u32))
+                .collect();
+            march::forward(field, occ, &rays, None, Vec3::ZERO, &settings, work);
+            dst.copy_from_slice(&work.semantic);
+        },
+    );
+    Some(out)
 }

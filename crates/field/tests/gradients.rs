@@ -7,7 +7,7 @@ use assetfield_field::march::{backward, forward};
 use assetfield_field::{DecoderKind, Field, FieldConfig, MarchSettings, MarchWork, ModelKind};
 use glam::Vec3;
 
-fn tiny(kind: ModelKind, decoder: DecoderKind) -> Field {
+fn tiny(kind: ModelKind, decoder: DecoderKind, semantic: usize) -> Field {
     let aabb = Aabb3::new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.0));
     let mut cfg = FieldConfig::new(kind, aabb, 6);
     cfg.res = [6, 5, 4];
@@ -16,10 +16,12 @@ fn tiny(kind: ModelKind, decoder: DecoderKind) -> Field {
     cfg.basis_dim = 5;
     cfg.guide_hidden = 5;
     cfg.decoder = decoder;
+    cfg.semantic_channels = semantic;
     cfg.density_shift = -1.0;
     cfg.distance_scale = 1.5;
     cfg.step_ratio = 1.7;
-    let mut f = Field::new(cfg, 7);
+    // seed chosen so that no ReLU unit sits within the finite-difference step of its kink
+    let mut f = Field::new(cfg, if semantic > 0 { 3 } else { 7 });
     // larger grid values than the default init so every term matters
     for v in f.params.data.iter_mut() {
         *v *= 4.0;
@@ -43,24 +45,31 @@ fn rays() -> Vec<Ray> {
 const SETTINGS: MarchSettings =
     MarchSettings { weight_threshold: 0.0, stop_transmittance: 0.0, max_samples: 10_000 };
 
+const SEM_TARGET: f32 = 0.3;
+
 fn loss(field: &Field, w: &mut MarchWork) -> f64 {
     let bg = Vec3::new(1.0, 0.9, 0.8);
     let rs = rays();
+    w.want_semantic = field.has_semantic();
     forward(field, None, &rs, Some(&[0.1, 0.5, 0.9, 0.3]), bg, &SETTINGS, w);
     let target = Vec3::new(0.2, 0.6, 0.4);
-    w.rgb.iter().map(|c| (*c - target).length_squared() as f64).sum()
+    let rgb: f64 = w.rgb.iter().map(|c| (*c - target).length_squared() as f64).sum();
+    let sem: f64 = w.semantic.iter().map(|f| ((f - SEM_TARGET) as f64).powi(2)).sum();
+    rgb + sem
 }
 
-fn check(kind: ModelKind, decoder: DecoderKind) {
-    let mut field = tiny(kind, decoder.clone());
+fn check(kind: ModelKind, decoder: DecoderKind, semantic: usize) {
+    let mut field = tiny(kind, decoder.clone(), semantic);
     let mut w = MarchWork::default();
     let bg = Vec3::new(1.0, 0.9, 0.8);
     let base = loss(&field, &mut w);
     assert!(w.samples > 10, "the rays must cross the field ({} samples)", w.samples);
+    assert_eq!(w.semantic.len(), rays().len() * semantic, "semantic output per ray");
     let target = Vec3::new(0.2, 0.6, 0.4);
     let d_rgb: Vec<Vec3> = w.rgb.iter().map(|c| 2.0 * (*c - target)).collect();
+    let d_sem: Vec<f32> = w.semantic.iter().map(|f| 2.0 * (f - SEM_TARGET)).collect();
     let mut grad = vec![0.0f32; field.params.len()];
-    backward(&field, bg, &d_rgb, &mut w, &mut grad);
+    backward(&field, bg, &d_rgb, (semantic > 0).then_some(&d_sem[..]), &mut w, &mut grad);
 
     // f32 forward: steps of 4e-3 keep rounding noise (~1e-5) well under the tolerance floor
     let eps = 4e-3f32;
@@ -94,7 +103,7 @@ fn check(kind: ModelKind, decoder: DecoderKind) {
         }
     }
     let cosine = dot / (na.sqrt() * nn.sqrt()).max(1e-30);
-    let label = format!("{kind:?} {decoder:?}");
+    let label = format!("{kind:?} {decoder:?} semantic {semantic}");
     assert!(na > 1e-8, "{label}: gradient is zero");
     assert!(cosine > 0.9999, "{label}: gradient direction off (cosine {cosine})");
     assert!(
@@ -112,30 +121,40 @@ fn check(kind: ModelKind, decoder: DecoderKind) {
 
 #[test]
 fn standard_with_mlp_decoder() {
-    check(ModelKind::Standard, DecoderKind::Mlp { hidden: vec![6, 5], view_freqs: 2 });
+    check(ModelKind::Standard, DecoderKind::Mlp { hidden: vec![6, 5], view_freqs: 2 }, 0);
 }
 
 #[test]
 fn standard_with_sh_decoder() {
-    check(ModelKind::Standard, DecoderKind::Sh { degree: 2 });
+    check(ModelKind::Standard, DecoderKind::Sh { degree: 2 }, 0);
 }
 
 #[test]
 fn integrated_with_guidance_and_mlp_decoder() {
-    check(ModelKind::Integrated, DecoderKind::Mlp { hidden: vec![6], view_freqs: 1 });
+    check(ModelKind::Integrated, DecoderKind::Mlp { hidden: vec![6], view_freqs: 1 }, 0);
 }
 
 #[test]
 fn integrated_with_sh_decoder() {
-    check(ModelKind::Integrated, DecoderKind::Sh { degree: 1 });
+    check(ModelKind::Integrated, DecoderKind::Sh { degree: 1 }, 0);
 }
 
 #[test]
 fn vm_baseline_with_mlp_decoder() {
-    check(ModelKind::Vm, DecoderKind::Mlp { hidden: vec![6], view_freqs: 2 });
+    check(ModelKind::Vm, DecoderKind::Mlp { hidden: vec![6], view_freqs: 2 }, 0);
 }
 
 #[test]
 fn vm_baseline_with_sh_decoder() {
-    check(ModelKind::Vm, DecoderKind::Sh { degree: 0 });
+    check(ModelKind::Vm, DecoderKind::Sh { degree: 0 }, 0);
+}
+
+#[test]
+fn integrated_with_semantic_head() {
+    check(ModelKind::Integrated, DecoderKind::Mlp { hidden: vec![6], view_freqs: 1 }, 3);
+}
+
+#[test]
+fn integrated_with_semantic_head_and_sh_decoder() {
+    check(ModelKind::Integrated, DecoderKind::Sh { degree: 1 }, 2);
 }

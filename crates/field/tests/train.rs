@@ -181,3 +181,97 @@ fn checkpoints_resume_exactly_and_field_files_round_trip() {
     let e = Field::load(&dir.join("transforms_train.json")).unwrap_err().to_string();
     assert!(e.contains("transforms_train.json"), "{e}");
 }
+
+/// Features for a view: `1 - rgb` (zero on the white background, as the semantic field has
+/// no background term) at half resolution, 3 channels.
+fn features_of(image: &assetfield_data::ImageF32) -> assetfield_data::FeatureMap {
+    let (w, h) = (image.width / 2, image.height / 2);
+    let mut data = Vec::with_capacity((w * h * 3) as usize);
+    for j in 0..h {
+        for i in 0..w {
+            for c in 0..3 {
+                let mut v = 0.0;
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let k = (((2 * j + dy) * image.width + 2 * i + dx) * 3 + c) as usize;
+                    v += 0.25 * (1.0 - image.rgb[k]);
+                }
+                data.push(v);
+            }
+        }
+    }
+    assetfield_data::FeatureMap { width: w, height: h, channels: 3, data }
+}
+
+#[test]
+fn integrated_assetfield_learns_semantic_features() {
+    let dir = dataset();
+    let mut train = Dataset::load(dir, Split::Train, &LoadOptions::default()).unwrap();
+    let test = Dataset::load(dir, Split::Test, &LoadOptions::default()).unwrap();
+    // feature maps on disk as .npy, found by image name
+    let fdir = dir.parent().unwrap().join("features");
+    std::fs::create_dir_all(&fdir).unwrap();
+    for f in &train.frames {
+        let stem = f.image_path.file_stem().unwrap().to_string_lossy().to_string();
+        features_of(&f.image).save_npy(&fdir.join(format!("{stem}.npy"))).unwrap();
+    }
+    assert_eq!(train.load_features(&fdir).unwrap(), 3);
+    let aabb = Aabb3::new(Vec3::new(-1.3, -1.3, -0.05), Vec3::new(1.3, 1.3, 0.9));
+    let mut cfg = TrainConfig::new(ModelKind::Integrated);
+    cfg.batch = 1024;
+    cfg.iters = 400;
+    cfg.plane_res_start = 24;
+    cfg.plane_res_final = 48;
+    cfg.upsample_at = vec![0.3];
+    cfg.occupancy_at = vec![0.5];
+    cfg.semantic_weight = 1.0;
+    let mut fc = FieldConfig::new(ModelKind::Integrated, aabb, 48);
+    fc.density_channels = 8;
+    fc.color_channels = 12;
+    fc.semantic_channels = 3;
+    let mut t = Trainer::new(&train, fc, cfg);
+    assert!(t.field.has_semantic());
+    let semantic_mse = |field: &Field| {
+        let mut se = 0.0f64;
+        let mut n = 0usize;
+        for f in &test.frames {
+            let target = features_of(&f.image);
+            let (w, h) = (f.camera.intrinsics.width, f.camera.intrinsics.height);
+            let out = assetfield_field::render_semantic_view(field, None, &f.camera).unwrap();
+            let mut v = [0.0f32; 3];
+            for j in 0..h {
+                for i in 0..w {
+                    target.sample_pixel(i, j, w, h, &mut v);
+                    for (c, vc) in v.iter().enumerate() {
+                        let k = ((j * w + i) * 3) as usize + c;
+                        se += ((out[k] - vc) as f64).powi(2);
+                        n += 1;
+                    }
+                }
+            }
+        }
+        se / n as f64
+    };
+    let start = semantic_mse(&t.field);
+    let mut first = None;
+    let mut last = None;
+    while !t.finished() {
+        let s = t.step();
+        let l = s.semantic_loss.expect("semantic loss is reported");
+        first.get_or_insert(l);
+        last = Some(l);
+    }
+    let end = semantic_mse(&t.field);
+    eprintln!(
+        "semantic: test MSE {start:.4} -> {end:.4}; batch loss {:.4} -> {:.4}",
+        first.unwrap(),
+        last.unwrap()
+    );
+    assert!(end < start * 0.2 && end < 0.01, "semantic test MSE {start:.4} -> {end:.4}");
+    assert!(psnr(&t.field, &test) > 20.0, "colour still learns beside the features");
+    // the semantic head survives a save/load round trip
+    let file = dir.parent().unwrap().join("semantic.safetensors");
+    t.field.save(&file, None).unwrap();
+    let (back, _) = Field::load(&file).unwrap();
+    assert!(back.has_semantic());
+    assert_eq!(back.params.data, t.field.params.data);
+}

@@ -28,7 +28,7 @@ pub use resolve::{
     AssetCatalog, AssetInfo, PartsCatalog, ResolvedInstance, ResolvedLayout, resolve,
 };
 pub use script::{
-    AssetDef, Axis, Edit, Facing, Item, Lighting, ObjSource, Part, Region, Script, Variation,
-    ViewSettings,
+    AssetDef, Axis, Edit, Facing, Item, LibraryRef, Lighting, ObjSource, Part, Region, Script,
+    Variation, ViewSettings,
 };
 pub use source::{LoadedScript, load, load_str};

@@ -98,6 +98,23 @@ pub struct AssetDef {
     /// Background (a floor, a room shell): rendered, but not an object to mine.
     #[serde(default, skip_serializing_if = "is_false")]
     pub container: bool,
+    /// A neural asset: a feature patch from an asset library that `assetfield mine` wrote,
+    /// drawn by `assetfield compose` (the ray tracer of `synth` cannot draw it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub library: Option<LibraryRef>,
+}
+
+/// Where a neural asset's feature patch lives.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename = "Library", deny_unknown_fields)]
+pub struct LibraryRef {
+    /// The library folder (holding `index.ron`), relative to the script that defines the
+    /// asset.
+    pub path: String,
+    /// The entry's name in the library index.
+    pub entry: String,
+    /// World size of the patch at scale 1: footprint along local x and y, and height.
+    pub size: V3,
 }
 
 /// An OBJ mesh (with its MTL colours and diffuse textures).

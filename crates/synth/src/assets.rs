@@ -47,6 +47,13 @@ fn build_asset(
     entry: &AssetEntry,
     script: &LoadedScript,
 ) -> Result<AssetGeometry, SynthError> {
+    if let Some(l) = &entry.def.library {
+        return Err(SynthError::LibraryAsset {
+            location: entry.location.clone(),
+            asset: name.to_string(),
+            library: l.path.clone(),
+        });
+    }
     let mut g = AssetGeometry::default();
     for p in &entry.def.parts {
         g.push_part(p);

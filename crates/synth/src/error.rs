@@ -13,6 +13,10 @@ pub enum SynthError {
     Obj { location: assetfield_layout::Location, asset: String, path: PathBuf, message: String },
     #[error("{location}: asset \"{asset}\" has no geometry (give `parts` or `obj`)")]
     EmptyAsset { location: assetfield_layout::Location, asset: String },
+    #[error(
+        "{location}: asset \"{asset}\" is a neural asset from the library {library}; the ray tracer cannot draw it (render the script with `assetfield compose`)"
+    )]
+    LibraryAsset { location: assetfield_layout::Location, asset: String, library: String },
     #[error("invalid synthesis settings: {0}")]
     Config(String),
 }

@@ -4,8 +4,10 @@ use super::util::{open_field, progress_bar, save_rgb};
 use anyhow::{Context, Result, bail};
 use assetfield_core::fsx::{StagingDir, write_atomic};
 use assetfield_core::metrics::error_image;
+use assetfield_core::plot::{pca_colors, rgb_image};
 use assetfield_data::{Dataset, Frame, LoadOptions, Split};
 use assetfield_field::eval::{FieldInfo, evaluate};
+use assetfield_field::render_semantic_view;
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -102,6 +104,15 @@ pub fn eval(a: EvalArgs) -> Result<()> {
             save_rgb(&root.join("render").join(&name), w, h, rgb.to_vec())?;
             let err = error_image(rgb, &frame.image.rgb, w as usize, h as usize);
             assetfield_core::fsx::save_png(&root.join("error").join(&name), &err.into())?;
+            // I-AssetField with a semantic field: its features, PCA-coloured
+            if let Some(sem) =
+                render_semantic_view(&loaded.field, loaded.occupancy.as_ref(), &frame.camera)
+            {
+                let colors =
+                    pca_colors(&sem, (w * h) as usize, loaded.field.config.semantic_channels);
+                let img = rgb_image(&colors, w, h);
+                assetfield_core::fsx::save_png(&root.join("semantic").join(&name), &img.into())?;
+            }
             pb.set_message(format!("view {} psnr {:.2}", frame.index, m.psnr));
             pb.inc(1);
             Ok(())

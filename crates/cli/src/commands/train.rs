@@ -8,7 +8,7 @@ use assetfield_data::{
     Dataset, Format, Frame, GroundAlignment, LoadOptions, Split, bounds_from_cameras,
 };
 use assetfield_field::eval::{FieldInfo, History, keys, mean_psnr};
-use assetfield_field::{DecoderKind, FieldConfig, ModelKind, TrainConfig, Trainer};
+use assetfield_field::{Clock, DecoderKind, FieldConfig, ModelKind, TrainConfig, Trainer};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -32,6 +32,24 @@ impl ModelArg {
             ModelArg::S => ModelKind::Standard,
             ModelArg::I => ModelKind::Integrated,
             ModelArg::Vm => ModelKind::Vm,
+        }
+    }
+}
+
+/// How the time budget is measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ClockArg {
+    /// Wall-clock time.
+    Wall,
+    /// CPU time of the run divided by its worker threads.
+    Cpu,
+}
+
+impl ClockArg {
+    fn clock(self) -> Clock {
+        match self {
+            ClockArg::Wall => Clock::Wall,
+            ClockArg::Cpu => Clock::Cpu,
         }
     }
 }
@@ -71,6 +89,11 @@ pub struct TrainArgs {
     /// rate decay) follow the limit that is further along.
     #[arg(long)]
     pub minutes: Option<f64>,
+    /// How --minutes is measured: wall (elapsed time) or cpu (the process's CPU time divided
+    /// by its worker threads: the same on an idle machine, and a fair budget on a busy one,
+    /// where other jobs slow the run down without using up its minutes).
+    #[arg(long, value_enum, default_value = "wall")]
+    pub clock: ClockArg,
     /// Number of iterations [default: 30000 unless --minutes is given].
     #[arg(long)]
     pub iters: Option<u64>,
@@ -118,6 +141,15 @@ pub struct TrainArgs {
     /// "val_history" in the field file). Needs a test split.
     #[arg(long, value_name = "N")]
     pub val_every: Option<u64>,
+    /// Per-view feature maps (e.g. DINO features) to learn as I-AssetField's semantic field:
+    /// a folder with one file per training image, named like the image with a .npy or
+    /// .safetensors extension, shape (H, W, C) at any resolution. Only with --model i.
+    /// [default: DATA/features when that folder exists and the model is i]
+    #[arg(long, value_name = "DIR")]
+    pub features: Option<PathBuf>,
+    /// Weight of the semantic feature loss against the colour loss (with --features).
+    #[arg(long, default_value_t = 0.1)]
+    pub semantic_weight: f32,
     /// Downscale the images by this integer factor (area average) before training.
     #[arg(long, default_value_t = 1)]
     pub downscale: u32,
@@ -295,6 +327,34 @@ pub fn train(a: TrainArgs) -> Result<()> {
     if let Some(g) = &alignment {
         g.apply_to_dataset(&mut data);
     }
+    // semantic feature maps (I-AssetField)
+    let model_kind = match &stored {
+        Some(_) => None,
+        None => Some(a.model.kind()),
+    };
+    let features_dir = match &a.features {
+        Some(d) => Some(d.clone()),
+        None => {
+            let d = a.data.join("features");
+            (d.is_dir() && model_kind.is_none_or(|k| k == ModelKind::Integrated)).then_some(d)
+        }
+    };
+    if a.features.is_some() && model_kind.is_some_and(|k| k != ModelKind::Integrated) {
+        bail!("--features trains a semantic field, which only I-AssetField has: add --model i");
+    }
+    if !(a.semantic_weight.is_finite() && a.semantic_weight >= 0.0) {
+        bail!("--semantic-weight must be 0 or more");
+    }
+    let semantic_channels = match &features_dir {
+        Some(d) => {
+            let c = data
+                .load_features(d)
+                .with_context(|| format!("loading feature maps from {}", d.display()))?;
+            eprintln!("loaded {c}-channel feature maps from {}", d.display());
+            c
+        }
+        None => 0,
+    };
     let (w, h) = data.resolution();
     eprintln!(
         "loaded {} training views ({w}x{h}) from {} in {:.1} s",
@@ -344,6 +404,13 @@ pub fn train(a: TrainArgs) -> Result<()> {
     let (mut trainer, info) = if a.resume {
         let t = Trainer::resume(&data, &ckpt, a.iters, seconds)
             .with_context(|| format!("resuming from {}", ckpt.display()))?;
+        let want = t.field.config.semantic_dim();
+        if want != semantic_channels {
+            bail!(
+                "the checkpoint's semantic field has {want} channels but {} were loaded; pass                  --features with the feature maps the run started with",
+                semantic_channels
+            );
+        }
         eprintln!(
             "resuming {} at iteration {} ({} trained) from {}",
             t.field.config.kind.name(),
@@ -381,6 +448,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         if a.decoder == DecoderArg::Sh {
             fc.decoder = DecoderKind::Sh { degree: 2 };
         }
+        fc.semantic_channels = semantic_channels;
         let mut tc = TrainConfig::new(kind);
         tc.batch = a.batch;
         tc.iters = match (a.iters, seconds) {
@@ -389,12 +457,14 @@ pub fn train(a: TrainArgs) -> Result<()> {
             (None, None) => 30_000,
         };
         tc.seconds = seconds;
+        tc.clock = a.clock.clock();
         tc.plane_res_final = a.res;
         tc.plane_res_start = ((a.res as f64 * 128.0 / 300.0).round() as usize).clamp(8, a.res);
         if tc.plane_res_start == tc.plane_res_final {
             tc.upsample_at.clear();
         }
         tc.background = background;
+        tc.semantic_weight = a.semantic_weight;
         tc.seed = a.seed;
         let info = FieldInfo {
             dataset: Some(data.root.clone()),
@@ -469,11 +539,12 @@ pub fn train(a: TrainArgs) -> Result<()> {
         };
         pb.set_position((trainer.progress() * 1000.0) as u64);
         pb.set_message(format!(
-            "it {}{} | loss {:.5} | psnr {:.2} | {:.2} M rays/s | plane {} | left {}{val_text}",
+            "it {}{} | loss {:.5} | psnr {:.2}{} | {:.2} M rays/s | plane {} | left {}{val_text}",
             s.iter,
             limit_iters.map(|n| format!("/{n}")).unwrap_or_default(),
             s.loss,
             s.psnr,
+            s.semantic_loss.map(|l| format!(" | semantic {l:.4}")).unwrap_or_default(),
             rays_per_s / 1e6,
             trainer.field.config.res[0].max(trainer.field.config.res[1]),
             fmt_duration(left)

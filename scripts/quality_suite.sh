@@ -1,0 +1,72 @@
+#!/usr/bin/env bash
+# Train and evaluate every scene of the suite with each model, and write a table like the
+# paper's Table 1 (test PSNR / SSIM per scene and model).
+#
+#   scripts/quality_suite.sh [MINUTES] [MODELS] [SCENES...]
+#
+# MINUTES: training budget per run (default 10), measured with `--clock cpu` so that runs
+# on a busy machine get the same compute as on an idle one. MODELS: comma-separated subset
+# of s,i,vm (default s,i,vm). SCENES: names under scenes/ (default: all).
+# Output under runs/suite/: data/SCENE (synthesised views), fields/SCENE_MODEL.safetensors,
+# eval/SCENE_MODEL/metrics.json, and table.md. Finished runs are skipped, so the script can
+# be stopped and started again.
+# Set BIN to use another binary (default target/release/assetfield, built if missing).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+MINUTES=${1:-10}
+MODELS=${2:-s,i,vm}
+shift $(( $# > 2 ? 2 : $# ))
+SCENES=("$@")
+if [ ${#SCENES[@]} -eq 0 ]; then
+  for f in scenes/*.ron; do SCENES+=("$(basename "$f" .ron)"); done
+fi
+BIN=${BIN:-target/release/assetfield}
+[ -x "$BIN" ] || cargo build --release --locked
+OUT=runs/suite
+mkdir -p "$OUT/data" "$OUT/fields" "$OUT/eval" "$OUT/logs"
+
+for scene in "${SCENES[@]}"; do
+  data="$OUT/data/$scene"
+  [ -f "$data/transforms_test.json" ] || "$BIN" synth "scenes/$scene.ron" --out "$data" --force
+  for model in ${MODELS//,/ }; do
+    field="$OUT/fields/${scene}_$model.safetensors"
+    eval_dir="$OUT/eval/${scene}_$model"
+    if [ ! -f "$field" ]; then
+      echo "== $scene $model: training $MINUTES min"
+      "$BIN" train "$data" --out "$field" --model "$model" --minutes "$MINUTES" --clock cpu \
+        --force --discard-checkpoint > "$OUT/logs/${scene}_$model.train.log" 2>&1
+    fi
+    if [ ! -f "$eval_dir/metrics.json" ]; then
+      "$BIN" eval "$field" --data "$data" --out "$eval_dir" --force \
+        > "$OUT/logs/${scene}_$model.eval.log" 2>&1
+    fi
+    echo "== $scene $model: $(grep -o '"psnr": [0-9.]*' "$eval_dir/metrics.json" | head -1)"
+  done
+done
+
+# the table: one row per scene, PSNR / SSIM per model, and the means
+python3 - "$OUT" "$MODELS" "${SCENES[@]}" <<'EOF' 2>/dev/null || awk 'BEGIN{print "(python3 missing: see eval/*/metrics.json)"}' > "$OUT/table.md"
+import json, sys, os
+out, models, scenes = sys.argv[1], sys.argv[2].split(','), sys.argv[3:]
+rows = ["| scene | " + " | ".join(f"{m.upper()} PSNR | {m.upper()} SSIM" for m in models) + " |",
+        "|---|" + "---|---|" * len(models)]
+sums = {m: [0.0, 0.0, 0] for m in models}
+for s in scenes:
+    cells = []
+    for m in models:
+        p = os.path.join(out, "eval", f"{s}_{m}", "metrics.json")
+        if os.path.exists(p):
+            r = json.load(open(p))
+            cells += [f"{r['psnr']:.2f}", f"{r['ssim']:.4f}"]
+            sums[m][0] += r['psnr']; sums[m][1] += r['ssim']; sums[m][2] += 1
+        else:
+            cells += ["-", "-"]
+    rows.append(f"| {s} | " + " | ".join(cells) + " |")
+cells = []
+for m in models:
+    n = sums[m][2]
+    cells += [f"**{sums[m][0]/n:.2f}**", f"**{sums[m][1]/n:.4f}**"] if n else ["-", "-"]
+rows.append("| mean | " + " | ".join(cells) + " |")
+open(os.path.join(out, "table.md"), "w").write("\n".join(rows) + "\n")
+EOF
+cat "$OUT/table.md"
