@@ -58,6 +58,51 @@ impl Occupancy {
         o
     }
 
+    /// Re-evaluate the columns of cells whose ground footprint meets the world rectangle
+    /// `xy` (after an edit of the ground planes there), with the rule of
+    /// [`Occupancy::from_field`].
+    pub fn update_region(
+        &mut self,
+        field: &Field,
+        xy: assetfield_core::Rect2,
+        alpha_threshold: f32,
+    ) {
+        if xy.is_empty() {
+            return;
+        }
+        let step = field.config.step_size() * field.config.distance_scale;
+        let cell = Vec3::ONE / self.scale;
+        let [nx, ny, _] = self.res;
+        let lo = (glam::Vec2::new(xy.min.x - self.min.x, xy.min.y - self.min.y))
+            * glam::Vec2::new(self.scale.x, self.scale.y);
+        let hi = (glam::Vec2::new(xy.max.x - self.min.x, xy.max.y - self.min.y))
+            * glam::Vec2::new(self.scale.x, self.scale.y);
+        let i0 = (lo.x.floor().max(0.0) as usize).min(nx);
+        let j0 = (lo.y.floor().max(0.0) as usize).min(ny);
+        let i1 = ((hi.x.floor() + 1.0).max(0.0) as usize).min(nx);
+        let j1 = ((hi.y.floor() + 1.0).max(0.0) as usize).min(ny);
+        if i0 >= i1 || j0 >= j1 {
+            return;
+        }
+        let min = self.min;
+        let dense = |p: Vec3| -crate::mlp::fast_expm1(-field.density(p) * step) > alpha_threshold;
+        self.cells.par_chunks_mut(nx * ny).enumerate().for_each(|(k, slab)| {
+            for j in j0..j1 {
+                for i in i0..i1 {
+                    let lo = min + Vec3::new(i as f32, j as f32, k as f32) * cell;
+                    slab[j * nx + i] = (0..9).any(|b| {
+                        let f = if b == 8 {
+                            Vec3::splat(0.5)
+                        } else {
+                            Vec3::new((b & 1) as f32, ((b >> 1) & 1) as f32, (b >> 2) as f32)
+                        };
+                        dense(lo + f * cell)
+                    });
+                }
+            }
+        });
+    }
+
     #[inline]
     pub fn occupied(&self, p: Vec3) -> bool {
         let g = (p - self.min) * self.scale;

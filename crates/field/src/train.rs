@@ -257,7 +257,7 @@ impl Trainer {
             *g = vec![0.0; n];
         }
         if self.occupancy.is_some() {
-            self.rebuild_occupancy();
+            self.rebuild_occupancy_with(self.occupancy_threshold());
         }
     }
 
@@ -265,9 +265,28 @@ impl Trainer {
     /// grid with almost nothing occupied means the density has not formed yet: it is not
     /// used (marching everything is slow but never loses the scene).
     pub fn rebuild_occupancy(&mut self) {
+        self.rebuild_occupancy_with(1e-4);
+    }
+
+    /// The opacity below which grids mark cells empty: TensoRF's 1e-4 once the scheduled
+    /// grids have started; before that, half the opacity of the starting density, so that
+    /// only space whose density has clearly fallen is skipped (parts of the scene that have
+    /// not formed yet keep their samples).
+    fn occupancy_threshold(&self) -> f32 {
+        if self.occupancy_done > 0 {
+            return 1e-4;
+        }
+        let cfg = &self.field.config;
+        let delta = cfg.step_size() * cfg.distance_scale;
+        let start = crate::mlp::softplus(cfg.density_shift);
+        (-crate::mlp::fast_expm1(-start * delta) * 0.5).min(1e-4)
+    }
+
+    /// [`Trainer::rebuild_occupancy`] with another opacity threshold.
+    fn rebuild_occupancy_with(&mut self, alpha_threshold: f32) {
         let r = self.field.config.res;
         let res = [(r[0] / 2).max(8), (r[1] / 2).max(8), (r[2] / 2).max(8)];
-        let occ = Occupancy::from_field(&self.field, res, 1e-4);
+        let occ = Occupancy::from_field(&self.field, res, alpha_threshold);
         self.occupancy = (occ.fill() > 1e-4).then_some(occ);
     }
 
@@ -303,7 +322,7 @@ impl Trainer {
             && (self.occupancy.is_some()
                 || self.samples_per_ray > self.config.early_occupancy_samples)
         {
-            self.rebuild_occupancy();
+            self.rebuild_occupancy_with(self.occupancy_threshold());
         }
         // scheduled grids wait until the density has had time to form
         while self.occupancy_done < self.config.occupancy_at.len()
@@ -425,10 +444,15 @@ impl Trainer {
         }
     }
 
-    /// L1 on the density grids (sparsity) and total variation on the planes.
+    /// L1 on the density grids (sparsity) and total variation on the planes. L1 starts
+    /// with the first scheduled occupancy grid (or after 500 iterations): from the nearly
+    /// transparent start, the density's data gradient is scaled by the softplus slope
+    /// (~5e-5) and, in large scenes where each texel sees few rays, L1 would outweigh it,
+    /// and Adam would keep the scene empty for good.
     fn regularise(&mut self) {
         let l1 = self.config.l1_weight;
-        if l1 > 0.0 {
+        let geometry_formed = self.occupancy_done > 0 || self.iter >= MIN_ITERS_BEFORE_OCCUPANCY;
+        if l1 > 0.0 && geometry_formed {
             for r in self.field.density_grid_ranges() {
                 let k = l1 / r.len() as f32;
                 for i in r {

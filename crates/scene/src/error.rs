@@ -1,0 +1,33 @@
+//! Errors of the scene composer.
+
+use std::path::PathBuf;
+
+/// What can go wrong while composing a scene.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// A patch's tensors do not have the shapes its header promises.
+    #[error("patch \"{name}\": {what} has {actual} values, expected {expected} ({shape})")]
+    PatchShape { name: String, what: &'static str, expected: usize, actual: usize, shape: String },
+
+    /// A patch was made for other shared axes / decoders than the scene's.
+    #[error(
+        "patch \"{name}\" has {what} {actual}, but the scene's field has {expected}: its axes and decoders are not the ones this scene renders with"
+    )]
+    Incompatible { name: String, what: &'static str, expected: String, actual: String },
+
+    /// The base field cannot hold composed ground planes (the VM baseline has none).
+    #[error("the {kind} field has no ground feature planes to compose onto")]
+    NoGroundPlanes { kind: String },
+
+    /// A transform that cannot be rasterised.
+    #[error("instance \"{key}\": {reason}")]
+    BadTransform { key: String, reason: String },
+
+    /// An instance refers to an asset that the scene does not know.
+    #[error("instance \"{key}\": unknown asset \"{asset}\"")]
+    UnknownAsset { key: String, asset: String },
+
+    /// A library file problem.
+    #[error("{}: {reason}", path.display())]
+    Library { path: PathBuf, reason: String },
+}
