@@ -1,0 +1,35 @@
+//! GPU volume rendering of trained fields with wgpu compute shaders (issue 6, first
+//! increment): the same march, density, colour decoding and compositing as the CPU reference
+//! renderer ([`assetfield_field::render_view`]), one ray per shader invocation.
+//!
+//! - [`GpuContext`]: instance, adapter, device and queue (Vulkan; Mesa's software Vulkan,
+//!   lavapipe, where there is no GPU).
+//! - [`FieldRenderer`]: a field's parameters, the shader's header, the padded networks and
+//!   the occupancy grid uploaded once; renders cameras (one or many per call) to RGB like
+//!   `render_view`, S-, I- and VM-fields with MLP or spherical-harmonics decoders.
+//! - [`plan_upload`]: the checks and the layout of an upload without a device (fields too
+//!   large for the device's storage buffers, or too wide for the shader, are refused with a
+//!   [`GpuError`]).
+//!
+//! Rays are generated on the CPU with [`assetfield_core::Camera::pixel_ray`] and uploaded,
+//! so every camera model the CPU supports (lens distortion included) renders identically.
+//!
+//! A pass of rays may take several dispatches: each advances every ray by a bounded number
+//! of samples and colours and keeps its march in a state buffer. This keeps each dispatch
+//! inside llvmpipe's limit of 65535 loop iterations per group of invocations (beyond it the
+//! driver silently ends all loops); a canary loop in the shader still detects a driver that
+//! cut loops short, and the render then fails with [`GpuError::LoopLimit`] rather than
+//! returning a wrong image.
+
+mod context;
+mod error;
+mod render;
+
+pub use context::GpuContext;
+pub use error::GpuError;
+pub use render::{FieldRenderer, HeaderField, UploadPlan, plan_upload};
+/// The wgpu this crate is built with (for `Limits`, `AdapterInfo`).
+pub use wgpu;
+
+/// The WGSL source of the volume rendering shader.
+pub const RENDER_WGSL: &str = include_str!("render.wgsl");
