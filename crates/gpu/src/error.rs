@@ -25,6 +25,9 @@ pub enum GpuError {
     /// wgpu reported a validation or out-of-memory error.
     #[error("wgpu {stage} failed: {reason}")]
     Wgpu { stage: &'static str, reason: String },
+    /// A composition, template or layout the composer cannot take.
+    #[error("invalid input to the GPU composer: {0}")]
+    Input(String),
     /// The driver ended the shader's loops early, so some rays are wrong (llvmpipe ends all
     /// loops of a group of invocations after 65535 iterations in total).
     #[error(
@@ -33,6 +36,13 @@ pub enum GpuError {
          field on the CPU or on a hardware GPU"
     )]
     LoopLimit { rays: u32 },
+    /// The same for the patch rasteriser: the composed planes would be wrong.
+    #[error(
+        "the driver cut the raster shader's loops short for {invocations} invocation(s) \
+         (llvmpipe stops a group of invocations after 65535 loop iterations); the composed \
+         planes would be wrong: rasterise with a smaller chunk or on the CPU"
+    )]
+    RasterLoopLimit { invocations: u32 },
     /// Waiting for the device or reading results back failed.
     #[error("reading results back from the device failed: {0}")]
     Readback(String),

@@ -10,6 +10,12 @@
 //! - [`plan_upload`]: the checks and the layout of an upload without a device (fields too
 //!   large for the device's storage buffers, or too wide for the shader, are refused with a
 //!   [`GpuError`]).
+//! - [`GpuComposer`] (issue 6, second increment): a scene composition's canvas and field
+//!   and its templates (feature patches) uploaded once; layouts (lists of
+//!   [`PatchInstance`]) rasterised onto the composed planes by a compute pass
+//!   (`raster.wgsl`, the rule of `assetfield_scene::Composition::rasterise`, over
+//!   per-tile instance lists built on the host, optionally inside a dirty rectangle) straight
+//!   into the renderer's parameter buffer, then rendered, a batch of layouts at a time.
 //!
 //! Rays are generated on the CPU with [`assetfield_core::Camera::pixel_ray`] and uploaded,
 //! so every camera model the CPU supports (lens distortion included) renders identically.
@@ -19,17 +25,27 @@
 //! inside llvmpipe's limit of 65535 loop iterations per group of invocations (beyond it the
 //! driver silently ends all loops); a canary loop in the shader still detects a driver that
 //! cut loops short, and the render then fails with [`GpuError::LoopLimit`] rather than
-//! returning a wrong image.
+//! returning a wrong image. The raster pass follows the same discipline: a dispatch walks a
+//! bounded number of entries of each tile's instance list, longer lists take several
+//! dispatches (partial sums kept on the device), and its canary gives
+//! [`GpuError::RasterLoopLimit`].
 
 mod context;
 mod error;
+mod raster;
 mod render;
 
 pub use context::GpuContext;
 pub use error::GpuError;
+pub use raster::{
+    GpuComposer, GpuRasterStats, Layout, PatchInstance, RASTER_TILE, raster_struct_members,
+};
 pub use render::{FieldRenderer, HeaderField, UploadPlan, plan_upload};
 /// The wgpu this crate is built with (for `Limits`, `AdapterInfo`).
 pub use wgpu;
 
 /// The WGSL source of the volume rendering shader.
 pub const RENDER_WGSL: &str = include_str!("render.wgsl");
+
+/// The WGSL source of the patch rasterisation shader.
+pub const RASTER_WGSL: &str = include_str!("raster.wgsl");

@@ -443,7 +443,7 @@ struct Slot {
     bind: wgpu::BindGroup,
 }
 
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -456,11 +456,11 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
-fn bytes_of(words: &[u32]) -> &[u8] {
+pub(crate) fn bytes_of(words: &[u32]) -> &[u8] {
     bytemuck::cast_slice(words)
 }
 
-async fn scoped<T>(
+pub(crate) async fn scoped<T>(
     device: &wgpu::Device,
     stage: &'static str,
     work: impl FnOnce() -> T,
@@ -534,10 +534,12 @@ impl FieldRenderer {
                     cache: None,
                 });
                 let storage = |label, bytes: &[u8]| {
+                    use wgpu::BufferUsages as U;
                     let buf = device.create_buffer(&wgpu::BufferDescriptor {
                         label: Some(label),
                         size: bytes.len() as u64,
-                        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                        // COPY_SRC: the composer reads its planes back from `params`
+                        usage: U::STORAGE | U::COPY_DST | U::COPY_SRC,
                         mapped_at_creation: false,
                     });
                     queue.write_buffer(&buf, 0, bytes);
@@ -567,6 +569,11 @@ impl FieldRenderer {
     /// What was uploaded.
     pub fn plan(&self) -> &UploadPlan {
         &self.plan
+    }
+
+    /// The field's parameters on the device (the composer writes its planes there).
+    pub(crate) fn params_buffer(&self) -> &wgpu::Buffer {
+        &self.params
     }
 
     /// Rays per pass (default: the largest the device allows, at most 2^18): smaller passes
@@ -606,25 +613,8 @@ impl FieldRenderer {
         cameras: &[Camera],
         background: Vec3,
     ) -> Result<Vec<Vec<f32>>, GpuError> {
-        let mut rays = Vec::new();
-        for c in cameras {
-            let (w, h) = (c.intrinsics.width, c.intrinsics.height);
-            rays.reserve(w as usize * h as usize);
-            for j in 0..h {
-                for i in 0..w {
-                    rays.push(c.pixel_ray(i, j));
-                }
-            }
-        }
-        let rgb = self.render_rays(&rays, background)?;
-        let mut out = Vec::with_capacity(cameras.len());
-        let mut at = 0;
-        for c in cameras {
-            let n = c.intrinsics.width as usize * c.intrinsics.height as usize * 3;
-            out.push(rgb[at..at + n].to_vec());
-            at += n;
-        }
-        Ok(out)
+        let rgb = self.render_rays(&rays_of(cameras), background)?;
+        Ok(split_views(&rgb, cameras))
     }
 
     /// Composited RGB of each ray (`[rays][3]`).
@@ -771,8 +761,35 @@ impl FieldRenderer {
     }
 }
 
+/// Every pixel's ray of every camera, in order (rows top to bottom, pixels left to right).
+pub(crate) fn rays_of(cameras: &[Camera]) -> Vec<Ray> {
+    let mut rays = Vec::new();
+    for c in cameras {
+        let (w, h) = (c.intrinsics.width, c.intrinsics.height);
+        rays.reserve(w as usize * h as usize);
+        for j in 0..h {
+            for i in 0..w {
+                rays.push(c.pixel_ray(i, j));
+            }
+        }
+    }
+    rays
+}
+
+/// The RGB of [`rays_of`]'s rays cut into one image per camera.
+pub(crate) fn split_views(rgb: &[f32], cameras: &[Camera]) -> Vec<Vec<f32>> {
+    let mut out = Vec::with_capacity(cameras.len());
+    let mut at = 0;
+    for c in cameras {
+        let n = c.intrinsics.width as usize * c.intrinsics.height as usize * 3;
+        out.push(rgb[at..at + n].to_vec());
+        at += n;
+    }
+    out
+}
+
 /// Map `range` of a staging buffer for reading once the device has finished with it.
-async fn map(
+pub(crate) async fn map(
     device: &wgpu::Device,
     buffer: &wgpu::Buffer,
     range: std::ops::Range<u64>,

@@ -4,7 +4,7 @@
 mod common;
 
 use assetfield_field::{DecoderKind, ModelKind};
-use assetfield_gpu::{RENDER_WGSL, plan_upload};
+use assetfield_gpu::{RASTER_WGSL, RENDER_WGSL, plan_upload, raster_struct_members};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 use naga::{ArraySize, Handle, Module, Type, TypeInner};
 use std::path::{Path, PathBuf};
@@ -40,10 +40,12 @@ fn every_wgsl_file_validates() {
     let mut files = Vec::new();
     wgsl_files(&crates, &mut files);
     files.sort();
-    assert!(
-        files.iter().any(|f| f.ends_with("gpu/src/render.wgsl")),
-        "render.wgsl not found among {files:?}"
-    );
+    for name in ["render.wgsl", "raster.wgsl"] {
+        assert!(
+            files.iter().any(|f| f.ends_with(format!("gpu/src/{name}"))),
+            "{name} not found among {files:?}"
+        );
+    }
     let mut failed = Vec::new();
     for f in &files {
         let source = std::fs::read_to_string(f).unwrap();
@@ -107,5 +109,26 @@ fn the_header_layout_matches_the_host() {
             plan.header.iter().enumerate().map(|(k, f)| (f.name.clone(), 4 * k as u32)).collect();
         assert_eq!(host, members, "{kind:?}: host header vs render.wgsl's Header");
         assert_eq!(span, 4 * plan.header.len() as u32);
+    }
+}
+
+/// The raster shader's structs (`Raster`, `Chunk`, `Inst`) match the words the host packs:
+/// member for member, one 32-bit word each, nothing after the last.
+#[test]
+fn the_raster_structs_match_the_host() {
+    let module = validate(RASTER_WGSL, "raster.wgsl").unwrap();
+    for (name, host) in raster_struct_members() {
+        let (ty, _) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("struct {name} in raster.wgsl"));
+        let mut members = Vec::new();
+        flatten(&module, ty, 0, "", &mut members);
+        let host: Vec<(String, u32)> =
+            host.iter().enumerate().map(|(k, n)| (n.to_string(), 4 * k as u32)).collect();
+        assert_eq!(host, members, "host words vs raster.wgsl's {name}");
+        let TypeInner::Struct { span, .. } = module.types[ty].inner else { unreachable!() };
+        assert_eq!(span, 4 * host.len() as u32, "{name}");
     }
 }
