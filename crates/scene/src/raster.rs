@@ -97,6 +97,11 @@ impl Composition {
         Ok(())
     }
 
+    /// The canvas planes: density `[rows][cols][nd]` and colour `[rows][cols][nc]`.
+    pub fn canvas(&self) -> (&[f32], &[f32]) {
+        (&self.canvas_density, &self.canvas_color)
+    }
+
     /// A patch must have this scene's channel counts (the same shared axes and decoders).
     pub fn check_patch(&self, p: &FeaturePatch) -> Result<(), SceneError> {
         for (what, got, want) in
