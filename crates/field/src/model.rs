@@ -49,6 +49,32 @@ pub struct Dense {
 }
 
 impl Dense {
+    /// Backward of [`Dense::forward`]: weight and bias gradients accumulated into `grad`
+    /// (the flat layout), `dx = dy W` written when asked.
+    #[inline]
+    fn backward(
+        &self,
+        d: &[f32],
+        grad: &mut [f32],
+        x: &[f32],
+        dy: &[f32],
+        dx: Option<&mut [f32]>,
+        n: usize,
+    ) {
+        let (gw, gb) = split_wb(grad, self);
+        dense_backward(
+            &d[self.w..][..self.inn * self.out],
+            x,
+            dy,
+            dx,
+            gw,
+            Some(gb),
+            n,
+            self.inn,
+            self.out,
+        );
+    }
+
     /// `y = W x + b` over a tile of `n` samples, reading the layer from the parameters `d`.
     #[inline]
     fn forward(&self, d: &[f32], x: &[f32], y: &mut [f32], n: usize) {
@@ -481,18 +507,7 @@ impl Field {
                 for (k, l) in self.decoder.iter().enumerate().rev() {
                     let mut dx = std::mem::take(&mut w.dtmp[k]);
                     dx.resize(n * l.inn, 0.0);
-                    let (gw, gb) = split_wb(grad, l);
-                    dense_backward(
-                        &d[l.w..][..l.inn * l.out],
-                        &w.acts[k],
-                        &dy,
-                        Some(&mut dx),
-                        gw,
-                        Some(gb),
-                        n,
-                        l.inn,
-                        l.out,
-                    );
+                    l.backward(d, grad, &w.acts[k], &dy, Some(&mut dx), n);
                     if k > 0 {
                         relu_backward(&w.acts[k][..n * l.inn], &mut dx);
                     }
@@ -572,75 +587,20 @@ impl Field {
                     _ => None,
                 };
                 if let Some((sem, ds)) = sem_head {
-                    let (gw, gb) = split_wb(grad, &sem);
-                    dense_backward(
-                        &d[sem.w..][..sem.inn * sem.out],
-                        &w.sapp,
-                        ds,
-                        Some(&mut w.dsapp),
-                        gw,
-                        Some(gb),
-                        n,
-                        app_dim,
-                        sem.out,
-                    );
+                    sem.backward(d, grad, &w.sapp, ds, Some(&mut w.dsapp), n);
                     for k in 0..n * app_dim {
                         w.dsv[k] = w.dsapp[k] * w.m[k];
                         w.dapp[k] += w.dsapp[k] * w.sv[k];
                     }
                     let (s0, s1) = (self.guide_sem[0], self.guide_sem[1]);
-                    let (gw, gb) = split_wb(grad, &s1);
-                    dense_backward(
-                        &d[s1.w..][..s1.inn * s1.out],
-                        &w.shid,
-                        &w.dsv,
-                        Some(&mut w.dshid),
-                        gw,
-                        Some(gb),
-                        n,
-                        gh,
-                        app_dim,
-                    );
+                    s1.backward(d, grad, &w.shid, &w.dsv, Some(&mut w.dshid), n);
                     relu_backward(&w.shid[..n * gh], &mut w.dshid[..n * gh]);
-                    let (gw, gb) = split_wb(grad, &s0);
-                    dense_backward(
-                        &d[s0.w..][..s0.inn * s0.out],
-                        &w.gin,
-                        &w.dshid,
-                        Some(&mut w.dsgin),
-                        gw,
-                        Some(gb),
-                        n,
-                        nd,
-                        gh,
-                    );
+                    s0.backward(d, grad, &w.gin, &w.dshid, Some(&mut w.dsgin), n);
                 }
                 let (l0, l1) = (self.guide[0], self.guide[1]);
-                let (gw, gb) = split_wb(grad, &l1);
-                dense_backward(
-                    &d[l1.w..][..l1.inn * l1.out],
-                    &w.ghid,
-                    &w.dv,
-                    Some(&mut w.dghid),
-                    gw,
-                    Some(gb),
-                    n,
-                    gh,
-                    app_dim,
-                );
+                l1.backward(d, grad, &w.ghid, &w.dv, Some(&mut w.dghid), n);
                 relu_backward(&w.ghid[..n * gh], &mut w.dghid[..n * gh]);
-                let (gw, gb) = split_wb(grad, &l0);
-                dense_backward(
-                    &d[l0.w..][..l0.inn * l0.out],
-                    &w.gin,
-                    &w.dghid,
-                    Some(&mut w.dgin),
-                    gw,
-                    Some(gb),
-                    n,
-                    nd,
-                    gh,
-                );
+                l0.backward(d, grad, &w.gin, &w.dghid, Some(&mut w.dgin), n);
                 if sem_head.is_some() {
                     for k in 0..n * nd {
                         w.dgin[k] += w.dsgin[k];

@@ -50,10 +50,9 @@ fn psnr(field: &Field, test: &Dataset) -> f32 {
     (-10.0 * (se / n as f64).log10()) as f32
 }
 
-fn learns(kind: ModelKind) {
-    let dir = dataset();
-    let train = Dataset::load(dir, Split::Train, &LoadOptions::default()).unwrap();
-    let test = Dataset::load(dir, Split::Test, &LoadOptions::default()).unwrap();
+/// Training and model settings for the tiny scene: 400 iterations of 1024 rays, planes from
+/// 24 to 48 texels, 8 density and 12 colour channels.
+fn tiny_configs(kind: ModelKind) -> (TrainConfig, FieldConfig) {
     let aabb = Aabb3::new(Vec3::new(-1.3, -1.3, -0.05), Vec3::new(1.3, 1.3, 0.9));
     let mut cfg = TrainConfig::new(kind);
     cfg.batch = 1024;
@@ -66,6 +65,14 @@ fn learns(kind: ModelKind) {
     let mut fc = FieldConfig::new(kind, aabb, 48);
     fc.density_channels = 8;
     fc.color_channels = 12;
+    (cfg, fc)
+}
+
+fn learns(kind: ModelKind) {
+    let dir = dataset();
+    let train = Dataset::load(dir, Split::Train, &LoadOptions::default()).unwrap();
+    let test = Dataset::load(dir, Split::Test, &LoadOptions::default()).unwrap();
+    let (cfg, fc) = tiny_configs(kind);
     let mut t = Trainer::new(&train, fc, cfg);
     let start = psnr(&t.field, &test);
     while !t.finished() {
@@ -215,18 +222,8 @@ fn integrated_assetfield_learns_semantic_features() {
         features_of(&f.image).save_npy(&fdir.join(format!("{stem}.npy"))).unwrap();
     }
     assert_eq!(train.load_features(&fdir).unwrap(), 3);
-    let aabb = Aabb3::new(Vec3::new(-1.3, -1.3, -0.05), Vec3::new(1.3, 1.3, 0.9));
-    let mut cfg = TrainConfig::new(ModelKind::Integrated);
-    cfg.batch = 1024;
-    cfg.iters = 400;
-    cfg.plane_res_start = 24;
-    cfg.plane_res_final = 48;
-    cfg.upsample_at = vec![0.3];
-    cfg.occupancy_at = vec![0.5];
+    let (mut cfg, mut fc) = tiny_configs(ModelKind::Integrated);
     cfg.semantic_weight = 1.0;
-    let mut fc = FieldConfig::new(ModelKind::Integrated, aabb, 48);
-    fc.density_channels = 8;
-    fc.color_channels = 12;
     fc.semantic_channels = 3;
     let mut t = Trainer::new(&train, fc, cfg);
     assert!(t.field.has_semantic());
