@@ -7,7 +7,8 @@ use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 
 pub use commands::{
-    EvalArgs, InspectArgs, LayoutArgs, PlanesArgs, RenderArgs, SynthArgs, TrainArgs,
+    EvalArgs, InspectArgs, LayoutArgs, LibraryArgs, MineArgs, PlanesArgs, RenderArgs, SynthArgs,
+    TrainArgs,
 };
 
 /// AssetField: editable neural scenes on ground feature planes.
@@ -73,6 +74,25 @@ pub enum Command {
     /// integrated colour plane), curve.png (PSNR against seconds) and planes.json. Seen from
     /// above: +x right, +y up.
     Planes(PlanesArgs),
+    /// Mine a trained field's ground planes into an asset library and a layout (paper Sec.
+    /// 3.2-3.4).
+    ///
+    /// Detection: the floor slab is found from the density volume and removed, walls are
+    /// dropped as thin long structures, per texel the opacity above the floor is split with
+    /// K-means (--k), specks are dropped and Suzuki-Abe contours give regions; touching
+    /// objects are separated (thin bridges, 3D connectivity, colour boundaries), faint low
+    /// floaters dropped, and a second round inside every object treats its top surface as
+    /// background to find objects standing on it. Grouping: K-means labels of the colour
+    /// plane (--labels), label histograms, Jensen-Shannon divergence plus a size term,
+    /// average-linkage clustering cut automatically (or --categories / --distance).
+    /// Templates: medoids (--template to choose); every instance's yaw and position come
+    /// from rotating the template patch onto it. Writes LIB_DIR/index.ron,
+    /// patches.safetensors, shared.safetensors, layout.ron, boxes.png, categories.png,
+    /// mining.json and, with --gt, metrics.json.
+    Mine(MineArgs),
+    /// Check asset libraries or merge them into a cross-scene library (`library check LIB`,
+    /// `library merge LIB_A LIB_B ... --out LIB_C`).
+    Library(LibraryArgs),
 }
 
 /// Run the CLI on the given arguments (first = program name); returns the exit code:
@@ -129,6 +149,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(a) => commands::eval(a),
         Command::Render(a) => commands::render(a),
         Command::Planes(a) => commands::planes(a),
+        Command::Mine(a) => commands::mine(a),
+        Command::Library(a) => commands::library(a),
     }
 }
 

@@ -1,6 +1,7 @@
 //! The subcommands, one module per group; shared helpers in `util`.
 
 mod eval;
+mod mine;
 mod planes;
 mod render;
 mod scene;
@@ -8,6 +9,7 @@ mod train;
 mod util;
 
 pub use eval::{EvalArgs, eval};
+pub use mine::{LibraryArgs, MineArgs, library, mine};
 pub use planes::{PlanesArgs, planes};
 pub use render::{RenderArgs, render};
 pub use scene::{InspectArgs, LayoutArgs, SynthArgs, inspect, layout, synth};

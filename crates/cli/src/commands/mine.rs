@@ -1,0 +1,312 @@
+//! `assetfield mine`: detect, group and pose the objects of a trained field and write an
+//! asset library with the mined layout; `assetfield library`: check and merge libraries.
+
+use super::util::progress_bar;
+use anyhow::{Context, Result, bail};
+use assetfield_mining::agglomerative::Linkage;
+use assetfield_mining::group::GroupCut;
+use assetfield_mining::library::{merge_libraries, open_library};
+use assetfield_mining::pipeline::{MineOptions, Progress, mine as run_mining};
+use assetfield_mining::planes::PlaneChoice;
+use clap::{Args, Subcommand, ValueEnum};
+use indicatif::ProgressBar;
+use std::path::PathBuf;
+
+/// A ground plane to work on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PlaneArg {
+    /// The density field (detection: per column, the opacity above the floor).
+    Density,
+    /// The colour plane (I-AssetField: the integrated RGB plane).
+    Color,
+    /// The semantic features of an I-AssetField trained with feature maps.
+    Semantic,
+}
+
+impl PlaneArg {
+    fn choice(self) -> PlaneChoice {
+        match self {
+            PlaneArg::Density => PlaneChoice::Density,
+            PlaneArg::Color => PlaneChoice::Color,
+            PlaneArg::Semantic => PlaneChoice::Semantic,
+        }
+    }
+}
+
+#[derive(Debug, Args)]
+pub struct MineArgs {
+    /// The field file written by `assetfield train` (S- or I-AssetField; TensoRF-VM fields
+    /// have no ground plane representation and are refused).
+    pub field: PathBuf,
+    /// The library folder to write: index.ron, patches.safetensors, shared.safetensors,
+    /// layout.ron, boxes.png, categories.png, mining.json (and metrics.json with --gt).
+    /// Written atomically: it appears only when complete.
+    #[arg(long, short, value_name = "LIB_DIR")]
+    pub out: PathBuf,
+    /// Ground-truth layout (gt_layout.json written by `assetfield synth`): writes
+    /// metrics.json (precision, recall, f1 at BEV IoU >= --iou, ari, yaw_median_deg,
+    /// yaw_max_deg, position_median, per category and per instance) and prints a summary.
+    #[arg(long, value_name = "GT_LAYOUT")]
+    pub gt: Option<PathBuf>,
+    /// Which plane the first K-means runs on: density (per texel, the opacity of the
+    /// densest 8 cm of the column above the floor), color or semantic (K-means on the plane
+    /// features, the largest cluster is background).
+    #[arg(long, value_enum, default_value = "density")]
+    pub detect_on: PlaneArg,
+    /// Clusters of the first K-means (2 as in the paper; more keeps fainter objects, the
+    /// lowest cluster is always background).
+    #[arg(long, default_value_t = 2)]
+    pub k: usize,
+    /// Smallest object footprint in square world units (smaller specks are dropped).
+    #[arg(long, default_value_t = 0.02, value_name = "AREA")]
+    pub min_area: f32,
+    /// Do not look for a floor slab (measure the evidence over the whole column).
+    #[arg(long)]
+    pub no_floor: bool,
+    /// Drop thin, long structures (walls of a room shell) thinner than this, in world
+    /// units (0 keeps them).
+    #[arg(long, default_value_t = 0.2, value_name = "WIDTH")]
+    pub wall_thickness: f32,
+    /// Skip the second round inside every object (objects standing on tables are then not
+    /// separated from them).
+    #[arg(long)]
+    pub no_unpack: bool,
+    /// Do not separate objects that touch in the bird's-eye view (thin bridges, 3D
+    /// connectivity).
+    #[arg(long)]
+    pub no_split: bool,
+    /// Number of labels the grouping plane is discretised into (K-means over the object
+    /// texels, weighted by opacity).
+    #[arg(long, default_value_t = 24)]
+    pub labels: usize,
+    /// Number of categories [default: automatic, at the largest ratio between consecutive
+    /// merge heights of the dendrogram].
+    #[arg(long, conflicts_with = "distance")]
+    pub categories: Option<usize>,
+    /// Cut the dendrogram at this distance (JSD in bits plus the shape term) instead.
+    #[arg(long, value_name = "T")]
+    pub distance: Option<f64>,
+    /// Weight of the shape term of the grouping distance (footprint area and height log
+    /// ratios beyond a tolerance; separates objects of the same colours but different
+    /// sizes). 0 = label histograms only, as in the paper.
+    #[arg(long, default_value_t = 1.0)]
+    pub shape_weight: f64,
+    /// Linkage of the agglomerative clustering: average, single or complete.
+    #[arg(long, value_enum, default_value = "average")]
+    pub linkage: LinkageArg,
+    /// Plane whose features are discretised for grouping.
+    #[arg(long, value_enum, default_value = "color")]
+    pub group_on: PlaneArg,
+    /// Plane whose patches are matched to find each instance's yaw.
+    #[arg(long, value_enum, default_value = "color")]
+    pub yaw_on: PlaneArg,
+    /// Use detection INDEX (the number in boxes.png) as the template of CATEGORY (catK or
+    /// K) instead of the medoid. Repeatable.
+    #[arg(long, value_name = "CATEGORY=INDEX")]
+    pub template: Vec<String>,
+    /// Margin around each object's box in its patches, in texels.
+    #[arg(long, default_value_t = 3)]
+    pub margin: usize,
+    /// BEV IoU a detection needs to match a ground-truth box (with --gt).
+    #[arg(long, default_value_t = 0.5)]
+    pub iou: f32,
+    /// Seed of the K-means runs.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Replace the library folder if it exists.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// Agglomerative linkage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum LinkageArg {
+    Average,
+    Single,
+    Complete,
+}
+
+#[derive(Debug, Args)]
+pub struct LibraryArgs {
+    #[command(subcommand)]
+    pub command: LibraryCommand,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum LibraryCommand {
+    /// Check a library: index against tensors, shared tensors against their hash; list its
+    /// categories.
+    Check {
+        /// The library folder.
+        lib: PathBuf,
+    },
+    /// Merge libraries mined from fields that share their vertical axes, basis and
+    /// decoders into one cross-scene library (names get the source folder as a prefix:
+    /// FOLDER/obj003). Libraries whose shared tensors differ are refused, naming the tensor.
+    Merge {
+        /// Two or more library folders.
+        #[arg(required = true, num_args = 2..)]
+        libs: Vec<PathBuf>,
+        /// The merged library folder.
+        #[arg(long, short)]
+        out: PathBuf,
+        /// Replace the output folder if it exists.
+        #[arg(long)]
+        force: bool,
+    },
+}
+
+struct Bar(ProgressBar);
+
+impl Progress for Bar {
+    fn step(&self, index: usize, _total: usize, what: &str) {
+        self.0.set_position(index as u64);
+        self.0.set_message(what.to_string());
+    }
+}
+
+fn parse_template(s: &str) -> Result<(String, usize)> {
+    let (c, i) = s.split_once('=').with_context(|| {
+        format!("invalid --template {s:?}: expected CATEGORY=INDEX, e.g. cat1=7")
+    })?;
+    let i: usize = i
+        .trim()
+        .parse()
+        .with_context(|| format!("invalid --template {s:?}: {i:?} is not a detection number"))?;
+    Ok((c.trim().to_string(), i))
+}
+
+pub fn mine(a: MineArgs) -> Result<()> {
+    if a.k < 2 {
+        bail!("--k must be at least 2 (one background and one object cluster)");
+    }
+    if a.labels == 0 {
+        bail!("--labels must be at least 1");
+    }
+    if a.categories == Some(0) {
+        bail!("--categories must be at least 1");
+    }
+    if !(a.iou > 0.0 && a.iou <= 1.0) {
+        bail!("--iou must be in (0, 1], got {}", a.iou);
+    }
+    if a.out.exists() && !a.force {
+        bail!("{} already exists (pass --force to replace it)", a.out.display());
+    }
+    let mut o = MineOptions::default();
+    o.detect.on = a.detect_on.choice();
+    o.detect.k = a.k;
+    o.detect.min_area = a.min_area;
+    o.detect.remove_floor = !a.no_floor;
+    o.detect.wall_thickness = a.wall_thickness;
+    o.detect.hierarchical = !a.no_unpack;
+    o.detect.split_3d = !a.no_split;
+    o.group.labels = a.labels;
+    o.group.shape_weight = a.shape_weight;
+    o.group.linkage = match a.linkage {
+        LinkageArg::Average => Linkage::Average,
+        LinkageArg::Single => Linkage::Single,
+        LinkageArg::Complete => Linkage::Complete,
+    };
+    o.group.cut = match (a.categories, a.distance) {
+        (Some(n), _) => GroupCut::Categories(n),
+        (None, Some(t)) => GroupCut::Distance(t),
+        (None, None) => GroupCut::Auto,
+    };
+    o.group_on = a.group_on.choice();
+    o.yaw_on = a.yaw_on.choice();
+    o.pose.margin = a.margin;
+    o.templates = a.template.iter().map(|t| parse_template(t)).collect::<Result<_>>()?;
+    o.gt = a.gt.clone();
+    o.iou = a.iou;
+    o.force = a.force;
+    if let Some(seed) = a.seed {
+        o.detect.seed = seed;
+        o.group.seed = seed;
+    }
+    let pb = progress_bar(7, "mining");
+    let report = run_mining(&a.field, &a.out, &o, &Bar(pb.clone()));
+    pb.finish_and_clear();
+    let r = report.with_context(|| format!("mining {} failed", a.field.display()))?;
+    println!(
+        "mined {} objects ({} standing on others) in {} categories from {} ({}-assetfield) in {:.1}s",
+        r.detections,
+        r.supported,
+        r.categories,
+        a.field.display(),
+        r.model,
+        r.seconds
+    );
+    match r.floor {
+        Some(z) => println!("floor slab up to z = {z:.3}; evidence threshold {:.3}", r.threshold),
+        None => println!("no floor slab; evidence threshold {:.3}", r.threshold),
+    }
+    for x in &r.removed {
+        println!("background: {x}");
+    }
+    println!("grouping: {}", r.cut);
+    println!(
+        "wrote {}: index.ron, patches.safetensors, shared.safetensors, layout.ron ({} instances), boxes.png, categories.png, mining.json{}",
+        r.out.display(),
+        r.layout_instances,
+        if r.metrics.is_some() { ", metrics.json" } else { "" }
+    );
+    if let Some(m) = &r.metrics {
+        println!("{}", m.summary());
+    }
+    Ok(())
+}
+
+pub fn library(a: LibraryArgs) -> Result<()> {
+    match a.command {
+        LibraryCommand::Check { lib } => {
+            let l = open_library(&lib)
+                .with_context(|| format!("{} is not a valid asset library", lib.display()))?;
+            let ix = &l.index;
+            println!(
+                "{}: {} ({}-assetfield), {} entries in {} categories, {} container(s), texel {:.4} x {:.4}, shared {}",
+                lib.display(),
+                ix.format,
+                ix.model,
+                ix.entries.len(),
+                ix.categories.len(),
+                ix.containers.len(),
+                ix.texel_size.0,
+                ix.texel_size.1,
+                ix.shared.hash
+            );
+            for c in &ix.categories {
+                println!("  {}: template {}, {} member(s)", c.name, c.template, c.members.len());
+            }
+            println!("ok: every index entry matches its tensors");
+            Ok(())
+        }
+        LibraryCommand::Merge { libs, out, force } => {
+            if out.exists() && !force {
+                bail!("{} already exists (pass --force to replace it)", out.display());
+            }
+            let r = merge_libraries(&libs, &out, force).context("merging libraries failed")?;
+            println!(
+                "wrote {}: {} entries, {} categories, {} containers from {} libraries",
+                r.out.display(),
+                r.entries,
+                r.categories,
+                r.containers,
+                libs.len()
+            );
+            Ok(())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn templates_parse() {
+        assert_eq!(parse_template("cat1=7").unwrap(), ("cat1".to_string(), 7));
+        assert_eq!(parse_template(" 2 = 3 ").unwrap(), ("2".to_string(), 3));
+        assert!(parse_template("cat1").is_err());
+        assert!(parse_template("cat1=x").unwrap_err().to_string().contains("detection number"));
+    }
+}

@@ -1,0 +1,1844 @@
+//! Object detection on the ground planes (paper Sec. 3.2 and Fig. 4).
+//!
+//! 1. **Background.** A floor (or any ground container: carpet, asphalt, sidewalks) shows up
+//!    in the density field as a horizontal slab: a few height levels at the bottom that are
+//!    opaque over a large part of the plane. [`floor_band`] finds it from the per-level
+//!    coverage; object evidence is then measured only above it. Walls are removed later as
+//!    thin, long structures, large flat regions at ground level as background.
+//! 2. **Binarisation.** The evidence map (by default, per column above the floor, the
+//!    largest opacity of any 8 cm slab, [`OpacityVolume::window_max_above`]: the thin, soft
+//!    surfaces of a briefly trained field reach full opacity over a few levels while no single
+//!    level is opaque, and faint fog under tables does not add up; optionally the colour or
+//!    semantic plane features) is split with K-means (`k = 2` by default); the lowest cluster
+//!    is background. Small specks are removed and Suzuki-Abe border following gives the
+//!    regions (objects nested in another's hole are separate regions).
+//! 3. **Separating touching objects.** Reconstruction blur joins neighbours a few texels
+//!    apart, so each region is split (a) at thin bridges: the cores surviving a
+//!    morphological opening become seeds, every texel goes to the geodesically nearest seed,
+//!    and pieces that do not reach the ground (a lamp head whose arm is too thin) join their
+//!    neighbour; (b) in 3D: 6-connected components of the opaque voxels, each component
+//!    standing on the ground starts an object (a chair partly under a table), floating parts
+//!    join the object under or next to them, objects that mostly cover each other merge; (c)
+//!    by colour: pieces of a K-means (k = 3) on the colour plane's principal components that
+//!    stand on the ground, differ clearly in colour, share at most half their outline with
+//!    the rest, and come from a concave region (a sofa against an armchair, stools against a
+//!    bar) become objects. Faint, low or small leftovers without a solid core are dropped as
+//!    haze (floaters).
+//! 4. **Hierarchical unpacking.** Inside every object, the top surface (a table top) is
+//!    treated as background: if it is a thin, flat slab with something rising above it, each
+//!    raised blob away from the rim seeds a background subtraction of the colour features
+//!    around it (K-means on the distances to the surface's median colour), and the connected
+//!    result, when enclosed by free surface, becomes a detection supported by the object
+//!    (laptops on a table, a crate on a pallet, a lamp on a side table).
+//!
+//! Set the environment variable `ASSETFIELD_MINING_DEBUG` to print the intermediate
+//! decisions to stderr.
+
+use assetfield_core::Rect2;
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+
+use crate::contours::components;
+use crate::error::{MiningError, Result, check_interrupt};
+use crate::image::{Mask, PixelRect, PlaneImage};
+use crate::kmeans::{BackgroundRule, KMeansOptions, kmeans, object_mask_from_plane};
+use crate::morphology::{erode, remove_small};
+use crate::planes::{OpacityVolume, PlaneChoice, PlaneGrid};
+
+/// Whether diagnostics go to stderr (environment variable `ASSETFIELD_MINING_DEBUG` set).
+fn debug() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| std::env::var_os("ASSETFIELD_MINING_DEBUG").is_some())
+}
+
+/// Parameters of [`detect`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectOptions {
+    /// Which plane the first-round K-means runs on.
+    pub on: PlaneChoice,
+    /// K-means clusters of the first round (2 in the paper; more keeps fainter objects).
+    pub k: usize,
+    /// Smallest object footprint in world units squared.
+    pub min_area: f32,
+    /// Look for a floor slab and measure object evidence above it.
+    pub remove_floor: bool,
+    /// Remove thin, long structures (walls) thinner than this (world units; 0 disables).
+    pub wall_thickness: f32,
+    /// Second round inside every object (objects on tables).
+    pub hierarchical: bool,
+    /// Separate objects that touch in the bird's-eye view by 3D connectivity.
+    pub split_3d: bool,
+    /// Seed of the K-means runs.
+    pub seed: u64,
+}
+
+impl Default for DetectOptions {
+    fn default() -> Self {
+        DetectOptions {
+            on: PlaneChoice::Density,
+            k: 2,
+            min_area: 0.02,
+            remove_floor: true,
+            wall_thickness: 0.2,
+            hierarchical: true,
+            split_3d: true,
+            seed: crate::kmeans::DEFAULT_SEED,
+        }
+    }
+}
+
+/// The floor slab found by [`floor_band`]: levels `lo..=hi` of the opacity volume.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FloorBand {
+    pub lo: usize,
+    pub hi: usize,
+    /// World height of the slab's top level.
+    pub z_top: f32,
+    /// Fraction of the plane covered at the slab's densest level.
+    pub coverage: f32,
+}
+
+/// One detected object.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Detection {
+    /// Index in [`Detections::detections`].
+    pub id: usize,
+    /// Bounding box of the footprint in plane texels.
+    pub rect: PixelRect,
+    /// Footprint (holes filled) over `rect`.
+    pub footprint: Mask,
+    /// The texels that describe this object itself, over `rect`: the footprint without the
+    /// objects standing on it or nested in it.
+    pub own: Mask,
+    /// World bird's-eye-view box.
+    pub world: Rect2,
+    /// World footprint area.
+    pub area: f32,
+    /// World height of the object's base (the floor, or the surface it stands on).
+    pub base: f32,
+    /// World height of its top.
+    pub top: f32,
+    /// The detection this one stands on.
+    pub parent: Option<usize>,
+    /// Detections standing on this one.
+    pub children: Vec<usize>,
+}
+
+/// A region dropped as background, with the reason.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Removed {
+    pub world: Rect2,
+    pub reason: String,
+}
+
+/// Everything [`detect`] found.
+#[derive(Debug, Clone)]
+pub struct Detections {
+    pub grid: PlaneGrid,
+    pub floor: Option<FloorBand>,
+    /// First volume level counted as object evidence.
+    pub start_level: usize,
+    /// Level of the ground objects stand on.
+    pub ground_level: usize,
+    /// Column opacity separating object from background (from the first K-means).
+    pub threshold: f32,
+    /// Voxel opacity above which a voxel is occupied (3D separation, second round).
+    pub voxel_threshold: f32,
+    /// The first-round evidence map (`rows * cols`).
+    pub evidence: Vec<f32>,
+    /// The cleaned first-round object mask.
+    pub mask: Mask,
+    pub detections: Vec<Detection>,
+    pub removed: Vec<Removed>,
+}
+
+/// Find the floor slab: the lowest level (in the lower half of the volume) where at least
+/// 30% of the plane has opacity 0.5 or more, extended upwards while that coverage stays
+/// above 30% and above 40% of the floor's (sidewalks, steps), then over its blurred top
+/// (coverage above 15% and falling). `None` for scenes on an invisible ground.
+pub fn floor_band(vol: &OpacityVolume) -> Option<FloorBand> {
+    let n = vol.rows * vol.cols;
+    if n == 0 || vol.nz == 0 {
+        return None;
+    }
+    let coverage: Vec<f32> = (0..vol.nz)
+        .map(|k| {
+            let c = (0..n).filter(|&i| vol.data[i * vol.nz + k] >= 0.5).count();
+            c as f32 / n as f32
+        })
+        .collect();
+    let lo = (0..vol.nz.div_ceil(2)).find(|&k| coverage[k] >= 0.3)?;
+    let mut hi = lo;
+    // the slab goes on while it still covers a large share of the plane (objects rarely do)
+    let densest = coverage[lo..].iter().take(3).fold(0f32, |m, &v| m.max(v));
+    while hi + 1 < vol.nz && coverage[hi + 1] >= (0.4 * densest).max(0.3) {
+        hi += 1;
+    }
+    // and its blurred top: coverage still above 15% and falling level by level
+    while hi + 1 < vol.nz && coverage[hi + 1] >= 0.15 && coverage[hi + 1] < coverage[hi] * 0.9 {
+        hi += 1;
+    }
+    // A "floor" reaching over half the volume is no floor (a solid block).
+    if hi + 1 > vol.nz / 2 {
+        return None;
+    }
+    let coverage = coverage[lo..=hi].iter().fold(0f32, |m, &v| m.max(v));
+    Some(FloorBand { lo, hi, z_top: vol.height(hi), coverage })
+}
+
+/// Threshold between the background cluster and the next one of a 1-D K-means.
+fn kmeans_threshold(values: &[f32], k: usize, seed: u64) -> Result<(f32, Vec<bool>)> {
+    let km = kmeans(values, 1, None, &KMeansOptions { k, seed, ..Default::default() })?;
+    let mut cents: Vec<(f32, usize)> =
+        (0..km.k).filter(|&j| km.cluster_sizes()[j] > 0).map(|j| (km.centroid(j)[0], j)).collect();
+    cents.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let tau = if cents.len() >= 2 { 0.5 * (cents[0].0 + cents[1].0) } else { f32::INFINITY };
+    let bg = cents.first().map_or(u32::MAX, |c| c.1 as u32);
+    Ok((tau, km.labels.iter().map(|&l| l != bg).collect()))
+}
+
+/// Fill the holes of a mask: background not 4-connected to the image border.
+pub fn fill_holes(mask: &Mask) -> Mask {
+    let (rows, cols) = (mask.rows, mask.cols);
+    let mut outside = vec![false; rows * cols];
+    let mut queue = VecDeque::new();
+    for r in 0..rows {
+        for c in 0..cols {
+            if (r == 0 || c == 0 || r + 1 == rows || c + 1 == cols) && !mask.data[r * cols + c] {
+                outside[r * cols + c] = true;
+                queue.push_back((r, c));
+            }
+        }
+    }
+    while let Some((r, c)) = queue.pop_front() {
+        for (dr, dc) in [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)] {
+            let (nr, nc) = (r.wrapping_add_signed(dr), c.wrapping_add_signed(dc));
+            if nr < rows && nc < cols && !mask.data[nr * cols + nc] && !outside[nr * cols + nc] {
+                outside[nr * cols + nc] = true;
+                queue.push_back((nr, nc));
+            }
+        }
+    }
+    Mask { rows, cols, data: outside.iter().map(|&o| !o).collect() }
+}
+
+/// Pixels of `mask` with an 8-neighbour outside it (or on the image edge).
+fn border_ring(mask: &Mask) -> Mask {
+    let (rows, cols) = (mask.rows, mask.cols);
+    Mask::from_fn(rows, cols, |r, c| {
+        if !mask.get(r, c) {
+            return false;
+        }
+        for dr in -1isize..=1 {
+            for dc in -1isize..=1 {
+                let (nr, nc) = (r as isize + dr, c as isize + dc);
+                if nr < 0 || nc < 0 || nr >= rows as isize || nc >= cols as isize {
+                    return true;
+                }
+                if !mask.get(nr as usize, nc as usize) {
+                    return true;
+                }
+            }
+        }
+        false
+    })
+}
+
+/// How many radius-1 erosions it takes to remove a mask entirely (half its thickness in
+/// texels), counting the image edge as background; capped at `cap`.
+fn erosions_to_vanish(mask: &Mask, cap: usize) -> usize {
+    // pad by one so that the image edge erodes too
+    let mut m = Mask::from_fn(mask.rows + 2, mask.cols + 2, |r, c| {
+        r > 0 && c > 0 && mask.get(r - 1, c - 1)
+    });
+    let mut steps = 0;
+    while m.count() > 0 && steps < cap {
+        m = match erode(&m, 1) {
+            Ok(e) => e,
+            Err(_) => break,
+        };
+        steps += 1;
+    }
+    steps
+}
+
+/// A 3D connected component of opaque voxels inside a region.
+#[derive(Debug, Clone)]
+struct Blob {
+    kmin: usize,
+    kmax: usize,
+    /// Projection over the region's bounding box.
+    proj: Mask,
+    proj_count: usize,
+}
+
+/// 26-connected components of the voxels `>= tau` in levels `start..`, in the columns set in
+/// `cols_mask` (over `rect`).
+fn blobs(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    cols_mask: &Mask,
+    start: usize,
+    tau: f32,
+) -> Vec<Blob> {
+    let (h, w) = (rect.rows(), rect.cols());
+    let nzl = vol.nz.saturating_sub(start);
+    if nzl == 0 {
+        return Vec::new();
+    }
+    let idx = |r: usize, c: usize, k: usize| (r * w + c) * nzl + k;
+    let mut occ = vec![false; h * w * nzl];
+    for r in 0..h {
+        for c in 0..w {
+            if !cols_mask.get(r, c) {
+                continue;
+            }
+            let col = vol.column(rect.r0 + r, rect.c0 + c);
+            for k in 0..nzl {
+                occ[idx(r, c, k)] = col[start + k] >= tau;
+            }
+        }
+    }
+    let mut label = vec![u32::MAX; occ.len()];
+    let mut out = Vec::new();
+    let mut stack = Vec::new();
+    for s in 0..occ.len() {
+        if !occ[s] || label[s] != u32::MAX {
+            continue;
+        }
+        let id = out.len() as u32;
+        let proj = Mask { rows: h, cols: w, data: vec![false; h * w] };
+        let mut b = Blob { kmin: usize::MAX, kmax: 0, proj, proj_count: 0 };
+        label[s] = id;
+        stack.push(s);
+        while let Some(p) = stack.pop() {
+            let k = p % nzl;
+            let rc = p / nzl;
+            let (r, c) = (rc / w, rc % w);
+            b.kmin = b.kmin.min(k + start);
+            b.kmax = b.kmax.max(k + start);
+            if !b.proj.data[rc] {
+                b.proj.data[rc] = true;
+                b.proj_count += 1;
+            }
+            for dr in -1isize..=1 {
+                for dc in -1isize..=1 {
+                    for dk in -1isize..=1 {
+                        if dr.abs() + dc.abs() + dk.abs() != 1 {
+                            continue;
+                        }
+                        let (nr, nc, nk) = (r as isize + dr, c as isize + dc, k as isize + dk);
+                        if nr < 0
+                            || nc < 0
+                            || nk < 0
+                            || nr >= h as isize
+                            || nc >= w as isize
+                            || nk >= nzl as isize
+                        {
+                            continue;
+                        }
+                        let q = idx(nr as usize, nc as usize, nk as usize);
+                        if occ[q] && label[q] == u32::MAX {
+                            label[q] = id;
+                            stack.push(q);
+                        }
+                    }
+                }
+            }
+        }
+        out.push(b);
+    }
+    out
+}
+
+fn overlap(a: &Mask, b: &Mask) -> usize {
+    a.data.iter().zip(&b.data).filter(|(x, y)| **x && **y).count()
+}
+
+fn or_into(dst: &mut Mask, src: &Mask) {
+    for (d, s) in dst.data.iter_mut().zip(&src.data) {
+        *d |= *s;
+    }
+}
+
+/// Squared distance from the centroid of `a` to the nearest set pixel of `b`.
+fn centroid_distance2(a: &Mask, b: &Mask) -> f32 {
+    let (mut sr, mut sc, mut n) = (0f32, 0f32, 0f32);
+    for r in 0..a.rows {
+        for c in 0..a.cols {
+            if a.get(r, c) {
+                sr += r as f32;
+                sc += c as f32;
+                n += 1.0;
+            }
+        }
+    }
+    if n == 0.0 {
+        return f32::INFINITY;
+    }
+    let (cr, cc) = (sr / n, sc / n);
+    let mut best = f32::INFINITY;
+    for r in 0..b.rows {
+        for c in 0..b.cols {
+            if b.get(r, c) {
+                best = best.min((r as f32 - cr).powi(2) + (c as f32 - cc).powi(2));
+            }
+        }
+    }
+    best
+}
+
+/// Assign every pixel of `region` to the geodesically nearest seed (multi-source BFS inside
+/// the region, 8-connected); pixels no seed reaches get none.
+fn geodesic_assign(region: &Mask, seeds: &[Mask]) -> Vec<Option<usize>> {
+    let (rows, cols) = (region.rows, region.cols);
+    let mut owner: Vec<Option<usize>> = vec![None; rows * cols];
+    let mut queue = VecDeque::new();
+    for (s, m) in seeds.iter().enumerate() {
+        for i in 0..rows * cols {
+            if m.data[i] && region.data[i] && owner[i].is_none() {
+                owner[i] = Some(s);
+                queue.push_back(i);
+            }
+        }
+    }
+    while let Some(i) = queue.pop_front() {
+        let (r, c) = (i / cols, i % cols);
+        for dr in -1isize..=1 {
+            for dc in -1isize..=1 {
+                let (nr, nc) = (r as isize + dr, c as isize + dc);
+                if nr < 0 || nc < 0 || nr >= rows as isize || nc >= cols as isize {
+                    continue;
+                }
+                let j = nr as usize * cols + nc as usize;
+                if region.data[j] && owner[j].is_none() {
+                    owner[j] = owner[i];
+                    queue.push_back(j);
+                }
+            }
+        }
+    }
+    owner
+}
+
+/// An object being assembled: a footprint over its region's box and its height range.
+#[derive(Debug, Clone)]
+struct Part {
+    rect: PixelRect,
+    footprint: Mask,
+    kmin: usize,
+    kmax: usize,
+}
+
+impl Part {
+    /// Shrink to the bounding box of the footprint.
+    fn tighten(self) -> Option<Part> {
+        let bb = self.footprint.bbox()?;
+        let footprint = self.footprint.crop(bb).ok()?;
+        let rect = PixelRect::new(
+            self.rect.r0 + bb.r0,
+            self.rect.c0 + bb.c0,
+            self.rect.r0 + bb.r1,
+            self.rect.c0 + bb.c1,
+        );
+        Some(Part { rect, footprint, ..self })
+    }
+}
+
+/// Split one first-round region into objects by 3D connectivity (see the module docs).
+fn split_region(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    cols: &Mask,
+    start: usize,
+    ground: usize,
+    ground_tol: usize,
+    tau: f32,
+    min_texels: usize,
+    split_3d: bool,
+) -> Vec<Part> {
+    let bl = blobs(vol, rect, cols, start, tau);
+    let whole = |kmin: usize, kmax: usize| Part { rect, footprint: cols.clone(), kmin, kmax };
+    let (kmin, kmax) = bl.iter().fold((usize::MAX, 0), |(a, b), x| (a.min(x.kmin), b.max(x.kmax)));
+    let (kmin, kmax) = if kmin == usize::MAX { (start, start) } else { (kmin, kmax) };
+    if !split_3d || bl.is_empty() {
+        return vec![whole(kmin, kmax)];
+    }
+    let primary: Vec<usize> = (0..bl.len())
+        .filter(|&i| bl[i].kmin <= ground + ground_tol && bl[i].proj_count >= min_texels)
+        .collect();
+    if debug() && bl.len() > 1 {
+        let mut big: Vec<(usize, usize, usize)> =
+            bl.iter().map(|b| (b.proj_count, b.kmin, b.kmax)).collect();
+        big.sort_by_key(|b| std::cmp::Reverse(b.0));
+        big.truncate(8);
+        eprintln!(
+            "split {rect:?}: {} blobs, primaries {} (ground {ground}+{ground_tol}), biggest {big:?}",
+            bl.len(),
+            primary.len()
+        );
+    }
+    if primary.len() < 2 {
+        return vec![whole(kmin, kmax)];
+    }
+    // groups of blobs: (projection, kmin, kmax)
+    let mut groups: Vec<(Mask, usize, usize)> =
+        primary.iter().map(|&i| (bl[i].proj.clone(), bl[i].kmin, bl[i].kmax)).collect();
+    // floating / small blobs join the group they overlap most, else the nearest one
+    let mut order: Vec<usize> = (0..bl.len()).filter(|i| !primary.contains(i)).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(bl[i].proj_count));
+    for i in order {
+        let b = &bl[i];
+        let best = (0..groups.len())
+            .map(|g| (g, overlap(&b.proj, &groups[g].0)))
+            .max_by_key(|&(g, o)| (o, std::cmp::Reverse(g)))
+            .filter(|&(_, o)| o > 0)
+            .map(|(g, _)| g)
+            .or_else(|| {
+                (0..groups.len())
+                    .map(|g| (g, centroid_distance2(&b.proj, &groups[g].0)))
+                    .min_by(|a, b| a.1.total_cmp(&b.1))
+                    .map(|(g, _)| g)
+            });
+        if let Some(g) = best {
+            or_into(&mut groups[g].0, &b.proj);
+            groups[g].1 = groups[g].1.min(b.kmin);
+            groups[g].2 = groups[g].2.max(b.kmax);
+        }
+    }
+    // groups that mostly cover each other are one object
+    loop {
+        let mut merged = false;
+        'outer: for a in 0..groups.len() {
+            for b in 0..groups.len() {
+                if a == b {
+                    continue;
+                }
+                let (na, nb) = (groups[a].0.count(), groups[b].0.count());
+                if na <= nb && overlap(&groups[a].0, &groups[b].0) * 2 >= na {
+                    let ga = groups.remove(a);
+                    let b = if b > a { b - 1 } else { b };
+                    or_into(&mut groups[b].0, &ga.0);
+                    groups[b].1 = groups[b].1.min(ga.1);
+                    groups[b].2 = groups[b].2.max(ga.2);
+                    merged = true;
+                    break 'outer;
+                }
+            }
+        }
+        if !merged {
+            break;
+        }
+    }
+    if groups.len() < 2 {
+        return vec![whole(kmin, kmax)];
+    }
+    // region texels outside every projection go to the geodesically nearest group
+    let seeds: Vec<Mask> = groups.iter().map(|g| g.0.clone()).collect();
+    let owner = geodesic_assign(cols, &seeds);
+    groups
+        .into_iter()
+        .enumerate()
+        .map(|(g, (proj, kmin, kmax))| {
+            let mut fp = proj;
+            for (i, o) in owner.iter().enumerate() {
+                if *o == Some(g) {
+                    fp.data[i] = true;
+                }
+            }
+            Part { rect, footprint: fill_holes(&fp), kmin, kmax }
+        })
+        .collect()
+}
+
+/// Lowest level `>= start` occupied (`>= tau`) in the columns of `m` (over `rect`).
+fn lowest_level(vol: &OpacityVolume, rect: PixelRect, m: &Mask, start: usize, tau: f32) -> usize {
+    let mut best = usize::MAX;
+    for r in 0..rect.rows() {
+        for c in 0..rect.cols() {
+            if m.get(r, c) {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                if let Some(k) = (start..vol.nz).find(|&k| col[k] >= tau) {
+                    best = best.min(k);
+                }
+            }
+        }
+    }
+    best
+}
+
+/// Cut a region at thin bridges: the cores that survive a morphological opening of radius
+/// `radius` become seeds, every texel goes to the geodesically nearest seed, and pieces
+/// that do not reach the ground (a lamp head whose arm is too thin, a shade over its base)
+/// join the neighbour they share the longest border with.
+fn split_bridges(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    region: &Mask,
+    start: usize,
+    ground: usize,
+    ground_tol: usize,
+    tau: f32,
+    radius: usize,
+    min_texels: usize,
+) -> Vec<Mask> {
+    let (h, w) = (region.rows, region.cols);
+    // pad so that the box edge does not protect texels from erosion
+    let padded = Mask::from_fn(h + 2 * radius, w + 2 * radius, |r, c| {
+        r >= radius && c >= radius && region.get(r - radius, c - radius)
+    });
+    let Ok(opened) = crate::morphology::open(&padded, radius) else {
+        return vec![region.clone()];
+    };
+    let core = Mask::from_fn(h, w, |r, c| opened.get(r + radius, c + radius));
+    let Ok((labels, sizes)) = crate::contours::label_components(&core) else {
+        return vec![region.clone()];
+    };
+    let seeds: Vec<Mask> = (0..sizes.len())
+        .filter(|&l| sizes[l] >= min_texels)
+        .map(|l| Mask { rows: h, cols: w, data: labels.iter().map(|&x| x == l as u32).collect() })
+        .collect();
+    if debug() {
+        eprintln!(
+            "bridges {rect:?}: {} cores, sizes {:?}",
+            seeds.len(),
+            seeds
+                .iter()
+                .map(|m| (m.count(), lowest_level(vol, rect, m, start, tau)))
+                .collect::<Vec<_>>()
+        );
+    }
+    if seeds.len() < 2 {
+        return vec![region.clone()];
+    }
+    let owner = geodesic_assign(region, &seeds);
+    let mut pieces: Vec<Mask> = (0..seeds.len())
+        .map(|s| Mask { rows: h, cols: w, data: owner.iter().map(|&o| o == Some(s)).collect() })
+        .collect();
+    // floating pieces join their longest-bordering neighbour
+    loop {
+        let grounded: Vec<bool> = pieces
+            .iter()
+            .map(|p| lowest_level(vol, rect, p, start, tau) <= ground + ground_tol)
+            .collect();
+        let Some(f) = (0..pieces.len()).find(|&i| !grounded[i]) else { break };
+        let mut border = vec![0usize; pieces.len()];
+        for r in 0..h {
+            for c in 0..w {
+                if !pieces[f].get(r, c) {
+                    continue;
+                }
+                for (dr, dc) in [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)] {
+                    let (nr, nc) = (r as isize + dr, c as isize + dc);
+                    if nr < 0 || nc < 0 || nr >= h as isize || nc >= w as isize {
+                        continue;
+                    }
+                    for (j, p) in pieces.iter().enumerate() {
+                        if j != f && p.get(nr as usize, nc as usize) {
+                            border[j] += 1;
+                        }
+                    }
+                }
+            }
+        }
+        let Some((j, &b)) =
+            border.iter().enumerate().max_by_key(|&(j, &b)| (b, std::cmp::Reverse(j)))
+        else {
+            break;
+        };
+        if b == 0 {
+            // isolated and floating: leave it alone (it may still be an object)
+            if pieces.iter().enumerate().all(|(i, _)| i == f || grounded[i]) {
+                break;
+            }
+            break;
+        }
+        let pf = pieces.remove(f);
+        let j = if j > f { j - 1 } else { j };
+        or_into(&mut pieces[j], &pf);
+        if pieces.len() < 2 {
+            break;
+        }
+    }
+    pieces
+}
+
+/// The first `k` principal components of a feature plane, per texel, each scaled to unit
+/// variance over the texels set in `over` (all texels if none is set).
+fn principal_components(plane: &PlaneImage, over: &Mask, k: usize) -> Vec<Vec<f32>> {
+    let (n, ch) = (plane.texels(), plane.ch);
+    let mut idx: Vec<usize> =
+        (0..n).filter(|&i| over.data.get(i).copied().unwrap_or(false)).collect();
+    if idx.is_empty() {
+        idx = (0..n).collect();
+    }
+    let stride = idx.len().div_ceil(20_000).max(1);
+    let sample: Vec<usize> = idx.iter().copied().step_by(stride).collect();
+    let m = sample.len().max(1) as f64;
+    let mut mean = vec![0f64; ch];
+    for &i in &sample {
+        for (a, &v) in mean.iter_mut().zip(&plane.data[i * ch..(i + 1) * ch]) {
+            *a += f64::from(v) / m;
+        }
+    }
+    let mut cov = vec![0f64; ch * ch];
+    for &i in &sample {
+        let x = &plane.data[i * ch..(i + 1) * ch];
+        for a in 0..ch {
+            let da = f64::from(x[a]) - mean[a];
+            for b in a..ch {
+                cov[a * ch + b] += da * (f64::from(x[b]) - mean[b]) / m;
+            }
+        }
+    }
+    for a in 0..ch {
+        for b in 0..a {
+            cov[a * ch + b] = cov[b * ch + a];
+        }
+    }
+    // power iteration with deflation
+    let mut axes: Vec<Vec<f64>> = Vec::new();
+    for j in 0..k.min(ch) {
+        let mut v: Vec<f64> = (0..ch).map(|t| if t == j { 1.0 } else { 0.1 }).collect();
+        let mut lambda = 0.0;
+        for _ in 0..100 {
+            let mut w: Vec<f64> =
+                (0..ch).map(|a| (0..ch).map(|b| cov[a * ch + b] * v[b]).sum()).collect();
+            for u in &axes {
+                let d: f64 = w.iter().zip(u).map(|(x, y)| x * y).sum();
+                w.iter_mut().zip(u).for_each(|(x, y)| *x -= d * y);
+            }
+            let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if norm < 1e-12 {
+                break;
+            }
+            lambda = norm;
+            v = w.iter().map(|x| x / norm).collect();
+        }
+        if lambda < 1e-12 {
+            break;
+        }
+        axes.push(v);
+    }
+    let sd: Vec<f64> = axes
+        .iter()
+        .map(|u| {
+            let var: f64 = sample
+                .iter()
+                .map(|&i| {
+                    let p: f64 =
+                        (0..ch).map(|a| (f64::from(plane.data[i * ch + a]) - mean[a]) * u[a]).sum();
+                    p * p
+                })
+                .sum::<f64>()
+                / m;
+            var.sqrt().max(1e-9)
+        })
+        .collect();
+    (0..n)
+        .map(|i| {
+            axes.iter()
+                .zip(&sd)
+                .map(|(u, s)| {
+                    let p: f64 =
+                        (0..ch).map(|a| (f64::from(plane.data[i * ch + a]) - mean[a]) * u[a]).sum();
+                    (p / s) as f32
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Separate objects that touch but differ in colour (a sofa against an armchair, chairs
+/// pushed against a table): a K-means (k = 2) on the colour principal components of the
+/// part gives connected pieces; a piece becomes an object of its own when it stands on the
+/// ground, is large, differs clearly in colour from what surrounds it, and touches the rest
+/// only along a short part of its outline (a cushion framed by a sofa's arms and back, or
+/// books inside a shelf, share most of their outline and stay). Applied recursively.
+fn split_by_colour(
+    vol: &OpacityVolume,
+    pcs: &[Vec<f32>],
+    part: Part,
+    start: usize,
+    ground: usize,
+    ground_tol: usize,
+    tau: f32,
+    min_texels: usize,
+    depth: usize,
+) -> Vec<Part> {
+    let (rect, f) = (part.rect, &part.footprint);
+    let (h, w) = (f.rows, f.cols);
+    let n = f.count();
+    if depth == 0 || n < 8 * min_texels.max(1) {
+        return vec![part];
+    }
+    let idx: Vec<usize> = (0..h * w).filter(|&i| f.data[i]).collect();
+    let gi = |i: usize| (rect.r0 + i / w) * vol.cols + rect.c0 + i % w;
+    let dim = pcs.first().map_or(0, Vec::len);
+    if dim == 0 {
+        return vec![part];
+    }
+    let pts: Vec<f32> = idx.iter().flat_map(|&i| pcs[gi(i)].iter().copied()).collect();
+    let Ok(km) = kmeans(&pts, dim, None, &KMeansOptions { k: 3, ..Default::default() }) else {
+        return vec![part];
+    };
+    let mut label = vec![u32::MAX; h * w];
+    for (t, &i) in idx.iter().enumerate() {
+        label[i] = km.labels[t];
+    }
+    // connected pieces of each label; small ones go to their geodesic neighbours
+    let min_piece = (n / 40).max(2 * min_texels);
+    let mut seeds: Vec<Mask> = Vec::new();
+    for l in 0..km.k as u32 {
+        // cut thin strips of one colour joining separate objects (an opening, padded so the
+        // box edge does not protect texels)
+        let m = Mask::from_fn(h + 4, w + 4, |r, c| {
+            r >= 2
+                && c >= 2
+                && label.get((r - 2) * w + c - 2).is_some_and(|&x| x == l)
+                && r < h + 2
+                && c < w + 2
+        });
+        let m = crate::morphology::open(&m, 2).unwrap_or(m);
+        let m = Mask::from_fn(h, w, |r, c| m.get(r + 2, c + 2));
+        if let Ok((lab, sizes)) = crate::contours::label_components(&m) {
+            for (c, &sz) in sizes.iter().enumerate() {
+                if sz >= min_piece {
+                    seeds.push(Mask {
+                        rows: h,
+                        cols: w,
+                        data: lab.iter().map(|&x| x == c as u32).collect(),
+                    });
+                }
+            }
+        }
+    }
+    if seeds.len() < 2 {
+        return vec![part];
+    }
+    let owner = geodesic_assign(f, &seeds);
+    let pieces: Vec<Mask> = (0..seeds.len())
+        .map(|s| Mask { rows: h, cols: w, data: owner.iter().map(|&o| o == Some(s)).collect() })
+        .collect();
+    let main = (0..pieces.len()).max_by_key(|&p| pieces[p].count()).unwrap_or(0);
+    let mut accepted: Vec<usize> = Vec::new();
+    for (p, piece) in pieces.iter().enumerate() {
+        if p == main {
+            continue;
+        }
+        if lowest_level(vol, rect, piece, start, tau) > ground + ground_tol {
+            continue;
+        }
+        // outline shared with the rest of the part vs outline; and whether the top surface
+        // runs on across the shared outline (one object's surface with two colours below it,
+        // as a desk top over a drawer block, is no boundary between objects)
+        let top = |i: usize| {
+            let col = vol.column(rect.r0 + i / w, rect.c0 + i % w);
+            (start..vol.nz).rev().find(|&k| col[k] >= tau)
+        };
+        let (mut pairs, mut level) = (0usize, 0usize);
+        let (mut outline, mut shared) = (0usize, 0usize);
+        let mut near: Vec<usize> = Vec::new();
+        for r in 0..h {
+            for c in 0..w {
+                if !piece.get(r, c) {
+                    continue;
+                }
+                let mut edge = false;
+                let mut touches = false;
+                for (dr, dc) in [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)] {
+                    let (nr, nc) = (r as isize + dr, c as isize + dc);
+                    let inside = nr >= 0 && nc >= 0 && nr < h as isize && nc < w as isize;
+                    if !inside || !piece.get(nr as usize, nc as usize) {
+                        edge = true;
+                        if inside && f.get(nr as usize, nc as usize) {
+                            touches = true;
+                            let q = nr as usize * w + nc as usize;
+                            near.push(q);
+                            pairs += 1;
+                            if let (Some(a), Some(b)) = (top(r * w + c), top(q)) {
+                                level += usize::from(a.abs_diff(b) <= 1);
+                            }
+                        }
+                    }
+                }
+                outline += usize::from(edge);
+                shared += usize::from(touches);
+            }
+        }
+        // colour contrast with the texels it touches (and their neighbours)
+        let ring = crate::morphology::dilate(
+            &Mask { rows: h, cols: w, data: (0..h * w).map(|i| near.contains(&i)).collect() },
+            2,
+        )
+        .unwrap_or_else(|_| piece.clone());
+        let stats = |sel: &dyn Fn(usize) -> bool| -> (Vec<f32>, f32, usize) {
+            let ids: Vec<usize> = idx.iter().copied().filter(|&i| sel(i)).collect();
+            let mut mean = vec![0f32; dim];
+            for &i in &ids {
+                mean.iter_mut().zip(&pcs[gi(i)]).for_each(|(a, b)| *a += b);
+            }
+            mean.iter_mut().for_each(|a| *a /= ids.len().max(1) as f32);
+            let var = ids
+                .iter()
+                .map(|&i| pcs[gi(i)].iter().zip(&mean).map(|(a, b)| (a - b) * (a - b)).sum::<f32>())
+                .sum::<f32>()
+                / ids.len().max(1) as f32;
+            (mean, var, ids.len())
+        };
+        let (ma, va, na) = stats(&|i| piece.data[i]);
+        let (mb, vb, nb) = stats(&|i| ring.data[i] && !piece.data[i]);
+        let d2: f32 = ma.iter().zip(&mb).map(|(a, b)| (a - b) * (a - b)).sum();
+        let contrast = d2 / (0.5 * (va + vb)).max(1e-6);
+        if debug() {
+            eprintln!(
+                "colour split {rect:?}: piece {} of {n} texels, outline {shared}/{outline}, contrast {contrast:.2} ({na} vs {nb})",
+                piece.count()
+            );
+        }
+        // touching objects make a concave outline that the split straightens
+        let solid = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
+        let (s_all, s_piece) = (solid(f), solid(piece));
+        if debug() {
+            eprintln!("   solidity {s_all:.2} -> {s_piece:.2}");
+        }
+        let continuous = pairs > 0 && level * 10 >= pairs * 8;
+        if debug() {
+            eprintln!("   top surface continuous over {level}/{pairs} of the shared outline");
+        }
+        if nb == 0
+            || shared * 2 > outline
+            || contrast < 1.5
+            || s_all > 0.9
+            || s_piece < 0.6
+            || continuous
+        {
+            continue;
+        }
+        accepted.push(p);
+    }
+    if accepted.is_empty() {
+        return vec![part];
+    }
+    let mut rest = Mask { rows: h, cols: w, data: vec![false; h * w] };
+    for (p, piece) in pieces.iter().enumerate() {
+        if !accepted.contains(&p) {
+            or_into(&mut rest, piece);
+        }
+    }
+    let mut out = Vec::new();
+    for m in accepted.iter().map(|&p| pieces[p].clone()).chain(std::iter::once(rest)) {
+        let sub = Part { rect, footprint: fill_holes(&m), kmin: part.kmin, kmax: part.kmax };
+        if let Some(t) = sub.tighten() {
+            out.extend(split_by_colour(
+                vol,
+                pcs,
+                t,
+                start,
+                ground,
+                ground_tol,
+                tau,
+                min_texels,
+                depth - 1,
+            ));
+        }
+    }
+    out
+}
+
+/// Remove one-texel protrusions and speckle chains from a part's footprint (an opening of
+/// radius 1), unless that takes away more than a third of it (thin objects keep their
+/// shape).
+fn smooth(p: Part, min_texels: usize) -> Part {
+    let (h, w) = (p.footprint.rows, p.footprint.cols);
+    let padded =
+        Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && p.footprint.get(r - 1, c - 1));
+    let Ok(opened) = crate::morphology::open(&padded, 1) else { return p };
+    let opened = Mask::from_fn(h, w, |r, c| opened.get(r + 1, c + 1));
+    // keep the pieces of the opened footprint that are big enough
+    let Ok(kept) = remove_small(&opened, min_texels.max(1)) else { return p };
+    let n = kept.count();
+    if n * 3 < p.footprint.count() * 2 {
+        return p;
+    }
+    Part { footprint: fill_holes(&kept), ..p }
+}
+
+/// A supported object found inside a part.
+#[derive(Debug, Clone)]
+struct Child {
+    rect: PixelRect,
+    footprint: Mask,
+    kmax: usize,
+}
+
+/// Background subtraction inside a window: the surface model is the coordinate-wise median
+/// of the points (the surface dominates the window); the distances to it are split in two by
+/// a 1-D K-means, and the far cluster (plus the seed) is the object. Returns, per point,
+/// whether it belongs to the object.
+fn far_from_surface(points: &[f32], dim: usize, seed: &[bool]) -> Vec<bool> {
+    let n = seed.len();
+    if n == 0 || dim == 0 {
+        return seed.to_vec();
+    }
+    let mut col = vec![0f32; n];
+    let med: Vec<f32> = (0..dim)
+        .map(|d| {
+            for i in 0..n {
+                col[i] = points[i * dim + d];
+            }
+            col.sort_unstable_by(f32::total_cmp);
+            col[n / 2]
+        })
+        .collect();
+    let dist: Vec<f32> = (0..n)
+        .map(|i| {
+            points[i * dim..(i + 1) * dim]
+                .iter()
+                .zip(&med)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f32>()
+                .sqrt()
+        })
+        .collect();
+    let mut obj: Vec<bool> = match kmeans_threshold(&dist, 2, crate::kmeans::DEFAULT_SEED) {
+        Ok((t, _)) if t.is_finite() => (0..n).map(|i| seed[i] || dist[i] > t).collect(),
+        _ => return seed.to_vec(),
+    };
+    // refine: a point joins the object only if it is nearer to the object's mean than to
+    // the surface (a non-uniform surface has far points that are not object-coloured)
+    let d2 = |i: usize, c: &[f32]| {
+        points[i * dim..(i + 1) * dim].iter().zip(c).map(|(a, b)| (a - b) * (a - b)).sum::<f32>()
+    };
+    for _ in 0..5 {
+        let mut a = vec![0f32; dim];
+        let mut cnt = 0f32;
+        for i in (0..n).filter(|&i| obj[i]) {
+            for (s, v) in a.iter_mut().zip(&points[i * dim..(i + 1) * dim]) {
+                *s += v;
+            }
+            cnt += 1.0;
+        }
+        if cnt == 0.0 {
+            break;
+        }
+        a.iter_mut().for_each(|v| *v /= cnt);
+        let new: Vec<bool> = (0..n).map(|i| seed[i] || d2(i, &a) < d2(i, &med)).collect();
+        if new == obj {
+            break;
+        }
+        obj = new;
+    }
+    obj
+}
+
+/// The second round inside one object: returns the objects standing on its largest surface
+/// and the top level of that surface.
+fn unpack(
+    vol: &OpacityVolume,
+    color: &PlaneImage,
+    part: &Part,
+    start: usize,
+    tau: f32,
+    min_texels: usize,
+    texel: f32,
+) -> (Vec<Child>, Option<usize>) {
+    let (rect, f) = (part.rect, &part.footprint);
+    let n = f.count();
+    if n < 4 * min_texels.max(1) || vol.nz <= start {
+        return (Vec::new(), None);
+    }
+    // area per level over the footprint (surfaces may be faint: half the voxel threshold)
+    let ts = 0.5 * tau;
+    let mut area = vec![0usize; vol.nz];
+    for r in 0..rect.rows() {
+        for c in 0..rect.cols() {
+            if f.get(r, c) {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                for k in start..vol.nz {
+                    if col[k] >= ts {
+                        area[k] += 1;
+                    }
+                }
+            }
+        }
+    }
+    let amax = area.iter().copied().max().unwrap_or(0);
+    if debug() {
+        eprintln!("unpack {rect:?} n {n} amax {amax} area {:?}", &area[start..]);
+    }
+    if amax * 2 < n {
+        return (Vec::new(), None);
+    }
+    // the top surface: the highest level covering at least 60% of the densest one (ghost
+    // layers under a table top can be denser than the top itself)
+    let kstar = (start..vol.nz).rev().find(|&k| area[k] * 10 >= amax * 6).unwrap_or(start);
+    let mut hi = kstar;
+    // the surface with the blur above it: levels covering a quarter of it and not growing
+    // (an object standing on it does not fade upwards); and its body below: levels covering
+    // half of it
+    while hi + 1 < vol.nz && area[hi + 1] * 4 >= area[kstar] && area[hi + 1] * 10 <= area[hi] * 11 {
+        hi += 1;
+    }
+    let mut lo = kstar;
+    while lo > start && area[lo - 1] * 2 >= area[kstar] {
+        lo -= 1;
+    }
+    // a support is a thin slab (a table top, a shelf, a pallet's deck) ...
+    let thin = ((0.08 / vol.dz.max(1e-6)).ceil() as usize).max(3);
+    if hi - lo + 1 > thin {
+        return (Vec::new(), None);
+    }
+    let raise = ((0.04 / vol.dz.max(1e-6)).ceil() as usize).max(2);
+    let above = hi + raise;
+    // surface texels and raised texels
+    let (h, w) = (rect.rows(), rect.cols());
+    let mut surface = Mask { rows: h, cols: w, data: vec![false; h * w] };
+    let mut raised = surface.clone();
+    for r in 0..h {
+        for c in 0..w {
+            if !f.get(r, c) {
+                continue;
+            }
+            let col = vol.column(rect.r0 + r, rect.c0 + c);
+            surface.data[r * w + c] = (lo..=hi).any(|k| col[k] >= ts);
+            raised.data[r * w + c] = (above..vol.nz).any(|k| col[k] >= tau);
+        }
+    }
+    if raised.count() == 0 {
+        return (Vec::new(), Some(hi));
+    }
+    // ... and flat: away from what rises above it, most columns end at the slab (a dome, the
+    // top of a sphere, has no flat rim)
+    let near_raised = crate::morphology::dilate(&raised, 3).unwrap_or_else(|_| raised.clone());
+    let (mut free_n, mut flat_n) = (0usize, 0usize);
+    for r in 0..h {
+        for c in 0..w {
+            if !f.get(r, c) || near_raised.get(r, c) {
+                continue;
+            }
+            free_n += 1;
+            let col = vol.column(rect.r0 + r, rect.c0 + c);
+            // nothing rises above the slab and the slab is there (perhaps faintly: NeRF
+            // table tops have thin patches)
+            let clear = !(hi + 1..vol.nz).any(|k| col[k] >= tau);
+            let there = (kstar.saturating_sub(1)..=hi).any(|k| col[k] >= 0.5 * tau);
+            flat_n += usize::from(clear && there);
+        }
+    }
+    if debug() {
+        eprintln!("   slab {lo}..={hi} kstar {kstar} flat {flat_n}/{free_n} of {n}");
+    }
+    if free_n * 10 < n * 3 || flat_n * 10 < free_n * 7 {
+        return (Vec::new(), Some(hi));
+    }
+    // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
+    // features of a window around it: the cluster holding the blob is the object, the other
+    // one the surface it stands on (the paper's second round with the table as background).
+    let ring = border_ring(f);
+    let seeds = match components(&raised) {
+        Ok(r) => r,
+        Err(_) => return (Vec::new(), Some(hi)),
+    };
+    let grow = ((0.25 / texel.max(1e-6)).ceil() as usize).max(3);
+    // the window never reaches the rim band (edges of a table have colours of their own)
+    let interior = {
+        let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
+        let e = erode(&padded, 3).unwrap_or(padded);
+        Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1) || raised.get(r, c))
+    };
+    let mut taken = Mask { rows: h, cols: w, data: vec![false; h * w] };
+    let mut children = Vec::new();
+    for sd in seeds.iter().filter(|g| g.depth == 0) {
+        let sb = sd.bbox;
+        let at = |r: usize, c: usize| sb.contains(r, c) && sd.pixels.get(r - sb.r0, c - sb.c0);
+        let seed_px: Vec<(usize, usize)> = (sb.r0..sb.r1)
+            .flat_map(|r| (sb.c0..sb.c1).map(move |c| (r, c)))
+            .filter(|&(r, c)| at(r, c))
+            .collect();
+        if seed_px.iter().any(|&(r, c)| ring.get(r, c) || taken.get(r, c)) {
+            continue;
+        }
+        let win = sb.expand(grow, h, w);
+        let mut idx = Vec::new();
+        let mut pts = Vec::new();
+        for r in win.r0..win.r1 {
+            for c in win.c0..win.c1 {
+                if interior.get(r, c)
+                    && let Some(v) = color.get(rect.r0 + r, rect.c0 + c)
+                {
+                    idx.push((r, c));
+                    pts.extend_from_slice(v);
+                }
+            }
+        }
+        let mut object = Mask { rows: h, cols: w, data: vec![false; h * w] };
+        for &(r, c) in &seed_px {
+            object.set(r, c, true);
+        }
+        let seedf: Vec<bool> = idx.iter().map(|&(r, c)| at(r, c)).collect();
+        let labels = far_from_surface(&pts, color.ch, &seedf);
+        for (t, &(r, c)) in idx.iter().enumerate() {
+            if labels[t] {
+                object.set(r, c, true);
+            }
+        }
+        // the connected part of the object cluster that holds the seed
+        let mut comp = Mask { rows: h, cols: w, data: vec![false; h * w] };
+        let mut stack: Vec<(usize, usize)> = seed_px.clone();
+        for &(r, c) in &seed_px {
+            comp.set(r, c, true);
+        }
+        while let Some((r, c)) = stack.pop() {
+            for dr in -1isize..=1 {
+                for dc in -1isize..=1 {
+                    let (nr, nc) = (r as isize + dr, c as isize + dc);
+                    if nr < 0 || nc < 0 {
+                        continue;
+                    }
+                    let (nr, nc) = (nr as usize, nc as usize);
+                    if win.contains(nr, nc) && object.get(nr, nc) && !comp.get(nr, nc) {
+                        comp.set(nr, nc, true);
+                        stack.push((nr, nc));
+                    }
+                }
+            }
+        }
+        let comp = fill_holes(&comp);
+        let count = comp.count();
+        let touches = (0..h * w).any(|i| comp.data[i] && (ring.data[i] || !f.data[i]));
+        let kmax = seed_px
+            .iter()
+            .filter_map(|&(r, c)| {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                (above..vol.nz).rev().find(|&k| col[k] >= tau)
+            })
+            .max()
+            .unwrap_or(hi);
+        if debug() {
+            eprintln!("   seed {:?} -> {count} texels, touches {touches}", sb);
+        }
+        if touches || count < min_texels || count * 4 > n * 3 {
+            continue;
+        }
+        // it must stand within the surface: most of the ring around it is surface
+        let (mut ring_n, mut ring_s) = (0usize, 0usize);
+        for r in 0..h {
+            for c in 0..w {
+                if comp.get(r, c) {
+                    continue;
+                }
+                let near = (r.saturating_sub(1)..=(r + 1).min(h - 1)).any(|rr| {
+                    (c.saturating_sub(1)..=(c + 1).min(w - 1)).any(|cc| comp.get(rr, cc))
+                });
+                if near {
+                    ring_n += 1;
+                    // a free surface texel: part of the slab with nothing above it
+                    let free = surface.get(r, c) && {
+                        let col = vol.column(rect.r0 + r, rect.c0 + c);
+                        !(hi + 1..vol.nz).any(|k| col[k] >= tau)
+                    };
+                    ring_s += usize::from(free);
+                }
+            }
+        }
+        if debug() {
+            eprintln!("   ring {ring_s}/{ring_n}");
+        }
+        if ring_n == 0 || ring_s * 10 < ring_n * 6 {
+            continue;
+        }
+        or_into(&mut taken, &comp);
+        let Some(bb) = comp.bbox() else { continue };
+        let Ok(footprint) = comp.crop(bb) else { continue };
+        children.push(Child {
+            rect: PixelRect::new(
+                rect.r0 + bb.r0,
+                rect.c0 + bb.c0,
+                rect.r0 + bb.r1,
+                rect.c0 + bb.c1,
+            ),
+            footprint,
+            kmax,
+        });
+    }
+    (children, Some(hi))
+}
+
+/// Run the detection (see the module docs). `feature` is the plane for `--detect-on color`
+/// or `semantic` (ignored for density); `color` is the colour plane used by the second round.
+pub fn detect(
+    grid: &PlaneGrid,
+    vol: &OpacityVolume,
+    color: &PlaneImage,
+    feature: Option<&PlaneImage>,
+    opts: &DetectOptions,
+) -> Result<Detections> {
+    let (rows, cols) = (grid.rows, grid.cols);
+    if (vol.rows, vol.cols) != (rows, cols) || (color.rows, color.cols) != (rows, cols) {
+        return Err(MiningError::SizeMismatch {
+            what: "opacity volume / colour plane vs ground grid (texels)",
+            left: vol.rows * vol.cols,
+            right: rows * cols,
+        });
+    }
+    if opts.k < 2 {
+        return Err(MiningError::InvalidParameter {
+            name: "k",
+            reason: format!(
+                "K-means needs at least 2 clusters to separate objects, got {}",
+                opts.k
+            ),
+        });
+    }
+    if !(opts.min_area.is_finite() && opts.min_area >= 0.0) {
+        return Err(MiningError::InvalidParameter {
+            name: "min_area",
+            reason: format!("must be finite and >= 0, got {}", opts.min_area),
+        });
+    }
+    let floor = if opts.remove_floor { floor_band(vol) } else { None };
+    let start = floor.map_or(0, |f| (f.hi + 2).min(vol.nz.saturating_sub(1)));
+    let window = ((0.08 / vol.dz.max(1e-6)).round() as usize).max(2);
+    let evidence = vol.window_max_above(start, window);
+    if evidence.iter().all(|&e| e < 0.01) {
+        return Err(MiningError::InvalidParameter {
+            name: "field",
+            reason: "the density field is empty above the ground (no texel reaches 1% opacity): \
+                     did its training fail? (check its PSNR with `assetfield eval`)"
+                .into(),
+        });
+    }
+    let n = rows * cols;
+    let distinct = {
+        let mut v: Vec<u32> = evidence.iter().map(|x| x.to_bits()).collect();
+        v.sort_unstable();
+        v.dedup();
+        v.len()
+    };
+    if opts.k > distinct {
+        return Err(MiningError::InvalidParameter {
+            name: "k",
+            reason: format!(
+                "{} clusters requested but the evidence plane has only {distinct} distinct values ({rows}x{cols} texels)",
+                opts.k
+            ),
+        });
+    }
+    let (tau_e, bits) = kmeans_threshold(&evidence, opts.k, opts.seed)?;
+    // voxels: the same threshold (the voxel opacities are per level spacing)
+    let tau = tau_e.clamp(0.1, 0.9);
+    let mask = match (opts.on, feature) {
+        (PlaneChoice::Density, _) => Mask::new(rows, cols, bits)?,
+        (_, Some(plane)) => {
+            if opts.k > plane.texels() {
+                return Err(MiningError::TooManyClusters { k: opts.k, points: plane.texels() });
+            }
+            // feature clusters decide object vs background among the texels that hold some
+            // density; an opening removes the speckles of a noisy feature plane
+            let m = object_mask_from_plane(plane, opts.k, BackgroundRule::Largest, opts.seed)?;
+            let m = Mask::from_fn(rows, cols, |r, c| {
+                m.get(r, c) && evidence[r * cols + c] >= 0.5 * tau_e
+            });
+            crate::morphology::open(&m, 1)?
+        }
+        (other, None) => {
+            return Err(MiningError::InvalidParameter {
+                name: "detect-on",
+                reason: format!("no {} plane was given", other.name()),
+            });
+        }
+    };
+    check_interrupt()?;
+    let texel_area = grid.texel_area().max(1e-12);
+    let min_texels = ((opts.min_area / texel_area).ceil() as usize).max(4);
+    let mask = remove_small(&mask, min_texels)?;
+    let plane_w = grid.texel[0] * cols as f32;
+    let plane_h = grid.texel[1] * rows as f32;
+    let mut removed = Vec::new();
+    // walls, even where objects lean on them: thin structures that an opening removes and
+    // that run a long way
+    let mask = if opts.wall_thickness > 0.0 {
+        let r = ((0.5 * opts.wall_thickness / grid.texel_size()).round() as usize).max(1);
+        let core = crate::morphology::open(&mask, r)?;
+        let near_core = crate::morphology::dilate(&core, 1)?;
+        let thin = Mask::from_fn(rows, cols, |rr, cc| mask.get(rr, cc) && !near_core.get(rr, cc));
+        let mut walls = Mask::empty(rows, cols)?;
+        for reg in components(&thin)? {
+            let world = grid.rect_to_world(reg.bbox);
+            let size = world.size();
+            if size.x.max(size.y) >= 0.25 * plane_w.max(plane_h) {
+                removed.push(Removed {
+                    world,
+                    reason: format!(
+                        "wall: a structure thinner than {:.2} running {:.2}",
+                        opts.wall_thickness,
+                        size.x.max(size.y)
+                    ),
+                });
+                for rr in 0..reg.bbox.rows() {
+                    for cc in 0..reg.bbox.cols() {
+                        if reg.pixels.get(rr, cc) {
+                            walls.set(reg.bbox.r0 + rr, reg.bbox.c0 + cc, true);
+                        }
+                    }
+                }
+            }
+        }
+        let cleaned = Mask::from_fn(rows, cols, |rr, cc| mask.get(rr, cc) && !walls.get(rr, cc));
+        remove_small(&cleaned, min_texels)?
+    } else {
+        mask
+    };
+    // the ground level objects stand on
+    let ground = match floor {
+        Some(_) => start,
+        None => {
+            let need = (n / 2000).max(20);
+            (0..vol.nz)
+                .find(|&k| (0..n).filter(|&i| vol.data[i * vol.nz + k] >= tau).count() >= need)
+                .unwrap_or(0)
+        }
+    };
+    let ground_tol = ((0.08 / vol.dz.max(1e-6)).ceil() as usize).max(2);
+    // bridges narrower than about 10 cm are cut (opening radius)
+    let bridge = ((0.05 / grid.texel_size().max(1e-6)).round() as usize).clamp(1, 4);
+    let regions = components(&mask)?;
+    let pcs = principal_components(color, &mask, 3);
+    let mut parts: Vec<Part> = Vec::new();
+    let wall = |m: &Mask, world: Rect2| -> Option<String> {
+        if opts.wall_thickness <= 0.0 {
+            return None;
+        }
+        let half = erosions_to_vanish(m, 64);
+        let thickness = 2.0 * half as f32 * grid.texel_size();
+        let size = world.size();
+        let long = size.x.max(size.y);
+        (thickness <= opts.wall_thickness && long >= 0.25 * plane_w.max(plane_h))
+            .then(|| format!("wall: a thin ({thickness:.2}) and long ({long:.2}) structure"))
+    };
+    for (ri, reg) in regions.iter().enumerate() {
+        check_interrupt()?;
+        // columns of this region: its filled footprint without regions nested in its holes
+        let mut cols_mask = reg.footprint.clone();
+        for (j, other) in regions.iter().enumerate() {
+            if other.parent == Some(ri) && j != ri {
+                let ob = other.bbox;
+                for r in ob.r0..ob.r1 {
+                    for c in ob.c0..ob.c1 {
+                        if other.footprint.get(r - ob.r0, c - ob.c0) {
+                            cols_mask.set(r - reg.bbox.r0, c - reg.bbox.c0, false);
+                        }
+                    }
+                }
+            }
+        }
+        // a wall ring around the room: judge its own pixels, not the filled footprint
+        let reg_world = grid.rect_to_world(reg.bbox);
+        if let Some(reason) = wall(&reg.pixels, reg_world) {
+            removed.push(Removed { world: reg_world, reason });
+            continue;
+        }
+        // thin bridges (haze, blur between neighbours) first, then overlaps in 3D
+        let pieces = if opts.split_3d {
+            split_bridges(
+                vol, reg.bbox, &cols_mask, start, ground, ground_tol, tau, bridge, min_texels,
+            )
+        } else {
+            vec![cols_mask.clone()]
+        };
+        let mut split = Vec::new();
+        for piece in &pieces {
+            split.extend(split_region(
+                vol,
+                reg.bbox,
+                piece,
+                start,
+                ground,
+                ground_tol,
+                tau,
+                min_texels,
+                opts.split_3d,
+            ));
+        }
+        let mut split2 = Vec::new();
+        for p in split {
+            if opts.split_3d {
+                split2.extend(split_by_colour(
+                    vol, &pcs, p, start, ground, ground_tol, tau, min_texels, 3,
+                ));
+            } else {
+                split2.push(p);
+            }
+        }
+        for p in split2.into_iter().map(|p| smooth(p, min_texels)).filter_map(Part::tighten) {
+            let world = grid.rect_to_world(p.rect);
+            let count = p.footprint.count();
+            if count < min_texels {
+                continue;
+            }
+            if let Some(reason) = wall(&p.footprint, world) {
+                removed.push(Removed { world, reason });
+                continue;
+            }
+            let flat = vol.height(p.kmax) - vol.height(ground) <= 0.12;
+            if flat && (count as f32) * texel_area >= 0.1 * plane_w * plane_h {
+                removed.push(Removed {
+                    world,
+                    reason: "large flat area at ground level (background)".into(),
+                });
+                continue;
+            }
+            // haze: no solid core (the evidence of real objects reaches ~1 over a good part
+            // of their footprint), and low or small
+            let mut ev: Vec<f32> = (0..p.rect.rows())
+                .flat_map(|r| (0..p.rect.cols()).map(move |c| (r, c)))
+                .filter(|&(r, c)| p.footprint.get(r, c))
+                .map(|(r, c)| evidence[(p.rect.r0 + r) * cols + p.rect.c0 + c])
+                .collect();
+            ev.sort_by(f32::total_cmp);
+            let q90 =
+                ev.get((ev.len().saturating_sub(1) as f32 * 0.9) as usize).copied().unwrap_or(0.0);
+            let height = vol.height(p.kmax) - vol.height(ground);
+            if q90 < 0.9 && (height < 0.3 || count < 4 * min_texels) {
+                removed.push(Removed {
+                    world,
+                    reason: format!(
+                        "haze: faint (90th percentile of the evidence {q90:.2}) and low ({height:.2}) or small"
+                    ),
+                });
+                continue;
+            }
+            parts.push(p);
+        }
+    }
+    if debug() {
+        for (i, p) in parts.iter().enumerate() {
+            let mut ev: Vec<f32> = (0..p.rect.rows())
+                .flat_map(|r| (0..p.rect.cols()).map(move |c| (r, c)))
+                .filter(|&(r, c)| p.footprint.get(r, c))
+                .map(|(r, c)| evidence[(p.rect.r0 + r) * cols + p.rect.c0 + c])
+                .collect();
+            ev.sort_by(f32::total_cmp);
+            let q = |t: f32| ev[((ev.len() - 1) as f32 * t) as usize];
+            eprintln!(
+                "part {i} {:?}: n {} ev q50 {:.2} q90 {:.2} kmin {} kmax {}",
+                grid.rect_to_world(p.rect).to_array(),
+                ev.len(),
+                q(0.5),
+                q(0.9),
+                p.kmin,
+                p.kmax
+            );
+        }
+    }
+    // second round and the final list
+    let mut detections: Vec<Detection> = Vec::new();
+    for p in &parts {
+        check_interrupt()?;
+        let (children, surface) = if opts.hierarchical {
+            unpack(vol, color, p, start, tau, min_texels, grid.texel_size())
+        } else {
+            (Vec::new(), None)
+        };
+        let id = detections.len();
+        let mut own = p.footprint.clone();
+        let mut child_dets = Vec::new();
+        for ch in &children {
+            // clear the child (and a one-texel halo) from the parent's own texels
+            for r in ch.rect.r0.saturating_sub(1)..ch.rect.r1 + 1 {
+                for c in ch.rect.c0.saturating_sub(1)..ch.rect.c1 + 1 {
+                    let near = (r.saturating_sub(1)..=r + 1).any(|rr| {
+                        (c.saturating_sub(1)..=c + 1).any(|cc| {
+                            ch.rect.contains(rr, cc)
+                                && ch.footprint.get(rr - ch.rect.r0, cc - ch.rect.c0)
+                        })
+                    });
+                    if near && p.rect.contains(r, c) {
+                        own.set(r - p.rect.r0, c - p.rect.c0, false);
+                    }
+                }
+            }
+            let base = vol.height(surface.unwrap_or(p.kmax));
+            child_dets.push(Detection {
+                id: 0,
+                rect: ch.rect,
+                footprint: ch.footprint.clone(),
+                own: ch.footprint.clone(),
+                world: grid.rect_to_world(ch.rect),
+                area: ch.footprint.count() as f32 * texel_area,
+                base,
+                top: vol.height(ch.kmax),
+                parent: Some(id),
+                children: Vec::new(),
+            });
+        }
+        if own.count() == 0 {
+            own = p.footprint.clone();
+        }
+        let top = match (surface, children.is_empty()) {
+            (Some(s), false) => vol.height(s),
+            _ => vol.height(p.kmax),
+        };
+        let base = if p.kmin <= ground + ground_tol {
+            floor.map_or(vol.height(ground), |f| vol.height(f.hi).max(vol.height(ground) - vol.dz))
+        } else {
+            vol.height(p.kmin)
+        };
+        detections.push(Detection {
+            id,
+            rect: p.rect,
+            footprint: p.footprint.clone(),
+            own,
+            world: grid.rect_to_world(p.rect),
+            area: p.footprint.count() as f32 * texel_area,
+            base,
+            top,
+            parent: None,
+            children: Vec::new(),
+        });
+        for mut c in child_dets {
+            c.id = detections.len();
+            detections[id].children.push(c.id);
+            detections.push(c);
+        }
+    }
+    // an object inside or partly under another (nested in its outline, or separated in 3D):
+    // the larger one's own texels leave it out, as the paper sets a nested chair to the
+    // background feature in the table's patch
+    for i in 0..detections.len() {
+        for j in 0..detections.len() {
+            let (a, b) = (&detections[i], &detections[j]);
+            if i == j || b.area >= a.area || b.parent.is_some() || a.parent.is_some() {
+                continue;
+            }
+            let (ra, rb) = (a.rect, b.rect);
+            if rb.r0 >= ra.r1 || ra.r0 >= rb.r1 || rb.c0 >= ra.c1 || ra.c0 >= rb.c1 {
+                continue;
+            }
+            let (fb, own_before) = (b.footprint.clone(), a.own.count());
+            let mut own = a.own.clone();
+            for r in rb.r0.max(ra.r0)..rb.r1.min(ra.r1) {
+                for c in rb.c0.max(ra.c0)..rb.c1.min(ra.c1) {
+                    if fb.get(r - rb.r0, c - rb.c0) {
+                        own.set(r - ra.r0, c - ra.c0, false);
+                    }
+                }
+            }
+            if own.count() * 4 >= own_before {
+                detections[i].own = own;
+            }
+        }
+    }
+    Ok(Detections {
+        grid: *grid,
+        floor,
+        start_level: start,
+        ground_level: ground,
+        threshold: tau_e,
+        voxel_threshold: tau,
+        evidence,
+        mask,
+        detections,
+        removed,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A volume with a floor slab at levels 0..=1 and boxes standing on it.
+    fn scene() -> OpacityVolume {
+        let (rows, cols, nz) = (40, 60, 20);
+        let mut data = vec![0f32; rows * cols * nz];
+        let mut fill = |r0: usize, r1: usize, c0: usize, c1: usize, k0: usize, k1: usize| {
+            for r in r0..r1 {
+                for c in c0..c1 {
+                    for k in k0..k1 {
+                        data[(r * cols + c) * nz + k] = 0.9;
+                    }
+                }
+            }
+        };
+        fill(0, 40, 0, 60, 0, 2); // floor
+        fill(5, 12, 5, 12, 2, 8); // a box
+        fill(5, 12, 20, 27, 2, 8); // another
+        fill(20, 34, 10, 40, 9, 10); // table top
+        fill(20, 21, 10, 11, 2, 9); // a leg
+        fill(25, 29, 20, 26, 10, 14); // an object on the table
+        fill(0, 1, 0, 60, 2, 10); // a wall along the bottom edge
+        OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data }
+    }
+
+    #[test]
+    fn floor_objects_walls_and_supported_objects() {
+        let vol = scene();
+        let f = floor_band(&vol).unwrap();
+        assert_eq!((f.lo, f.hi), (0, 1));
+        let grid = PlaneGrid { cols: 60, rows: 40, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+        let color = PlaneImage::from_fn(40, 60, 3, |r, c, k| {
+            if (25..29).contains(&r) && (20..26).contains(&c) { 1.0 } else { k as f32 * 0.1 }
+        })
+        .unwrap();
+        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
+        let d = detect(&grid, &vol, &color, None, &opts).unwrap();
+        let boxes: Vec<(PixelRect, Option<usize>)> =
+            d.detections.iter().map(|x| (x.rect, x.parent)).collect();
+        assert_eq!(d.detections.len(), 4, "{boxes:?} removed {:?}", d.removed);
+        assert!(d.removed.iter().any(|r| r.reason.starts_with("wall")), "{:?}", d.removed);
+        let on_table = d.detections.iter().find(|x| x.parent.is_some()).unwrap();
+        assert_eq!(on_table.rect, PixelRect::new(25, 20, 29, 26));
+        let table = &d.detections[on_table.parent.unwrap()];
+        assert_eq!(table.rect, PixelRect::new(20, 10, 34, 40));
+        assert!((on_table.base - 0.45).abs() < 1e-4, "{}", on_table.base);
+        assert!((table.top - 0.45).abs() < 1e-4);
+        assert!(table.own.count() < table.footprint.count());
+    }
+
+    #[test]
+    fn touching_objects_separate_in_3d() {
+        // a low box under the edge of a high slab on its own legs: one region in 2D, two
+        // objects in 3D
+        let (rows, cols, nz) = (30, 40, 20);
+        let mut data = vec![0f32; rows * cols * nz];
+        let mut fill = |r0: usize, r1: usize, c0: usize, c1: usize, k0: usize, k1: usize| {
+            for r in r0..r1 {
+                for c in c0..c1 {
+                    for k in k0..k1 {
+                        data[(r * cols + c) * nz + k] = 0.9;
+                    }
+                }
+            }
+        };
+        fill(5, 25, 5, 25, 14, 15); // table top
+        fill(5, 7, 5, 25, 0, 14); // its legs (two walls)
+        fill(23, 25, 5, 25, 0, 14);
+        fill(10, 20, 20, 35, 0, 8); // a box partly under the top
+        let vol = OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data };
+        let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+        let color = PlaneImage::zeros(rows, cols, 2).unwrap();
+        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
+        let d = detect(&grid, &vol, &color, None, &opts).unwrap();
+        let mut rects: Vec<PixelRect> = d.detections.iter().map(|x| x.rect).collect();
+        rects.sort_by_key(|r| r.c0);
+        assert_eq!(rects, vec![PixelRect::new(5, 5, 25, 25), PixelRect::new(10, 20, 20, 35)]);
+        // the table's own texels leave out the box partly under it; the box keeps them
+        let table = d.detections.iter().find(|x| x.rect.c0 == 5).unwrap();
+        let boxd = d.detections.iter().find(|x| x.rect.c0 == 20).unwrap();
+        assert!(!table.own.get(15 - 5, 22 - 5) && table.own.get(15 - 5, 10 - 5));
+        assert!(boxd.own.get(15 - 10, 22 - 20));
+        let unsplit = DetectOptions { split_3d: false, ..opts };
+        assert_eq!(detect(&grid, &vol, &color, None, &unsplit).unwrap().detections.len(), 1);
+    }
+
+    /// An empty volume with a floor slab at levels 0..=1.
+    fn floor_volume(rows: usize, cols: usize, nz: usize) -> OpacityVolume {
+        let mut v =
+            OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data: vec![0.0; rows * cols * nz] };
+        fill(&mut v, (0, rows), (0, cols), (0, 2), 0.95);
+        v
+    }
+
+    fn fill(
+        v: &mut OpacityVolume,
+        r: (usize, usize),
+        c: (usize, usize),
+        k: (usize, usize),
+        o: f32,
+    ) {
+        for rr in r.0..r.1 {
+            for cc in c.0..c.1 {
+                for kk in k.0..k.1 {
+                    v.data[(rr * v.cols + cc) * v.nz + kk] = o;
+                }
+            }
+        }
+    }
+
+    fn rects(d: &Detections) -> Vec<PixelRect> {
+        let mut v: Vec<PixelRect> = d.detections.iter().map(|x| x.rect).collect();
+        v.sort_by_key(|r| (r.c0, r.r0));
+        v
+    }
+
+    #[test]
+    fn thin_bridges_and_colour_boundaries_separate_objects() {
+        let (rows, cols) = (40, 60);
+        let mut v = floor_volume(rows, cols, 20);
+        fill(&mut v, (5, 15), (5, 15), (2, 10), 0.95); // a box
+        fill(&mut v, (5, 15), (25, 35), (2, 10), 0.95); // another
+        fill(&mut v, (9, 10), (15, 25), (3, 5), 0.95); // a one-texel haze bridge between them
+        // an L of two differently coloured boxes of different heights that touch along a
+        // short edge
+        fill(&mut v, (22, 36), (5, 13), (2, 12), 0.95);
+        fill(&mut v, (22, 30), (13, 27), (2, 8), 0.95);
+        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+            let red = (22..30).contains(&r) && (13..27).contains(&c);
+            if red { [1.0, 0.1, 0.1][k] } else { [0.1, 0.2, 0.9][k] }
+        })
+        .unwrap();
+        let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
+        let d = detect(&grid, &v, &color, None, &opts).unwrap();
+        assert_eq!(
+            rects(&d),
+            vec![
+                PixelRect::new(5, 5, 15, 15),
+                PixelRect::new(22, 5, 36, 13),
+                PixelRect::new(22, 13, 30, 27),
+                PixelRect::new(5, 25, 15, 35),
+            ],
+            "{:?}",
+            d.removed
+        );
+        // without separation: the bridged pair and the L are one object each
+        let joined = DetectOptions { split_3d: false, ..opts };
+        assert_eq!(detect(&grid, &v, &color, None, &joined).unwrap().detections.len(), 2);
+    }
+
+    #[test]
+    fn a_convex_object_with_a_coloured_inside_stays_whole_and_haze_goes() {
+        let (rows, cols) = (40, 60);
+        let mut v = floor_volume(rows, cols, 20);
+        fill(&mut v, (5, 25), (5, 25), (2, 10), 0.95); // a sofa-like block
+        fill(&mut v, (30, 33), (40, 44), (2, 7), 0.5); // faint low haze
+        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+            let cushion = (8..22).contains(&r) && (8..22).contains(&c);
+            if cushion { [0.9, 0.8, 0.1][k] } else { [0.1, 0.5, 0.2][k] }
+        })
+        .unwrap();
+        let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
+        let d = detect(&grid, &v, &color, None, &opts).unwrap();
+        assert_eq!(rects(&d), vec![PixelRect::new(5, 5, 25, 25)], "{:?}", d.removed);
+        assert!(d.removed.iter().any(|r| r.reason.starts_with("haze")), "{:?}", d.removed);
+    }
+
+    #[test]
+    fn empty_fields_and_bad_options_are_errors() {
+        let v = floor_volume(20, 20, 10);
+        let grid = PlaneGrid { cols: 20, rows: 20, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+        let color = PlaneImage::zeros(20, 20, 2).unwrap();
+        let e = detect(&grid, &v, &color, None, &DetectOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("empty"), "{e}");
+        let mut v2 = v.clone();
+        fill(&mut v2, (5, 10), (5, 10), (2, 6), 0.9);
+        let k1 = DetectOptions { k: 1, ..Default::default() };
+        assert!(detect(&grid, &v2, &color, None, &k1).is_err());
+        let big = DetectOptions { k: 10_000, ..Default::default() };
+        assert!(
+            detect(&grid, &v2, &color, None, &big).unwrap_err().to_string().contains("distinct")
+        );
+        let wrong = PlaneImage::zeros(10, 20, 2).unwrap();
+        assert!(detect(&grid, &v2, &wrong, None, &DetectOptions::default()).is_err());
+    }
+
+    #[test]
+    fn holes_fill() {
+        let m = Mask::from_fn(5, 5, |r, c| r == 0 || r == 4 || c == 0 || c == 4);
+        assert_eq!(fill_holes(&m).count(), 25);
+        let open = Mask::from_fn(5, 5, |r, c| (r == 0 || r == 4 || c == 0) && c < 4);
+        assert_eq!(fill_holes(&open).count(), open.count());
+    }
+}

@@ -1,0 +1,115 @@
+//! The error type of the mining algorithms.
+
+/// Everything that can go wrong in this crate. Bad input is always reported through this type;
+/// no public function panics on malformed data.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MiningError {
+    /// A buffer does not have the length its declared shape implies.
+    #[error("{what}: expected {expected} values, got {actual}")]
+    ShapeMismatch { what: &'static str, expected: usize, actual: usize },
+    /// A dimension that must be positive is zero.
+    #[error("{what} must be positive, got 0")]
+    ZeroDimension { what: &'static str },
+    /// Two inputs that must agree in size do not.
+    #[error("{what}: sizes differ ({left} vs {right})")]
+    SizeMismatch { what: &'static str, left: usize, right: usize },
+    /// More clusters were requested than there are points to cluster.
+    #[error("cannot form {k} clusters from {points} points")]
+    TooManyClusters { k: usize, points: usize },
+    /// A rectangle reaches outside the image or is empty.
+    #[error("rectangle rows {r0}..{r1}, cols {c0}..{c1} is empty or outside a {rows}x{cols} image")]
+    BadRect { r0: usize, c0: usize, r1: usize, c1: usize, rows: usize, cols: usize },
+    /// A value is NaN/infinite or negative where that is not allowed.
+    #[error("{what}: invalid value {value} at index {index}")]
+    InvalidValue { what: &'static str, index: usize, value: f64 },
+    /// Weights (or a histogram) sum to zero, so nothing can be normalised.
+    #[error("{what}: total weight is zero")]
+    ZeroWeight { what: &'static str },
+    /// A label is not below the declared number of labels.
+    #[error("label {label} at index {index} is out of range for {k} labels")]
+    LabelOutOfRange { label: u32, index: usize, k: usize },
+    /// A distance matrix is not symmetric.
+    #[error("distance matrix is not symmetric: d[{i}][{j}] = {a} but d[{j}][{i}] = {b}")]
+    NotSymmetric { i: usize, j: usize, a: f64, b: f64 },
+    /// An index (point, member, channel) is out of range.
+    #[error("{what} index {index} is out of range (len {len})")]
+    IndexOutOfRange { what: &'static str, index: usize, len: usize },
+    /// A list that must not be empty is empty.
+    #[error("{what} is empty")]
+    Empty { what: &'static str },
+    /// A parameter outside its documented domain.
+    #[error("invalid parameter {name}: {reason}")]
+    InvalidParameter { name: &'static str, reason: String },
+    /// The rotated template and the instance never overlap, so no residual can be computed.
+    #[error("template and instance patches do not overlap at any tested pose")]
+    NoOverlap,
+    /// The field's model cannot be mined (the TensoRF-VM baseline has no ground plane
+    /// representation: its XY plane only holds one of three factors).
+    #[error("cannot mine a {model} field: {reason}")]
+    UnsupportedModel { model: String, reason: String },
+    /// A tensor a mining step needs is not in the field or library.
+    #[error("{source_name}: missing tensor \"{name}\" needed for {purpose}")]
+    MissingTensor { source_name: String, name: String, purpose: String },
+    /// Reading or writing a file failed (the message names the file).
+    #[error("{0}")]
+    Io(String),
+    /// A file exists but is not what it should be (a library index, a field, a layout).
+    #[error("{path}: {message}")]
+    Format { path: String, message: String },
+    /// A library index and its tensors disagree.
+    #[error("{path}: tensor \"{tensor}\" has shape {actual:?}, but the index says {expected:?}")]
+    LibraryMismatch { path: String, tensor: String, expected: Vec<usize>, actual: Vec<usize> },
+    /// Libraries that do not share their vertical axes, basis and decoders cannot be merged.
+    #[error(
+        "cannot merge {a} and {b}: shared tensor \"{tensor}\" differs ({detail}); libraries can only be merged when they were mined from fields that share their vertical axes, basis and decoders"
+    )]
+    SharedTensorDiffers { a: String, b: String, tensor: String, detail: String },
+    /// The output exists and replacing it was not allowed.
+    #[error("{0} already exists (pass --force to replace it)")]
+    OutputExists(String),
+    /// The user pressed Ctrl-C; nothing was written.
+    #[error("interrupted by the user (Ctrl-C); nothing was written")]
+    Interrupted,
+}
+
+impl MiningError {
+    /// An I/O or encoding failure of another layer, with what was being done.
+    pub fn io(context: impl std::fmt::Display, e: impl std::fmt::Display) -> Self {
+        MiningError::Io(format!("{context}: {e}"))
+    }
+}
+
+impl From<assetfield_core::CoreError> for MiningError {
+    fn from(e: assetfield_core::CoreError) -> Self {
+        match e {
+            assetfield_core::CoreError::Interrupted => MiningError::Interrupted,
+            assetfield_core::CoreError::TensorShape { path, name, actual, expected } => {
+                MiningError::LibraryMismatch {
+                    path: path.display().to_string(),
+                    tensor: name,
+                    expected: expected.into_vec(),
+                    actual: actual.into_vec(),
+                }
+            }
+            other => MiningError::Io(other.to_string()),
+        }
+    }
+}
+
+/// `Err(Interrupted)` once the user pressed Ctrl-C.
+pub(crate) fn check_interrupt() -> Result<()> {
+    if assetfield_core::interrupt::requested() { Err(MiningError::Interrupted) } else { Ok(()) }
+}
+
+/// Result alias of this crate.
+pub type Result<T> = std::result::Result<T, MiningError>;
+
+/// Check that every value is finite (and, if `non_negative`, not below zero).
+pub(crate) fn check_values(what: &'static str, values: &[f32], non_negative: bool) -> Result<()> {
+    for (index, &v) in values.iter().enumerate() {
+        if !v.is_finite() || (non_negative && v < 0.0) {
+            return Err(MiningError::InvalidValue { what, index, value: f64::from(v) });
+        }
+    }
+    Ok(())
+}

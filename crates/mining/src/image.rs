@@ -1,0 +1,522 @@
+//! Plain image containers: multi-channel float planes, boolean masks, label images, and
+//! pixel rectangles.
+//!
+//! Coordinates: an image has `rows` x `cols` texels; the row index follows the ground **y**
+//! axis and the column index the ground **x** axis (this is how the field stores its planes,
+//! `[rows][cols][ch]`). Continuous coordinates put texel centres at integers: texel `(r, c)`
+//! sits at `x = c`, `y = r`.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{MiningError, Result, check_values};
+
+/// An axis-aligned pixel rectangle, rows `r0..r1` and columns `c0..c1` (inclusive start,
+/// exclusive end).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct PixelRect {
+    /// First row.
+    pub r0: usize,
+    /// First column.
+    pub c0: usize,
+    /// One past the last row.
+    pub r1: usize,
+    /// One past the last column.
+    pub c1: usize,
+}
+
+impl PixelRect {
+    /// Rectangle from its corners (inclusive start, exclusive end).
+    pub fn new(r0: usize, c0: usize, r1: usize, c1: usize) -> Self {
+        PixelRect { r0, c0, r1, c1 }
+    }
+
+    /// Number of rows (0 if the rectangle is inverted).
+    pub fn rows(&self) -> usize {
+        self.r1.saturating_sub(self.r0)
+    }
+
+    /// Number of columns (0 if the rectangle is inverted).
+    pub fn cols(&self) -> usize {
+        self.c1.saturating_sub(self.c0)
+    }
+
+    /// Number of pixels covered.
+    pub fn area(&self) -> usize {
+        self.rows() * self.cols()
+    }
+
+    /// Whether the rectangle covers no pixel.
+    pub fn is_empty(&self) -> bool {
+        self.area() == 0
+    }
+
+    /// Whether pixel `(r, c)` lies inside.
+    pub fn contains(&self, r: usize, c: usize) -> bool {
+        r >= self.r0 && r < self.r1 && c >= self.c0 && c < self.c1
+    }
+
+    /// Smallest rectangle covering both.
+    pub fn union(&self, other: &PixelRect) -> PixelRect {
+        PixelRect {
+            r0: self.r0.min(other.r0),
+            c0: self.c0.min(other.c0),
+            r1: self.r1.max(other.r1),
+            c1: self.c1.max(other.c1),
+        }
+    }
+
+    /// Grow by `margin` pixels on every side, clipped to a `rows` x `cols` image.
+    pub fn expand(&self, margin: usize, rows: usize, cols: usize) -> PixelRect {
+        PixelRect {
+            r0: self.r0.saturating_sub(margin),
+            c0: self.c0.saturating_sub(margin),
+            r1: (self.r1 + margin).min(rows),
+            c1: (self.c1 + margin).min(cols),
+        }
+    }
+
+    /// Centre in continuous texel coordinates `(x, y)` = (column, row).
+    pub fn centre_xy(&self) -> (f32, f32) {
+        (
+            (self.c0 as f32 + self.c1 as f32 - 1.0) * 0.5,
+            (self.r0 as f32 + self.r1 as f32 - 1.0) * 0.5,
+        )
+    }
+
+    /// Error unless the rectangle is non-empty and inside a `rows` x `cols` image.
+    pub fn check_inside(&self, rows: usize, cols: usize) -> Result<()> {
+        if self.is_empty() || self.r1 > rows || self.c1 > cols {
+            return Err(MiningError::BadRect {
+                r0: self.r0,
+                c0: self.c0,
+                r1: self.r1,
+                c1: self.c1,
+                rows,
+                cols,
+            });
+        }
+        Ok(())
+    }
+}
+
+fn checked_len(what: &'static str, dims: &[usize]) -> Result<usize> {
+    dims.iter().try_fold(1usize, |acc, &d| acc.checked_mul(d)).ok_or_else(|| {
+        MiningError::InvalidParameter { name: what, reason: format!("shape {dims:?} overflows") }
+    })
+}
+
+/// A multi-channel float image, row-major with channels fastest: the value of channel `k`
+/// at texel `(r, c)` is `data[(r * cols + c) * ch + k]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlaneImage {
+    /// Number of rows (ground y).
+    pub rows: usize,
+    /// Number of columns (ground x).
+    pub cols: usize,
+    /// Channels per texel.
+    pub ch: usize,
+    /// `rows * cols * ch` values.
+    pub data: Vec<f32>,
+}
+
+impl PlaneImage {
+    /// Wrap `data` after checking that the shape is non-empty, matches its length and that
+    /// every value is finite.
+    pub fn new(rows: usize, cols: usize, ch: usize, data: Vec<f32>) -> Result<Self> {
+        if rows == 0 {
+            return Err(MiningError::ZeroDimension { what: "rows" });
+        }
+        if cols == 0 {
+            return Err(MiningError::ZeroDimension { what: "cols" });
+        }
+        if ch == 0 {
+            return Err(MiningError::ZeroDimension { what: "channels" });
+        }
+        let expected = checked_len("shape", &[rows, cols, ch])?;
+        if data.len() != expected {
+            return Err(MiningError::ShapeMismatch {
+                what: "plane image data",
+                expected,
+                actual: data.len(),
+            });
+        }
+        check_values("plane image data", &data, false)?;
+        Ok(PlaneImage { rows, cols, ch, data })
+    }
+
+    /// Check that the (public) fields are consistent: positive dimensions and
+    /// `data.len() == rows * cols * ch`. Every function of this crate taking a `PlaneImage`
+    /// calls it, so hand-built inconsistent images produce errors, not panics.
+    pub fn validate(&self) -> Result<()> {
+        for (what, d) in [("rows", self.rows), ("cols", self.cols), ("channels", self.ch)] {
+            if d == 0 {
+                return Err(MiningError::ZeroDimension { what });
+            }
+        }
+        let expected = checked_len("shape", &[self.rows, self.cols, self.ch])?;
+        if self.data.len() != expected {
+            return Err(MiningError::ShapeMismatch {
+                what: "plane image data",
+                expected,
+                actual: self.data.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// An all-zero image.
+    pub fn zeros(rows: usize, cols: usize, ch: usize) -> Result<Self> {
+        let len = checked_len("shape", &[rows, cols, ch])?;
+        Self::new(rows, cols, ch, vec![0.0; len])
+    }
+
+    /// Build from a function of `(row, col, channel)`.
+    pub fn from_fn(
+        rows: usize,
+        cols: usize,
+        ch: usize,
+        mut f: impl FnMut(usize, usize, usize) -> f32,
+    ) -> Result<Self> {
+        let len = checked_len("shape", &[rows, cols, ch])?;
+        let mut data = Vec::with_capacity(len);
+        for r in 0..rows {
+            for c in 0..cols {
+                for k in 0..ch {
+                    data.push(f(r, c, k));
+                }
+            }
+        }
+        Self::new(rows, cols, ch, data)
+    }
+
+    /// Number of texels (`rows * cols`).
+    pub fn texels(&self) -> usize {
+        self.rows * self.cols
+    }
+
+    /// The `ch` values of texel `(r, c)`, or `None` outside the image.
+    pub fn get(&self, r: usize, c: usize) -> Option<&[f32]> {
+        if r >= self.rows || c >= self.cols {
+            return None;
+        }
+        let i = (r * self.cols + c) * self.ch;
+        self.data.get(i..i + self.ch)
+    }
+
+    /// Mutable access to the `ch` values of texel `(r, c)`, or `None` outside the image.
+    pub fn get_mut(&mut self, r: usize, c: usize) -> Option<&mut [f32]> {
+        if r >= self.rows || c >= self.cols {
+            return None;
+        }
+        let i = (r * self.cols + c) * self.ch;
+        self.data.get_mut(i..i + self.ch)
+    }
+
+    /// Copy of the texels inside `rect`.
+    pub fn crop(&self, rect: PixelRect) -> Result<PlaneImage> {
+        self.validate()?;
+        rect.check_inside(self.rows, self.cols)?;
+        let mut data = Vec::with_capacity(rect.area() * self.ch);
+        for r in rect.r0..rect.r1 {
+            let a = (r * self.cols + rect.c0) * self.ch;
+            let b = (r * self.cols + rect.c1) * self.ch;
+            data.extend_from_slice(&self.data[a..b]);
+        }
+        Ok(PlaneImage { rows: rect.rows(), cols: rect.cols(), ch: self.ch, data })
+    }
+
+    /// One channel as a `rows * cols` scalar plane.
+    pub fn channel(&self, k: usize) -> Result<Vec<f32>> {
+        self.validate()?;
+        if k >= self.ch {
+            return Err(MiningError::IndexOutOfRange { what: "channel", index: k, len: self.ch });
+        }
+        Ok(self.data.iter().skip(k).step_by(self.ch).copied().collect())
+    }
+
+    /// Continuous-coordinate centre `(x, y)` = (column, row) of the image.
+    pub fn centre_xy(&self) -> (f32, f32) {
+        ((self.cols as f32 - 1.0) * 0.5, (self.rows as f32 - 1.0) * 0.5)
+    }
+
+    /// Bilinear sample at continuous coordinates `x` (column) and `y` (row), texel centres at
+    /// integers. Texels outside the image count as **zero** (zero padding): near the border
+    /// the written values fade towards zero. `out` (length `ch`) receives the interpolated
+    /// values; the return value is the *coverage*, the summed bilinear weight of the taps that
+    /// fell inside the image (1 well inside, 0 far outside). Divide by it to get a
+    /// border-normalised value. Non-finite coordinates give zeros and coverage 0.
+    pub fn bilinear(&self, x: f32, y: f32, out: &mut [f32]) -> Result<f32> {
+        if out.len() != self.ch {
+            return Err(MiningError::ShapeMismatch {
+                what: "bilinear output",
+                expected: self.ch,
+                actual: out.len(),
+            });
+        }
+        self.validate()?;
+        Ok(self.sample_zero(x, y, out))
+    }
+
+    /// Zero-padded bilinear sample; the caller guarantees a validated image and
+    /// `out.len() == ch`.
+    pub(crate) fn sample_zero(&self, x: f32, y: f32, out: &mut [f32]) -> f32 {
+        out.iter_mut().for_each(|v| *v = 0.0);
+        if !x.is_finite() || !y.is_finite() {
+            return 0.0;
+        }
+        let xf = x.floor();
+        let yf = y.floor();
+        let fx = x - xf;
+        let fy = y - yf;
+        // Far outside: avoid casting huge floats.
+        if xf < -1.0 || yf < -1.0 || xf > self.cols as f32 || yf > self.rows as f32 {
+            return 0.0;
+        }
+        let x0 = xf as i64;
+        let y0 = yf as i64;
+        let mut coverage = 0.0;
+        for (dy, wy) in [(0i64, 1.0 - fy), (1, fy)] {
+            for (dx, wx) in [(0i64, 1.0 - fx), (1, fx)] {
+                let w = wx * wy;
+                let (r, c) = (y0 + dy, x0 + dx);
+                if w == 0.0 || r < 0 || c < 0 || r >= self.rows as i64 || c >= self.cols as i64 {
+                    continue;
+                }
+                let i = (r as usize * self.cols + c as usize) * self.ch;
+                for (o, &v) in out.iter_mut().zip(&self.data[i..i + self.ch]) {
+                    *o += w * v;
+                }
+                coverage += w;
+            }
+        }
+        coverage
+    }
+}
+
+/// A boolean image, row-major: `data[r * cols + c]`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Mask {
+    /// Number of rows.
+    pub rows: usize,
+    /// Number of columns.
+    pub cols: usize,
+    /// `rows * cols` flags.
+    pub data: Vec<bool>,
+}
+
+impl Mask {
+    /// Wrap `data` after checking its length (an empty 0 x n mask is allowed).
+    pub fn new(rows: usize, cols: usize, data: Vec<bool>) -> Result<Self> {
+        let expected = checked_len("mask shape", &[rows, cols])?;
+        if data.len() != expected {
+            return Err(MiningError::ShapeMismatch {
+                what: "mask data",
+                expected,
+                actual: data.len(),
+            });
+        }
+        Ok(Mask { rows, cols, data })
+    }
+
+    /// Check that `data.len() == rows * cols` (the fields are public). Every function of
+    /// this crate taking a `Mask` calls it.
+    pub fn validate(&self) -> Result<()> {
+        let expected = checked_len("mask shape", &[self.rows, self.cols])?;
+        if self.data.len() != expected {
+            return Err(MiningError::ShapeMismatch {
+                what: "mask data",
+                expected,
+                actual: self.data.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// An all-false mask.
+    pub fn empty(rows: usize, cols: usize) -> Result<Self> {
+        let len = checked_len("mask shape", &[rows, cols])?;
+        Ok(Mask { rows, cols, data: vec![false; len] })
+    }
+
+    /// Build from a predicate of `(row, col)`.
+    pub fn from_fn(rows: usize, cols: usize, mut f: impl FnMut(usize, usize) -> bool) -> Self {
+        let mut data = Vec::with_capacity(rows * cols);
+        for r in 0..rows {
+            for c in 0..cols {
+                data.push(f(r, c));
+            }
+        }
+        Mask { rows, cols, data }
+    }
+
+    /// Flag of pixel `(r, c)`; `false` outside the mask.
+    pub fn get(&self, r: usize, c: usize) -> bool {
+        r < self.rows && c < self.cols && self.data.get(r * self.cols + c).is_some_and(|&b| b)
+    }
+
+    /// Set pixel `(r, c)`; ignored outside the mask.
+    pub fn set(&mut self, r: usize, c: usize, v: bool) {
+        if r < self.rows
+            && c < self.cols
+            && let Some(p) = self.data.get_mut(r * self.cols + c)
+        {
+            *p = v;
+        }
+    }
+
+    /// Number of set pixels.
+    pub fn count(&self) -> usize {
+        self.data.iter().filter(|&&b| b).count()
+    }
+
+    /// Copy of the pixels inside `rect`.
+    pub fn crop(&self, rect: PixelRect) -> Result<Mask> {
+        self.validate()?;
+        rect.check_inside(self.rows, self.cols)?;
+        let mut data = Vec::with_capacity(rect.area());
+        for r in rect.r0..rect.r1 {
+            data.extend_from_slice(&self.data[r * self.cols + rect.c0..r * self.cols + rect.c1]);
+        }
+        Ok(Mask { rows: rect.rows(), cols: rect.cols(), data })
+    }
+
+    /// Bounding box of the set pixels, `None` if none is set (or the mask is inconsistent).
+    pub fn bbox(&self) -> Option<PixelRect> {
+        self.validate().ok()?;
+        let mut rect: Option<PixelRect> = None;
+        for r in 0..self.rows {
+            for c in 0..self.cols {
+                if self.data[r * self.cols + c] {
+                    let px = PixelRect::new(r, c, r + 1, c + 1);
+                    rect = Some(rect.map_or(px, |b| b.union(&px)));
+                }
+            }
+        }
+        rect
+    }
+
+    /// The mask as `1.0` / `0.0` weights.
+    pub fn to_weights(&self) -> Vec<f32> {
+        self.data.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect()
+    }
+}
+
+/// A discrete label per pixel, row-major, with labels `< k`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LabelImage {
+    /// Number of rows.
+    pub rows: usize,
+    /// Number of columns.
+    pub cols: usize,
+    /// Number of distinct labels (every entry of `data` is below it).
+    pub k: usize,
+    /// `rows * cols` labels.
+    pub data: Vec<u32>,
+}
+
+impl LabelImage {
+    /// Wrap `data` after checking its length and that every label is below `k`.
+    pub fn new(rows: usize, cols: usize, k: usize, data: Vec<u32>) -> Result<Self> {
+        let img = LabelImage { rows, cols, k, data };
+        img.validate()?;
+        Ok(img)
+    }
+
+    /// Check that `data.len() == rows * cols` and every label is below `k` (the fields are
+    /// public). Every function of this crate taking a `LabelImage` calls it.
+    pub fn validate(&self) -> Result<()> {
+        let expected = checked_len("label image shape", &[self.rows, self.cols])?;
+        if self.data.len() != expected {
+            return Err(MiningError::ShapeMismatch {
+                what: "label image data",
+                expected,
+                actual: self.data.len(),
+            });
+        }
+        if let Some((index, &label)) =
+            self.data.iter().enumerate().find(|&(_, &l)| l as usize >= self.k)
+        {
+            return Err(MiningError::LabelOutOfRange { label, index, k: self.k });
+        }
+        Ok(())
+    }
+
+    /// Label of pixel `(r, c)`, `None` outside.
+    pub fn get(&self, r: usize, c: usize) -> Option<u32> {
+        if r >= self.rows || c >= self.cols {
+            return None;
+        }
+        self.data.get(r * self.cols + c).copied()
+    }
+
+    /// Copy of the labels inside `rect`.
+    pub fn crop(&self, rect: PixelRect) -> Result<LabelImage> {
+        self.validate()?;
+        rect.check_inside(self.rows, self.cols)?;
+        let mut data = Vec::with_capacity(rect.area());
+        for r in rect.r0..rect.r1 {
+            data.extend_from_slice(&self.data[r * self.cols + rect.c0..r * self.cols + rect.c1]);
+        }
+        Ok(LabelImage { rows: rect.rows(), cols: rect.cols(), k: self.k, data })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plane_shape_checked() {
+        assert!(PlaneImage::new(2, 3, 2, vec![0.0; 12]).is_ok());
+        let e = PlaneImage::new(2, 3, 2, vec![0.0; 11]).unwrap_err();
+        assert_eq!(
+            e,
+            MiningError::ShapeMismatch { what: "plane image data", expected: 12, actual: 11 }
+        );
+        assert!(PlaneImage::new(0, 3, 2, vec![]).is_err());
+        assert!(PlaneImage::new(1, 1, 1, vec![f32::NAN]).is_err());
+    }
+
+    #[test]
+    fn get_and_crop() {
+        let img = PlaneImage::from_fn(4, 5, 2, |r, c, k| (r * 100 + c * 10 + k) as f32).unwrap();
+        assert_eq!(img.get(2, 3).unwrap(), &[230.0, 231.0]);
+        assert!(img.get(4, 0).is_none());
+        let crop = img.crop(PixelRect::new(1, 2, 3, 5)).unwrap();
+        assert_eq!((crop.rows, crop.cols, crop.ch), (2, 3, 2));
+        assert_eq!(crop.get(0, 0).unwrap(), &[120.0, 121.0]);
+        assert_eq!(crop.get(1, 2).unwrap(), &[240.0, 241.0]);
+        assert!(img.crop(PixelRect::new(1, 2, 5, 5)).is_err());
+        assert!(img.crop(PixelRect::new(1, 2, 1, 5)).is_err());
+        assert_eq!(img.channel(1).unwrap()[7], 121.0);
+    }
+
+    #[test]
+    fn bilinear_zero_padding_and_coverage() {
+        let img = PlaneImage::from_fn(2, 2, 1, |r, c, _| (r * 2 + c) as f32).unwrap();
+        let mut out = [0.0];
+        assert_eq!(img.bilinear(0.5, 0.5, &mut out).unwrap(), 1.0);
+        assert!((out[0] - 1.5).abs() < 1e-6);
+        // x is the column, y the row.
+        img.bilinear(1.0, 0.0, &mut out).unwrap();
+        assert_eq!(out[0], 1.0);
+        img.bilinear(0.0, 1.0, &mut out).unwrap();
+        assert_eq!(out[0], 2.0);
+        // Half a texel outside on the right: half coverage, value faded.
+        let cov = img.bilinear(1.5, 0.0, &mut out).unwrap();
+        assert!((cov - 0.5).abs() < 1e-6 && (out[0] - 0.5).abs() < 1e-6);
+        assert_eq!(img.bilinear(-3.0, 0.0, &mut out).unwrap(), 0.0);
+        assert!(img.bilinear(0.0, 0.0, &mut [0.0, 0.0]).is_err());
+    }
+
+    #[test]
+    fn mask_and_labels() {
+        let m = Mask::from_fn(3, 4, |r, c| r == 1 && c >= 2);
+        assert_eq!(m.count(), 2);
+        assert_eq!(m.bbox(), Some(PixelRect::new(1, 2, 2, 4)));
+        assert!(Mask::new(2, 2, vec![true; 3]).is_err());
+        assert!(LabelImage::new(1, 2, 2, vec![0, 2]).is_err());
+        let l = LabelImage::new(2, 2, 3, vec![0, 1, 2, 1]).unwrap();
+        assert_eq!(l.crop(PixelRect::new(1, 0, 2, 2)).unwrap().data, vec![2, 1]);
+    }
+}

@@ -1,0 +1,227 @@
+//! The mined layout as a script of the layout language (`layout.ron`): one library asset per
+//! category (its template's patch, `Library(path: ".", entry: TEMPLATE, size: (x, y,
+//! height))`), one `Instance` per object on the ground at its template-aligned position and
+//! yaw (relative to the template), and the objects standing on others in `Group(on:
+//! PARENT)` items, placed in their parent's frame so that they move with it.
+
+use assetfield_core::GroundTransform;
+use assetfield_core::ground::wrap_degrees;
+use assetfield_layout::{AssetDef, Item, LibraryRef, PartsCatalog, Script, resolve};
+use glam::Vec2;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use crate::error::{MiningError, Result};
+use crate::library::{EntryKind, LibraryIndex};
+
+fn round3(v: f32) -> f32 {
+    (v * 1000.0).round() / 1000.0
+}
+
+/// Build the layout script of a library index (see the module docs). `extent` is the ground
+/// region `[xmin, ymin, xmax, ymax]`; `library_path` the library folder relative to the
+/// script (`"."` when the script lives in it).
+pub fn layout_script(
+    index: &LibraryIndex,
+    name: &str,
+    extent: [f32; 4],
+    library_path: &str,
+) -> Result<Script> {
+    let mut assets = BTreeMap::new();
+    let mut heights = BTreeMap::new();
+    for c in &index.categories {
+        let t = index.entry(&c.template).ok_or_else(|| MiningError::Format {
+            path: "library index".into(),
+            message: format!(
+                "category {:?} names template {:?}, which is not an entry",
+                c.name, c.template
+            ),
+        })?;
+        let size = (round3(t.extent.0), round3(t.extent.1), round3(t.extent.2.max(1e-3)));
+        heights.insert(c.name.clone(), size.2);
+        assets.insert(
+            c.name.clone(),
+            AssetDef {
+                parts: Vec::new(),
+                obj: None,
+                category: Some(c.name.clone()),
+                yaw_symmetry_deg: 360.0,
+                container: false,
+                library: Some(LibraryRef {
+                    path: library_path.to_string(),
+                    entry: c.template.clone(),
+                    size,
+                }),
+            },
+        );
+    }
+    let mut layout = Vec::new();
+    let mut children: BTreeMap<&str, Vec<Item>> = BTreeMap::new();
+    for e in &index.entries {
+        let yaw = round3(if e.kind == EntryKind::Template { 0.0 } else { wrap_degrees(e.yaw_deg) });
+        match e.supported_by.as_deref() {
+            None => layout.push(Item::Instance {
+                asset: e.category.clone(),
+                at: (round3(e.position.0), round3(e.position.1)),
+                yaw,
+                scale: 1.0,
+                base: 0.0,
+                name: Some(e.name.clone()),
+            }),
+            Some(parent) => {
+                let p = index.entry(parent).ok_or_else(|| MiningError::Format {
+                    path: "library index".into(),
+                    message: format!(
+                        "entry {:?} stands on {parent:?}, which is not an entry",
+                        e.name
+                    ),
+                })?;
+                let pyaw = if p.kind == EntryKind::Template { 0.0 } else { p.yaw_deg };
+                let pt =
+                    GroundTransform::new(Vec2::new(p.position.0, p.position.1), pyaw, 1.0, 0.0);
+                let local = pt.inverse_transform_point2(Vec2::new(e.position.0, e.position.1));
+                let top = heights.get(&p.category).copied().unwrap_or(0.0);
+                let base = round3(e.base - top);
+                children.entry(parent).or_default().push(Item::Instance {
+                    asset: e.category.clone(),
+                    at: (round3(local.x), round3(local.y)),
+                    yaw: round3(wrap_degrees(yaw - pyaw)),
+                    scale: 1.0,
+                    base: if base.abs() < 5e-3 { 0.0 } else { base },
+                    name: Some(e.name.clone()),
+                });
+            }
+        }
+    }
+    for (parent, kids) in children {
+        layout.push(Item::Group {
+            name: None,
+            at: (0.0, 0.0),
+            yaw: 0.0,
+            scale: 1.0,
+            base: 0.0,
+            on: Some(parent.to_string()),
+            around: None,
+            children: kids,
+        });
+    }
+    Ok(Script {
+        name: Some(name.to_string()),
+        assets,
+        extent: Some(((extent[0], extent[1]), (extent[2], extent[3]))),
+        layout,
+        ..Script::default()
+    })
+}
+
+/// Serialise a script and check that it loads and resolves (library assets take their
+/// footprint from `size`); `path` names the file the text will be written to.
+pub fn script_text_checked(script: &Script, path: &Path) -> Result<(String, usize)> {
+    let text = assetfield_layout::source::write_script(script)
+        .map_err(|e| MiningError::io("cannot write the layout script", e))?;
+    let loaded = assetfield_layout::load_str(path, &text).map_err(|e| MiningError::Format {
+        path: path.display().to_string(),
+        message: format!("the mined layout does not load back: {e}"),
+    })?;
+    let resolved =
+        resolve(&loaded, &PartsCatalog::from_script(&loaded)).map_err(|e| MiningError::Format {
+            path: path.display().to_string(),
+            message: format!("the mined layout does not resolve: {e}"),
+        })?;
+    Ok((text, resolved.instances.len()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::library::{Category, Entry, LibraryIndex, SharedRef};
+
+    fn entry(name: &str, cat: &str, kind: EntryKind, pos: (f32, f32), yaw: f32) -> Entry {
+        Entry {
+            name: name.into(),
+            category: cat.into(),
+            kind,
+            density: format!("{name}.density"),
+            color: format!("{name}.color"),
+            mask: format!("{name}.mask"),
+            patch_size: (10, 10),
+            extent: (1.0, 0.6, 0.75),
+            base: 0.0,
+            source_box: [0.0; 4],
+            position: pos,
+            yaw_deg: yaw,
+            residual: 0.0,
+            supported_by: None,
+            source: 0,
+        }
+    }
+
+    #[test]
+    fn layout_round_trips_and_supported_objects_land_on_their_parent() {
+        let mut laptop = entry("obj002", "cat1", EntryKind::Template, (2.3, 1.1), 0.0);
+        laptop.extent = (0.3, 0.2, 0.25);
+        laptop.base = 0.75;
+        laptop.supported_by = Some("obj001".into());
+        let mut laptop2 = entry("obj003", "cat1", EntryKind::Instance, (2.0, 0.9), 200.0);
+        laptop2.base = 0.8;
+        laptop2.supported_by = Some("obj001".into());
+        let index = LibraryIndex {
+            format: crate::library::FORMAT.into(),
+            sources: vec![],
+            model: "s".into(),
+            texel_size: (0.025, 0.025),
+            channels: (16, 48),
+            patches: "patches.safetensors".into(),
+            shared: SharedRef {
+                file: "shared.safetensors".into(),
+                hash: String::new(),
+                tensors: vec![],
+            },
+            categories: vec![
+                Category {
+                    name: "cat0".into(),
+                    template: "obj000".into(),
+                    members: vec!["obj000".into(), "obj001".into()],
+                },
+                Category {
+                    name: "cat1".into(),
+                    template: "obj002".into(),
+                    members: vec!["obj002".into(), "obj003".into()],
+                },
+            ],
+            entries: vec![
+                entry("obj000", "cat0", EntryKind::Template, (-1.0, 0.0), 0.0),
+                entry("obj001", "cat0", EntryKind::Instance, (2.0, 1.0), 90.0),
+                laptop,
+                laptop2,
+            ],
+            containers: vec![],
+        };
+        let script = layout_script(&index, "mined", [-3.0, -2.0, 3.0, 2.0], ".").unwrap();
+        let path = std::env::temp_dir().join("assetfield-mining-layout-test.ron");
+        let (text, n) = script_text_checked(&script, &path).unwrap();
+        assert_eq!(n, 4, "{text}");
+        assert!(text.contains("Library(") && text.contains("on: \"obj001\""), "{text}");
+        let loaded = assetfield_layout::load_str(&path, &text).unwrap();
+        let r = resolve(&loaded, &PartsCatalog::from_script(&loaded)).unwrap();
+        let get = |k: &str| r.by_key(k).unwrap_or_else(|| panic!("{k} in {text}"));
+        let table = get("obj001");
+        assert!((table.transform.position - Vec2::new(2.0, 1.0)).length() < 1e-3);
+        assert!((table.transform.yaw_deg - 90.0).abs() < 1e-3);
+        assert!((table.top - 0.75).abs() < 1e-3);
+        assert!((table.bev_aabb.size() - Vec2::new(0.6, 1.0)).length() < 1e-3);
+        // the supported objects are back at their world poses, standing on the table
+        let l = get("obj001/obj002");
+        assert_eq!(l.supported_by, Some(table.id));
+        assert!((l.transform.position - Vec2::new(2.3, 1.1)).length() < 1e-3, "{:?}", l.transform);
+        assert!(wrap_degrees(l.transform.yaw_deg).abs() < 1e-3);
+        assert!((l.transform.base - 0.75).abs() < 1e-3);
+        let l2 = get("obj001/obj003");
+        assert!((l2.transform.position - Vec2::new(2.0, 0.9)).length() < 1e-3);
+        assert!((wrap_degrees(l2.transform.yaw_deg) - wrap_degrees(200.0)).abs() < 1e-2);
+        assert!((l2.transform.base - 0.8).abs() < 1e-3);
+        // and the text is stable under a second round trip
+        let again = assetfield_layout::source::parse_script(&path, &text).unwrap();
+        assert_eq!(again, script);
+    }
+}

@@ -1,0 +1,115 @@
+//! Binary morphology with a square structuring element of side `2 * radius + 1`, and removal
+//! of small components.
+//!
+//! Border rule: the structuring element is clipped to the image, i.e. pixels outside the
+//! image are *neutral* (they neither dilate into the image nor erode objects that touch the
+//! image border). Every operation is separable and runs in `O(rows * cols)` regardless of the
+//! radius.
+
+use crate::contours::label_components;
+use crate::error::Result;
+use crate::image::Mask;
+
+/// Row pass then column pass of a clipped box filter: `all == false` computes "any pixel set
+/// in the window" (dilation), `all == true` "every pixel set" (erosion).
+fn box_filter(mask: &Mask, radius: usize, all: bool) -> Result<Mask> {
+    mask.validate()?;
+    let (rows, cols) = (mask.rows, mask.cols);
+    if radius == 0 || rows == 0 || cols == 0 {
+        return Ok(mask.clone());
+    }
+    let decide = |count: usize, len: usize| if all { count == len } else { count > 0 };
+    let mut tmp = vec![false; rows * cols];
+    let mut prefix = vec![0usize; rows.max(cols) + 1];
+    for r in 0..rows {
+        let row = &mask.data[r * cols..(r + 1) * cols];
+        for c in 0..cols {
+            prefix[c + 1] = prefix[c] + usize::from(row[c]);
+        }
+        for c in 0..cols {
+            let (lo, hi) = (c.saturating_sub(radius), (c + radius).min(cols - 1));
+            tmp[r * cols + c] = decide(prefix[hi + 1] - prefix[lo], hi - lo + 1);
+        }
+    }
+    let mut out = vec![false; rows * cols];
+    for c in 0..cols {
+        for r in 0..rows {
+            prefix[r + 1] = prefix[r] + usize::from(tmp[r * cols + c]);
+        }
+        for r in 0..rows {
+            let (lo, hi) = (r.saturating_sub(radius), (r + radius).min(rows - 1));
+            out[r * cols + c] = decide(prefix[hi + 1] - prefix[lo], hi - lo + 1);
+        }
+    }
+    Ok(Mask { rows, cols, data: out })
+}
+
+/// Dilation: a pixel is set if any pixel within `radius` (Chebyshev distance) is set.
+pub fn dilate(mask: &Mask, radius: usize) -> Result<Mask> {
+    box_filter(mask, radius, false)
+}
+
+/// Erosion: a pixel stays set if every in-image pixel within `radius` is set.
+pub fn erode(mask: &Mask, radius: usize) -> Result<Mask> {
+    box_filter(mask, radius, true)
+}
+
+/// Opening (erosion then dilation): removes specks and thin bridges narrower than the element.
+pub fn open(mask: &Mask, radius: usize) -> Result<Mask> {
+    dilate(&erode(mask, radius)?, radius)
+}
+
+/// Closing (dilation then erosion): fills gaps and small holes narrower than the element.
+pub fn close(mask: &Mask, radius: usize) -> Result<Mask> {
+    erode(&dilate(mask, radius)?, radius)
+}
+
+/// Clear every 8-connected component with fewer than `min_area` pixels.
+pub fn remove_small(mask: &Mask, min_area: usize) -> Result<Mask> {
+    let (labels, sizes) = label_components(mask)?;
+    let data = labels.iter().map(|&l| l != u32::MAX && sizes[l as usize] >= min_area).collect();
+    Ok(Mask { rows: mask.rows, cols: mask.cols, data })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(rows: usize, cols: usize, r0: usize, c0: usize, r1: usize, c1: usize) -> Mask {
+        Mask::from_fn(rows, cols, |r, c| r >= r0 && r < r1 && c >= c0 && c < c1)
+    }
+
+    #[test]
+    fn dilate_and_erode_squares() {
+        let m = square(9, 9, 3, 3, 6, 6);
+        assert_eq!(dilate(&m, 1).unwrap(), square(9, 9, 2, 2, 7, 7));
+        assert_eq!(erode(&m, 1).unwrap(), square(9, 9, 4, 4, 5, 5));
+        assert_eq!(erode(&m, 2).unwrap().count(), 0);
+        assert_eq!(dilate(&m, 0).unwrap(), m);
+        // Dilation is clipped at the image border.
+        assert_eq!(dilate(&m, 10).unwrap().count(), 81);
+    }
+
+    #[test]
+    fn border_is_neutral_for_erosion() {
+        let m = square(6, 6, 0, 0, 3, 3);
+        assert_eq!(erode(&m, 1).unwrap(), square(6, 6, 0, 0, 2, 2));
+        let full = Mask::from_fn(4, 5, |_, _| true);
+        assert_eq!(erode(&full, 2).unwrap(), full);
+    }
+
+    #[test]
+    fn open_close_and_small_components() {
+        let mut m = square(12, 12, 2, 2, 8, 8);
+        m.set(10, 10, true); // speck
+        m.set(5, 5, false); // pinhole
+        let opened = open(&m, 1).unwrap();
+        assert!(!opened.get(10, 10) && opened.get(2, 2));
+        let closed = close(&m, 1).unwrap();
+        assert!(closed.get(5, 5) && closed.get(10, 10));
+        let cleaned = remove_small(&m, 2).unwrap();
+        assert!(!cleaned.get(10, 10) && cleaned.get(3, 3));
+        assert_eq!(cleaned.count(), 35);
+        assert_eq!(remove_small(&m, 0).unwrap(), m);
+    }
+}

@@ -1,0 +1,565 @@
+//! From a trained field to an asset library and a mined layout: [`mine`] runs detection
+//! ([`crate::detect`]), grouping ([`crate::group`]), templates and poses ([`crate::pose`]),
+//! writes the library ([`crate::library`]), the layout ([`crate::layout_out`]) and the
+//! pictures ([`crate::picture`]), and with a ground truth measures the result
+//! ([`crate::metrics`]). The output folder is assembled next to its final place and renamed
+//! into place at the end, so an error or Ctrl-C never leaves half a library.
+
+use assetfield_core::TensorFile;
+use assetfield_core::canvas::Canvas;
+use assetfield_core::fsx::{StagingDir, write_atomic};
+use assetfield_core::plot::{colormap, pca_colors};
+use assetfield_field::eval::load_field;
+use assetfield_field::{Field, ModelKind};
+use assetfield_layout::GtLayout;
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+
+use crate::detect::{DetectOptions, Detections, detect};
+use crate::error::{MiningError, Result, check_interrupt};
+use crate::group::{GroupOptions, Grouping, Shape, group};
+use crate::image::{Mask, PlaneImage};
+use crate::layout_out::{layout_script, script_text_checked};
+use crate::library::{
+    Category, Container, Entry, EntryKind, FORMAT, LibraryIndex, PATCHES_FILE, SHARED_FILE,
+    SHARED_FORMAT, SharedRef, content_hash, write_library_files,
+};
+use crate::metrics::{Metrics, Predicted, evaluate};
+use crate::morphology::dilate;
+use crate::picture::{BoxMark, TemplateTile, boxes_picture, categories_picture, picture_scale};
+use crate::planes::{FieldPlanes, OpacityVolume, PlaneChoice, field_planes, semantic_plane};
+use crate::pose::{PatchRect, PoseOptions, Poses, estimate_poses, mask_in_patch, padded_crop};
+
+/// Everything [`mine`] can be told.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MineOptions {
+    pub detect: DetectOptions,
+    pub group: GroupOptions,
+    /// The plane whose features are discretised for grouping.
+    pub group_on: PlaneChoice,
+    /// The plane whose patches are matched for the yaw.
+    pub yaw_on: PlaneChoice,
+    pub pose: PoseOptions,
+    /// Template overrides `(category, detection)`: category as `catK` or `K`.
+    pub templates: Vec<(String, usize)>,
+    /// Ground-truth layout to measure against.
+    pub gt: Option<PathBuf>,
+    /// IoU a detection needs to match a ground-truth box.
+    pub iou: f32,
+    /// Replace an existing output folder.
+    pub force: bool,
+}
+
+impl Default for MineOptions {
+    fn default() -> Self {
+        MineOptions {
+            detect: DetectOptions::default(),
+            group: GroupOptions::default(),
+            group_on: PlaneChoice::Color,
+            yaw_on: PlaneChoice::Color,
+            pose: PoseOptions::default(),
+            templates: Vec::new(),
+            gt: None,
+            iou: 0.5,
+            force: false,
+        }
+    }
+}
+
+/// Progress callbacks (the CLI draws a bar); every method has a no-op default.
+pub trait Progress {
+    /// A new step begins (`index` of `total`).
+    fn step(&self, _index: usize, _total: usize, _what: &str) {}
+}
+
+/// No progress output.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Quiet;
+impl Progress for Quiet {}
+
+/// What [`mine`] did.
+#[derive(Debug, Clone)]
+pub struct MineReport {
+    pub out: PathBuf,
+    pub model: String,
+    pub detections: usize,
+    pub supported: usize,
+    pub categories: usize,
+    /// Regions dropped as background, with reasons.
+    pub removed: Vec<String>,
+    pub floor: Option<f32>,
+    pub threshold: f32,
+    pub cut: String,
+    pub layout_instances: usize,
+    pub metrics: Option<Metrics>,
+    pub seconds: f64,
+}
+
+const STEPS: usize = 7;
+
+/// The detection evidence picture colours (row 0 = ymin).
+fn evidence_colors(dets: &Detections) -> Vec<[u8; 3]> {
+    dets.evidence.iter().map(|&v| colormap(v.clamp(0.0, 1.0))).collect()
+}
+
+/// Fill the texels under `mask` with the nearest texel outside it (breadth-first from the
+/// background), so that the emptied planes continue the surrounding floor.
+pub fn fill_from_background(plane: &PlaneImage, mask: &Mask) -> Result<PlaneImage> {
+    plane.validate()?;
+    if (mask.rows, mask.cols) != (plane.rows, plane.cols) {
+        return Err(MiningError::SizeMismatch {
+            what: "fill mask vs plane (texels)",
+            left: mask.rows * mask.cols,
+            right: plane.texels(),
+        });
+    }
+    let (rows, cols, ch) = (plane.rows, plane.cols, plane.ch);
+    let mut out = plane.clone();
+    let mut source: Vec<Option<usize>> = vec![None; rows * cols];
+    let mut queue = VecDeque::new();
+    for i in 0..rows * cols {
+        if !mask.data[i] {
+            source[i] = Some(i);
+            queue.push_back(i);
+        }
+    }
+    while let Some(i) = queue.pop_front() {
+        let (r, c) = (i / cols, i % cols);
+        for (dr, dc) in [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)] {
+            let (nr, nc) = (r as isize + dr, c as isize + dc);
+            if nr < 0 || nc < 0 || nr >= rows as isize || nc >= cols as isize {
+                continue;
+            }
+            let j = nr as usize * cols + nc as usize;
+            if source[j].is_none() {
+                source[j] = source[i];
+                queue.push_back(j);
+            }
+        }
+    }
+    for i in 0..rows * cols {
+        if let Some(s) = source[i].filter(|&s| s != i) {
+            let v: Vec<f32> = plane.data[s * ch..(s + 1) * ch].to_vec();
+            out.data[i * ch..(i + 1) * ch].copy_from_slice(&v);
+        }
+    }
+    Ok(out)
+}
+
+/// Parse a category given as `catK` or `K`.
+fn parse_category(s: &str, n: usize) -> Result<usize> {
+    let t = s.trim();
+    let num = t.strip_prefix("cat").unwrap_or(t);
+    let k: usize = num.parse().map_err(|_| MiningError::InvalidParameter {
+        name: "template",
+        reason: format!("category {s:?} is neither catK nor a number"),
+    })?;
+    if k >= n {
+        return Err(MiningError::InvalidParameter {
+            name: "template",
+            reason: format!(
+                "category {s:?} does not exist (there are {n}: cat0..cat{})",
+                n.max(1) - 1
+            ),
+        });
+    }
+    Ok(k)
+}
+
+/// Entry name of detection `i`.
+pub fn entry_name(i: usize) -> String {
+    format!("obj{i:03}")
+}
+
+/// Category name of category `k`.
+pub fn category_name(k: usize) -> String {
+    format!("cat{k}")
+}
+
+fn feature_plane<'a>(
+    choice: PlaneChoice,
+    planes: &'a FieldPlanes,
+    semantic: &'a Option<PlaneImage>,
+) -> Result<&'a PlaneImage> {
+    match choice {
+        PlaneChoice::Density => Ok(&planes.density),
+        PlaneChoice::Color => Ok(&planes.color),
+        PlaneChoice::Semantic => semantic.as_ref().ok_or_else(|| MiningError::MissingTensor {
+            source_name: "field".into(),
+            name: "semantic.decoder.weight".into(),
+            purpose: "the semantic plane".into(),
+        }),
+    }
+}
+
+/// Every tensor of the field that is not a ground plane, with the configuration.
+pub fn shared_tensors(field: &Field, source: &str) -> Result<TensorFile> {
+    let mut f = TensorFile::new();
+    for s in &field.params.specs {
+        if s.name == "density.plane" || s.name == "color.plane" {
+            continue;
+        }
+        f.insert_f32(&s.name, &s.shape, field.params.data[s.offset..s.offset + s.len].to_vec());
+    }
+    f.set_meta("format", SHARED_FORMAT);
+    f.set_meta("model", field.config.kind.name());
+    f.set_meta("source", source);
+    f.set_meta_json("config", &field.config)?;
+    Ok(f)
+}
+
+/// Mine `field_path` into the library folder `out` (see the module docs).
+pub fn mine(
+    field_path: &Path,
+    out: &Path,
+    opts: &MineOptions,
+    progress: &dyn Progress,
+) -> Result<MineReport> {
+    let t0 = std::time::Instant::now();
+    if out.exists() && !opts.force {
+        return Err(MiningError::OutputExists(out.display().to_string()));
+    }
+    let gt = match &opts.gt {
+        Some(p) => Some(GtLayout::read(p).map_err(|e| MiningError::io("ground truth", e))?),
+        None => None,
+    };
+    progress.step(0, STEPS, "loading the field");
+    let loaded = load_field(field_path).map_err(|e| {
+        MiningError::io(
+            format!(
+                "cannot read field {} (expected a .safetensors field file written by `assetfield train`)",
+                field_path.display()
+            ),
+            e,
+        )
+    })?;
+    let field = &loaded.field;
+    let planes = field_planes(field)?;
+    let grid = planes.grid;
+    progress.step(1, STEPS, "evaluating the density volume");
+    let vol = OpacityVolume::from_field(field)?;
+    check_interrupt()?;
+    let needs_semantic =
+        [opts.detect.on, opts.group_on, opts.yaw_on].contains(&PlaneChoice::Semantic);
+    let semantic = if needs_semantic { Some(semantic_plane(field, &vol)?) } else { None };
+
+    progress.step(2, STEPS, "detecting objects");
+    let det_feature = match opts.detect.on {
+        PlaneChoice::Density => None,
+        other => Some(feature_plane(other, &planes, &semantic)?),
+    };
+    let dets = detect(&grid, &vol, &planes.color, det_feature, &opts.detect)?;
+    if dets.detections.is_empty() {
+        return Err(MiningError::InvalidParameter {
+            name: "detection",
+            reason: format!(
+                "no object found in {} (evidence threshold {:.3}; {} region(s) dropped as background)",
+                field_path.display(),
+                dets.threshold,
+                dets.removed.len()
+            ),
+        });
+    }
+    check_interrupt()?;
+
+    progress.step(3, STEPS, "grouping into categories");
+    let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, grid.texel)).collect();
+    let grouping =
+        group(&dets, feature_plane(opts.group_on, &planes, &semantic)?, &shapes, &opts.group)?;
+    check_interrupt()?;
+
+    progress.step(4, STEPS, "matching templates (yaw)");
+    let mut pose_opts = opts.pose.clone();
+    for (c, d) in &opts.templates {
+        pose_opts.templates.push((parse_category(c, grouping.n_categories)?, *d));
+    }
+    let poses = estimate_poses(
+        &grid,
+        &dets,
+        feature_plane(opts.yaw_on, &planes, &semantic)?,
+        &grouping.category,
+        &grouping.distance,
+        &pose_opts,
+    )?;
+    check_interrupt()?;
+
+    progress.step(5, STEPS, "writing the library");
+    let source = field_path.display().to_string();
+    let (index, patches) =
+        build_library(&source, field, &planes, &dets, &grouping, &poses, pose_opts.margin)?;
+    let shared = shared_tensors(field, &source)?;
+    let mut index = index;
+    index.shared.hash = content_hash(&shared);
+    index.shared.tensors = shared.names().map(str::to_string).collect();
+
+    let staging = StagingDir::new(out, opts.force)?;
+    let dir = staging.path();
+    write_library_files(dir, &index, &patches, &shared)?;
+    let scene = field_path
+        .file_stem()
+        .map(|s| s.to_string_lossy().trim_end_matches(".ckpt").to_string())
+        .unwrap_or_else(|| "mined".into());
+    let world = grid.world_rect();
+    let script = layout_script(&index, &scene, world.to_array(), ".")?;
+    let (text, layout_instances) = script_text_checked(&script, &out.join("layout.ron"))?;
+    write_atomic(&dir.join("layout.ron"), text.as_bytes())?;
+    check_interrupt()?;
+
+    progress.step(6, STEPS, "pictures and metrics");
+    let scale = picture_scale(grid.rows, grid.cols, 900);
+    let boxes: Vec<BoxMark> = dets
+        .detections
+        .iter()
+        .map(|d| BoxMark {
+            world: d.world,
+            category: grouping.category[d.id],
+            label: d.id.to_string(),
+            supported: d.parent.is_some(),
+        })
+        .collect();
+    let legend: Vec<String> = (0..grouping.n_categories)
+        .map(|k| {
+            let n = grouping.category.iter().filter(|&&c| c == k).count();
+            format!("{}: {n} (template {})", category_name(k), entry_name(poses.templates[k]))
+        })
+        .collect();
+    boxes_picture(&grid, &evidence_colors(&dets), scale, &boxes, &legend)
+        .save_png(&dir.join("boxes.png"))?;
+    let colors = pca_colors(&planes.color.data, grid.rows * grid.cols, planes.color.ch);
+    let tiles: Vec<TemplateTile> = poses
+        .templates
+        .iter()
+        .enumerate()
+        .map(|(k, &t)| {
+            let d = &dets.detections[t];
+            let patch = PatchRect::around(d.rect, pose_opts.margin);
+            TemplateTile { name: category_name(k), patch, mask: mask_in_patch(d, &d.own, patch) }
+        })
+        .collect();
+    let cat_pic: Canvas = categories_picture(&grid, &colors, &tiles);
+    cat_pic.save_png(&dir.join("categories.png"))?;
+
+    let metrics = gt.as_ref().map(|gt| {
+        let preds: Vec<Predicted> = dets
+            .detections
+            .iter()
+            .map(|d| Predicted {
+                world: d.world,
+                category: grouping.category[d.id],
+                template: poses.templates[grouping.category[d.id]],
+                yaw_rel: poses.poses[d.id].yaw_deg,
+                position: poses.poses[d.id].position,
+            })
+            .collect();
+        evaluate(&preds, gt, opts.iou)
+    });
+    if let Some(m) = &metrics {
+        let mut v = serde_json::to_value(m).map_err(|e| MiningError::io("metrics", e))?;
+        if let Some(o) = v.as_object_mut() {
+            o.insert("summary".into(), serde_json::Value::String(m.summary()));
+            o.insert(
+                "ground_truth_file".into(),
+                serde_json::Value::String(
+                    opts.gt.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
+                ),
+            );
+        }
+        let text = serde_json::to_string_pretty(&v).map_err(|e| MiningError::io("metrics", e))?;
+        write_atomic(&dir.join("metrics.json"), text.as_bytes())?;
+    }
+    let removed: Vec<String> = dets
+        .removed
+        .iter()
+        .map(|r| {
+            let b = r.world.to_array();
+            format!("[{:.2}, {:.2}, {:.2}, {:.2}]: {}", b[0], b[1], b[2], b[3], r.reason)
+        })
+        .collect();
+    let report = serde_json::json!({
+        "field": source,
+        "model": field.config.kind.name(),
+        "plane_resolution": [grid.cols, grid.rows],
+        "texel_size": grid.texel,
+        "floor": dets.floor,
+        "evidence_threshold": dets.threshold,
+        "voxel_threshold": dets.voxel_threshold,
+        "detections": dets.detections.len(),
+        "removed_as_background": removed,
+        "categories": grouping.n_categories,
+        "cut": grouping.cut,
+        "merge_heights": grouping.merges.iter().map(|m| m.distance).collect::<Vec<_>>(),
+        "dendrogram": grouping.merges.iter().map(|m| (m.a, m.b, m.distance)).collect::<Vec<_>>(),
+        "distance_matrix": (0..grouping.distance.n())
+            .map(|i| (0..grouping.distance.n()).map(|j| grouping.distance.get(i, j).unwrap_or(0.0)).collect::<Vec<_>>())
+            .collect::<Vec<_>>(),
+        "jsd_matrix": (0..grouping.jsd.n())
+            .map(|i| (0..grouping.jsd.n()).map(|j| grouping.jsd.get(i, j).unwrap_or(0.0)).collect::<Vec<_>>())
+            .collect::<Vec<_>>(),
+        "options": opts,
+        "files": [
+            "index.ron: the library index (assetfield-library/1)",
+            "patches.safetensors: ENTRY.density / ENTRY.color / ENTRY.mask per entry, container.* (planes with the objects removed)",
+            "shared.safetensors: vertical axes, basis, guidance MLPs and decoders, config in the metadata",
+            "layout.ron: the mined layout (layout language, library assets)",
+            "boxes.png: detections over the evidence map, coloured by category, numbered",
+            "categories.png: template patches (colour plane PCA)",
+            "metrics.json: with --gt only",
+        ],
+    });
+    write_atomic(
+        &dir.join("mining.json"),
+        serde_json::to_string_pretty(&report).map_err(|e| MiningError::io("report", e))?.as_bytes(),
+    )?;
+    check_interrupt()?;
+    let out = staging.commit()?;
+    Ok(MineReport {
+        out,
+        model: field.config.kind.name().to_string(),
+        detections: dets.detections.len(),
+        supported: dets.detections.iter().filter(|d| d.parent.is_some()).count(),
+        categories: grouping.n_categories,
+        removed,
+        floor: dets.floor.map(|f| f.z_top),
+        threshold: dets.threshold,
+        cut: grouping.cut.clone(),
+        layout_instances,
+        metrics,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// The library index and patch tensors of a mining result (the shared part is separate).
+fn build_library(
+    source: &str,
+    field: &Field,
+    planes: &FieldPlanes,
+    dets: &Detections,
+    grouping: &Grouping,
+    poses: &Poses,
+    margin: usize,
+) -> Result<(LibraryIndex, TensorFile)> {
+    let grid = planes.grid;
+    let mut patches = TensorFile::new();
+    patches.set_meta("format", FORMAT);
+    patches.set_meta("source", source);
+    let mut entries = Vec::with_capacity(dets.detections.len());
+    for d in &dets.detections {
+        let name = entry_name(d.id);
+        let p = PatchRect::around(d.rect, margin);
+        let dens = padded_crop(&planes.density, p)?;
+        let col = padded_crop(&planes.color, p)?;
+        let mask = mask_in_patch(d, &d.own, p);
+        patches.insert_f32(format!("{name}.density"), &[p.rows, p.cols, dens.ch], dens.data);
+        patches.insert_f32(format!("{name}.color"), &[p.rows, p.cols, col.ch], col.data);
+        patches.insert_u8(
+            format!("{name}.mask"),
+            &[p.rows, p.cols],
+            mask.data.iter().map(|&b| u8::from(b)).collect(),
+        );
+        let cat = grouping.category[d.id];
+        let pose = poses.poses[d.id];
+        let size = d.world.size();
+        entries.push(Entry {
+            density: format!("{name}.density"),
+            color: format!("{name}.color"),
+            mask: format!("{name}.mask"),
+            name,
+            category: category_name(cat),
+            kind: if poses.templates[cat] == d.id {
+                EntryKind::Template
+            } else {
+                EntryKind::Instance
+            },
+            patch_size: (p.rows, p.cols),
+            extent: (size.x, size.y, (d.top - d.base).max(0.0)),
+            base: if d.parent.is_some() { d.base } else { 0.0 },
+            source_box: d.world.to_array(),
+            position: (pose.position.x, pose.position.y),
+            yaw_deg: pose.yaw_deg,
+            residual: pose.residual,
+            supported_by: d.parent.map(entry_name),
+            source: 0,
+        });
+    }
+    let categories = (0..grouping.n_categories)
+        .map(|k| Category {
+            name: category_name(k),
+            template: entry_name(poses.templates[k]),
+            members: (0..dets.detections.len())
+                .filter(|&i| grouping.category[i] == k)
+                .map(entry_name)
+                .collect(),
+        })
+        .collect();
+    // the container: planes with every object (and a two-texel halo) filled from around it
+    let mut objects = Mask::empty(grid.rows, grid.cols)?;
+    for d in &dets.detections {
+        for r in 0..d.rect.rows() {
+            for c in 0..d.rect.cols() {
+                if d.footprint.get(r, c) {
+                    objects.set(d.rect.r0 + r, d.rect.c0 + c, true);
+                }
+            }
+        }
+    }
+    let objects = dilate(&objects, 2)?;
+    let dens = fill_from_background(&planes.density, &objects)?;
+    let col = fill_from_background(&planes.color, &objects)?;
+    let (rows, cols) = (grid.rows, grid.cols);
+    patches.insert_f32("container.density", &[rows, cols, dens.ch], dens.data);
+    patches.insert_f32("container.color", &[rows, cols, col.ch], col.data);
+    patches.insert_u8(
+        "container.mask",
+        &[rows, cols],
+        objects.data.iter().map(|&b| u8::from(b)).collect(),
+    );
+    let index = LibraryIndex {
+        format: FORMAT.into(),
+        sources: vec![source.to_string()],
+        model: match field.config.kind {
+            ModelKind::Standard => "s",
+            ModelKind::Integrated => "i",
+            ModelKind::Vm => "vm",
+        }
+        .into(),
+        texel_size: (grid.texel[0], grid.texel[1]),
+        channels: (planes.density.ch, planes.color.ch),
+        patches: PATCHES_FILE.into(),
+        shared: SharedRef { file: SHARED_FILE.into(), hash: String::new(), tensors: Vec::new() },
+        categories,
+        entries,
+        containers: vec![Container {
+            name: "container".into(),
+            density: "container.density".into(),
+            color: "container.color".into(),
+            mask: "container.mask".into(),
+            size: (rows, cols),
+            world: grid.world_rect().to_array(),
+            source: 0,
+        }],
+    };
+    Ok((index, patches))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn background_fill_copies_the_nearest_outside_texel() {
+        let plane = PlaneImage::from_fn(3, 5, 1, |_, c, _| c as f32).unwrap();
+        let mask = Mask::from_fn(3, 5, |_, c| (1..=3).contains(&c));
+        let f = fill_from_background(&plane, &mask).unwrap();
+        assert_eq!(f.channel(0).unwrap()[..5], [0.0, 0.0, 0.0, 4.0, 4.0]);
+        assert!(fill_from_background(&plane, &Mask::empty(2, 2).unwrap()).is_err());
+    }
+
+    #[test]
+    fn categories_parse() {
+        assert_eq!(parse_category("cat2", 3).unwrap(), 2);
+        assert_eq!(parse_category("1", 3).unwrap(), 1);
+        assert!(parse_category("cat3", 3).is_err());
+        assert!(parse_category("chair", 3).is_err());
+    }
+}

@@ -1,0 +1,187 @@
+//! `assetfield mine` and `assetfield library` end to end: a small synthesised scene (two
+//! categories at several yaws on a floor) trained briefly, mined against its ground truth;
+//! the library, layout and pictures it writes; bad input (exit 1, a clear message, nothing
+//! written).
+
+use assetfield_layout::{PartsCatalog, resolve};
+use assetfield_mining::library::open_library;
+use assetfield_tests::{run_cli, scratch};
+use std::path::Path;
+
+/// Two asymmetric categories: three wedges (red body, blue back) and two blocks (green with
+/// a yellow corner post), all at different yaws, on a floor.
+const SCENE: &str = r#"Scene(
+    name: "tiny_mining",
+    assets: {
+        "floor": Asset(container: true, parts: [
+            Box(center: (0.0, 0.0, -0.01), size: (4.6, 3.6, 0.02), color: (0.55, 0.5, 0.45)),
+        ]),
+        "wedge": Asset(parts: [
+            Box(center: (0.0, 0.0, 0.2), size: (0.8, 0.5, 0.4), color: (0.8, 0.15, 0.1)),
+            Box(center: (-0.35, 0.0, 0.5), size: (0.1, 0.5, 0.2), color: (0.1, 0.2, 0.8)),
+        ]),
+        "block": Asset(parts: [
+            Box(center: (0.0, 0.0, 0.15), size: (0.6, 0.6, 0.3), color: (0.2, 0.7, 0.3)),
+            Box(center: (0.2, 0.2, 0.4), size: (0.2, 0.2, 0.2), color: (0.95, 0.85, 0.2)),
+        ]),
+    },
+    layout: [
+        Instance(asset: "floor", at: (0, 0)),
+        Instance(asset: "wedge", at: (-1.2, 0.8), yaw: 0),
+        Instance(asset: "wedge", at: (0.4, 0.9), yaw: 90),
+        Instance(asset: "wedge", at: (1.5, -0.3), yaw: 200),
+        Instance(asset: "block", at: (-1.0, -0.9), yaw: 30),
+        Instance(asset: "block", at: (0.4, -1.0), yaw: 135),
+    ],
+)
+"#;
+
+fn ok(dir: &Path, args: &[&str]) -> String {
+    let (code, out, err) = run_cli(dir, args);
+    assert_eq!(code, 0, "{args:?}\nstdout: {out}\nstderr: {err}");
+    out
+}
+
+fn fail(dir: &Path, args: &[&str], needles: &[&str]) {
+    let (code, out, err) = run_cli(dir, args);
+    assert_eq!(code, 1, "{args:?}\nstdout: {out}\nstderr: {err}");
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: expected {n:?} in: {err}");
+    }
+}
+
+#[test]
+fn mine_a_small_scene_into_a_library_and_layout() {
+    let dir = scratch("mining");
+    std::fs::write(dir.join("tiny.ron"), SCENE).unwrap();
+    let synth = [
+        "synth",
+        "tiny.ron",
+        "--out",
+        "d",
+        "--views",
+        "24",
+        "--test-views",
+        "2",
+        "--res",
+        "48",
+        "--aa",
+        "1",
+    ];
+    ok(&dir, &synth);
+    ok(
+        &dir,
+        &[
+            "train",
+            "d",
+            "--out",
+            "f.safetensors",
+            "--iters",
+            "1500",
+            "--res",
+            "64",
+            "--batch",
+            "2048",
+        ],
+    );
+
+    let out = ok(&dir, &["mine", "f.safetensors", "--out", "lib", "--gt", "d/gt_layout.json"]);
+    assert!(out.contains("mined 5 objects") && out.contains("F1"), "{out}");
+    let lib = dir.join("lib");
+    for f in [
+        "index.ron",
+        "patches.safetensors",
+        "shared.safetensors",
+        "layout.ron",
+        "boxes.png",
+        "categories.png",
+        "metrics.json",
+        "mining.json",
+    ] {
+        assert!(lib.join(f).is_file(), "lib/{f} missing");
+    }
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(lib.join("metrics.json")).unwrap()).unwrap();
+    let num = |k: &str| m[k].as_f64().unwrap_or_else(|| panic!("metrics.json lacks {k}: {m}"));
+    assert!(num("f1") >= 0.85, "F1 {}: {m}", num("f1"));
+    assert!(num("ari") >= 0.6, "ARI {}: {m}", num("ari"));
+    assert!(num("yaw_median_deg") <= 8.0, "yaw {}: {m}", num("yaw_median_deg"));
+    assert!(num("position_median") <= 0.1, "position {}", num("position_median"));
+    for key in ["precision", "recall", "yaw_max_deg", "per_category", "per_instance"] {
+        assert!(m.get(key).is_some(), "metrics.json lacks {key}");
+    }
+
+    // the library checks out, and its layout loads and resolves with the library assets
+    let l = open_library(&lib).unwrap();
+    assert_eq!(l.index.format, "assetfield-library/1");
+    assert_eq!(l.index.entries.len(), 5);
+    assert!(l.index.categories.iter().all(|c| l.index.entry(&c.template).is_some()));
+    assert!(l.shared.tensors.contains_key("density.axis"));
+    assert!(l.shared.tensors.keys().all(|k| !k.ends_with(".plane")), "planes are not shared");
+    assert!(l.patches.tensors.contains_key("container.density"));
+    let loaded = assetfield_layout::load(&lib.join("layout.ron")).unwrap();
+    let resolved = resolve(&loaded, &PartsCatalog::from_script(&loaded)).unwrap();
+    assert_eq!(resolved.instances.len(), 5);
+    let out = ok(&dir, &["library", "check", "lib"]);
+    assert!(out.contains("5 entries") && out.contains("ok"), "{out}");
+
+    // a second mining run of the same field shares its tensors: the libraries merge
+    ok(
+        &dir,
+        &["mine", "f.safetensors", "--out", "lib2", "--categories", "2", "--template", "cat0=0"],
+    );
+    let out = ok(&dir, &["library", "merge", "lib", "lib2", "--out", "both"]);
+    assert!(out.contains("10 entries"), "{out}");
+    assert!(open_library(&dir.join("both")).unwrap().index.entry("lib2/obj000").is_some());
+
+    // refusals: an existing output, bad flags, a template outside its category
+    fail(&dir, &["mine", "f.safetensors", "--out", "lib"], &["already exists", "--force"]);
+    fail(&dir, &["mine", "f.safetensors", "--out", "x", "--k", "1"], &["--k"]);
+    fail(&dir, &["mine", "f.safetensors", "--out", "x", "--k", "100000"], &["clusters"]);
+    fail(&dir, &["mine", "f.safetensors", "--out", "x", "--template", "cat9=0"], &["cat9"]);
+    fail(&dir, &["mine", "nope.safetensors", "--out", "x"], &["nope.safetensors"]);
+    fail(&dir, &["library", "check", "d"], &["index.ron"]);
+    assert!(!dir.join("x").exists(), "a failed run must not leave its output");
+
+    // the TensoRF-VM baseline has no ground plane representation
+    ok(
+        &dir,
+        &["train", "d", "--out", "vm.safetensors", "--model", "vm", "--iters", "20", "--res", "32"],
+    );
+    fail(&dir, &["mine", "vm.safetensors", "--out", "x"], &["ground plane representation"]);
+    assert!(!dir.join("x").exists());
+    let leftovers: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+        .filter(|n| n.contains(".tmp-"))
+        .collect();
+    assert!(leftovers.is_empty(), "staging folders left behind: {leftovers:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn mine_help_explains_the_flags() {
+    let dir = scratch("mining-help");
+    let out = ok(&dir, &["mine", "--help"]);
+    for flag in [
+        "--out",
+        "--gt",
+        "--detect-on",
+        "--k",
+        "--labels",
+        "--categories",
+        "--distance",
+        "--template",
+        "--shape-weight",
+        "--force",
+        "metrics.json",
+        "layout.ron",
+    ] {
+        assert!(out.contains(flag), "mine --help lacks {flag}: {out}");
+    }
+    let out = ok(&dir, &["library", "--help"]);
+    assert!(out.contains("merge") && out.contains("check"), "{out}");
+    let (code, _, _) = run_cli(&dir, &["mine"]);
+    assert_eq!(code, 2, "a missing argument is a usage error");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
