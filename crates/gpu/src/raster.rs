@@ -390,19 +390,8 @@ impl GpuComposer {
                         storage_entry(8, false),
                     ],
                 });
-                let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("raster"),
-                    bind_group_layouts: &[Some(&layout)],
-                    immediate_size: 0,
-                });
-                let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("raster"),
-                    layout: Some(&pl),
-                    module: &module,
-                    entry_point: Some("raster"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
+                let pipeline =
+                    crate::context::compute_pipeline(&device, "raster", &layout, &module, "raster");
                 let canvas_buf = buffer(&device, "canvas", canvas.len() as u64 * 4, STORAGE_IN);
                 queue.write_buffer(&canvas_buf, 0, bytemuck::cast_slice(&canvas));
                 let b = |label, size, usage| buffer(&device, label, size, usage);

@@ -520,19 +520,8 @@ impl FieldRenderer {
                         },
                     ],
                 });
-                let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("render"),
-                    bind_group_layouts: &[Some(&layout)],
-                    immediate_size: 0,
-                });
-                let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("render"),
-                    layout: Some(&pl),
-                    module: &module,
-                    entry_point: Some("render"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
+                let pipeline =
+                    crate::context::compute_pipeline(&device, "render", &layout, &module, "render");
                 let storage = |label, bytes: &[u8]| {
                     use wgpu::BufferUsages as U;
                     let buf = device.create_buffer(&wgpu::BufferDescriptor {
