@@ -104,6 +104,21 @@ pub struct Container {
     pub source: usize,
 }
 
+impl Container {
+    /// A container whose tensors are `NAME.density`, `NAME.color` and `NAME.mask`.
+    pub fn named(name: &str, size: (usize, usize), world: [f32; 4], source: usize) -> Self {
+        Container {
+            name: name.into(),
+            density: format!("{name}.density"),
+            color: format!("{name}.color"),
+            mask: format!("{name}.mask"),
+            size,
+            world,
+            source,
+        }
+    }
+}
+
 /// The shared-tensor file and its content hash.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(rename = "Shared")]
@@ -521,15 +536,7 @@ pub(crate) mod tests {
                 members: vec!["obj000".into(), "obj001".into()],
             }],
             entries,
-            containers: vec![Container {
-                name: "container".into(),
-                density: "container.density".into(),
-                color: "container.color".into(),
-                mask: "container.mask".into(),
-                size: (4, 5),
-                world: [0.0, 0.0, 0.5, 0.4],
-                source: 0,
-            }],
+            containers: vec![Container::named("container", (4, 5), [0.0, 0.0, 0.5, 0.4], 0)],
         };
         write_library_files(dir, &index, &patches, &shared).unwrap();
     }

@@ -529,15 +529,12 @@ fn build_library(
         shared: SharedRef { file: SHARED_FILE.into(), hash: String::new(), tensors: Vec::new() },
         categories,
         entries,
-        containers: vec![Container {
-            name: "container".into(),
-            density: "container.density".into(),
-            color: "container.color".into(),
-            mask: "container.mask".into(),
-            size: (rows, cols),
-            world: grid.world_rect().to_array(),
-            source: 0,
-        }],
+        containers: vec![Container::named(
+            "container",
+            (rows, cols),
+            grid.world_rect().to_array(),
+            0,
+        )],
     };
     Ok((index, patches))
 }
