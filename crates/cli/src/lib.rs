@@ -7,8 +7,8 @@ use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 
 pub use commands::{
-    EvalArgs, InspectArgs, LayoutArgs, LibraryArgs, MineArgs, PlanesArgs, RenderArgs, SynthArgs,
-    TrainArgs,
+    BenchArgs, ComposeArgs, EvalArgs, InspectArgs, LayoutArgs, LibraryArgs, MineArgs, PlanesArgs,
+    RenderArgs, SynthArgs, TrainArgs,
 };
 
 /// AssetField: editable neural scenes on ground feature planes.
@@ -93,6 +93,31 @@ pub enum Command {
     /// Check asset libraries or merge them into a cross-scene library (`library check LIB`,
     /// `library merge LIB_A LIB_B ... --out LIB_C`).
     Library(LibraryArgs),
+    /// Compose a layout script from an asset library and render it (paper Sec. 3.4).
+    ///
+    /// The library's shared axes and decoders become the scene's field, its container (a
+    /// trained scene with the objects removed; `--canvas empty` for nothing) the canvas.
+    /// Every instance of the script is an entity of an ECS world (bevy_ecs) whose systems
+    /// rasterise the instances' feature patches onto the ground planes (density summed,
+    /// colour weighted by density); the composed planes are volume-rendered from --views
+    /// cameras or a turntable. Object edits (Move, Rotate, Scale, Remove, Duplicate),
+    /// category edits (ReplaceAsset, RemoveCategory) and scenes from library assets are all
+    /// written in the script. Errors name the script line. Writes the renders, compose.json,
+    /// layout.png and, with --metrics, metrics.json against the --views images.
+    Compose(ComposeArgs),
+    /// Measure composed-scene rendering and re-composition on the GPU or the CPU
+    /// (`bench render`, `bench reconfigure`).
+    ///
+    /// `bench render`: milliseconds per --res x --res frame of a scene of --instances
+    /// instances, rays per second, and layouts per second for a --batch of random layouts
+    /// rendered from --views cameras in one go. `bench reconfigure`: for each --instances
+    /// count, --layouts random layouts (moves, turns, template swaps) rasterised and rendered
+    /// (layouts per second), and one instance moved (dirty rectangles) against every texel
+    /// redrawn. The scene is synthetic (a floor and two furniture templates in a 30 x 30 m
+    /// box; see `assetfield_gpu::bench_scene`) or, with --library, a mined library's
+    /// container and templates. --backend auto (the default) uses the GPU when a wgpu adapter
+    /// exists, else the CPU after one line on stderr; --json prints one JSON object.
+    Bench(BenchArgs),
 }
 
 /// Run the CLI on the given arguments (first = program name); returns the exit code:
@@ -148,6 +173,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Train(a) => commands::train(a),
         Command::Eval(a) => commands::eval(a),
         Command::Render(a) => commands::render(a),
+        Command::Compose(a) => commands::compose(a),
+        Command::Bench(a) => commands::bench(a),
         Command::Planes(a) => commands::planes(a),
         Command::Mine(a) => commands::mine(a),
         Command::Library(a) => commands::library(a),

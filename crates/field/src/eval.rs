@@ -204,14 +204,38 @@ pub fn evaluate<E: From<FieldError>>(
     occupancy: Option<&Occupancy>,
     frames: &[&Frame],
     background: Vec3,
+    each: impl FnMut(&Frame, &[f32], &ViewMetrics) -> Result<(), E>,
+) -> Result<EvalReport, E> {
+    evaluate_with(
+        field.config.kind.name(),
+        frames,
+        |f| Ok(render_view(field, occupancy, &f.camera, background)),
+        each,
+    )
+}
+
+/// [`evaluate`] with another renderer: `render(frame)` gives the RGB of the frame's camera
+/// (e.g. on the GPU); `model` names the field kind in the report.
+pub fn evaluate_with<E: From<FieldError>>(
+    model: &str,
+    frames: &[&Frame],
+    mut render: impl FnMut(&Frame) -> Result<Vec<f32>, E>,
     mut each: impl FnMut(&Frame, &[f32], &ViewMetrics) -> Result<(), E>,
 ) -> Result<EvalReport, E> {
     let mut views = Vec::with_capacity(frames.len());
     let mut seconds = 0.0;
     for frame in frames {
         assetfield_core::interrupt::check().map_err(FieldError::from)?;
-        let (rgb, m, s) = evaluate_frame(field, occupancy, frame, background);
-        seconds += s;
+        let t0 = Instant::now();
+        let rgb = render(frame)?;
+        seconds += t0.elapsed().as_secs_f64();
+        let (w, h) = (frame.image.width as usize, frame.image.height as usize);
+        let m = ViewMetrics {
+            index: frame.index,
+            file_path: frame.file_path.clone(),
+            psnr: metrics::psnr(&rgb, &frame.image.rgb),
+            ssim: metrics::ssim(&rgb, &frame.image.rgb, w, h, 3),
+        };
         each(frame, &rgb, &m)?;
         views.push(m);
     }
@@ -224,7 +248,7 @@ pub fn evaluate<E: From<FieldError>>(
         ssim: mean(|v| v.ssim),
         seconds_per_view: seconds / n,
         views,
-        model: field.config.kind.name().to_string(),
+        model: model.to_string(),
         resolution,
     })
 }

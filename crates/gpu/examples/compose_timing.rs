@@ -4,6 +4,11 @@
 //! - full rasterisation of 100 and 1000 instances;
 //! - 20 layouts of 50 instances, each rasterised and rendered at 64 x 64 (layouts per second;
 //!   the random field is nearly empty, so every ray marches through the whole box).
+//! - the occupancy grid (150 x 150 x 16 cells) rebuilt on the device and on the CPU.
+//!
+//! The GPU composer's occupancy grid is turned off for the first two, so both sides do the
+//! same work (`render_view(.., None, ..)` on the CPU); `assetfield bench` times the composers
+//! with their grids.
 //!
 //! Each figure is the median wall time of several runs, with the CPU time the process used
 //! (all threads) per run: on a shared machine the latter says what the work costs.
@@ -100,6 +105,19 @@ fn main() {
     let t0 = Instant::now();
     let mut gpu = GpuComposer::new(&ctx, &comp, &templates).unwrap();
     println!("upload and pipelines: {:.2} s", t0.elapsed().as_secs_f64());
+    let t_occ = median(5, || {
+        gpu.refresh_occupancy(None).unwrap();
+    });
+    let t_cpu_occ = median(5, || {
+        comp.refresh_occupancy(None);
+    });
+    println!(
+        "occupancy grid {:?} rebuilt: gpu {}, cpu {}",
+        gpu.occupancy_res(),
+        ms(t_occ),
+        ms(t_cpu_occ)
+    );
+    gpu.set_occupancy(false).unwrap();
     let mut rng = Rng(7);
     let one = TexelRect { r0: 0, c0: 0, r1: 1, c1: 1 };
     gpu.rasterise(&[], Some(one)).unwrap();

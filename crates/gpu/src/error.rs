@@ -43,6 +43,17 @@ pub enum GpuError {
          planes would be wrong: rasterise with a smaller chunk or on the CPU"
     )]
     RasterLoopLimit { invocations: u32 },
+    /// The same for the composer's occupancy pass: the grid would be wrong.
+    #[error(
+        "the driver cut the occupancy shader's loops short for {invocations} invocation(s) \
+         (llvmpipe stops a group of invocations after 65535 loop iterations); the occupancy \
+         grid would be wrong: turn the grid off or render on the CPU"
+    )]
+    OccupancyLoopLimit { invocations: u32 },
+    /// The device was lost (driver reset, GPU removed, out of memory); nothing more can run
+    /// on it.
+    #[error("the wgpu device was lost: {0}")]
+    DeviceLost(String),
     /// Waiting for the device or reading results back failed.
     #[error("reading results back from the device failed: {0}")]
     Readback(String),

@@ -3,7 +3,9 @@
 //! renderer ([`assetfield_field::render_view`]), one ray per shader invocation.
 //!
 //! - [`GpuContext`]: instance, adapter, device and queue (Vulkan; Mesa's software Vulkan,
-//!   lavapipe, where there is no GPU).
+//!   lavapipe, where there is no GPU); wgpu errors outside error scopes and a lost device
+//!   are recorded, not panics. [`select_backend`] picks the GPU or the CPU for a command's
+//!   `--backend gpu|cpu|auto` (auto: the CPU with a one-line note when there is no adapter).
 //! - [`FieldRenderer`]: a field's parameters, the shader's header, the padded networks and
 //!   the occupancy grid uploaded once; renders cameras (one or many per call) to RGB like
 //!   `render_view`, S-, I- and VM-fields with MLP or spherical-harmonics decoders.
@@ -16,6 +18,12 @@
 //!   (`raster.wgsl`, the rule of `assetfield_scene::Composition::rasterise`, over
 //!   per-tile instance lists built on the host, optionally inside a dirty rectangle) straight
 //!   into the renderer's parameter buffer, then rendered, a batch of layouts at a time.
+//!   Like the CPU composer it keeps an occupancy grid in step with the planes: after each
+//!   rasterisation, passes of `render.wgsl` (`occupancy_points`, `occupancy_cells`)
+//!   re-evaluate the grid's cell columns under the rewritten rectangle with the CPU's rule
+//!   (`Occupancy::update_region`), so renders skip empty space as `Composer::render` does.
+//! - [`bench_scene`]: a synthetic composed scene (canvas, templates, random layouts and
+//!   edits, cameras) for `assetfield bench` and the criterion benches.
 //!
 //! Rays are generated on the CPU with [`assetfield_core::Camera::pixel_ray`] and uploaded,
 //! so every camera model the CPU supports (lens distortion included) renders identically.
@@ -28,17 +36,20 @@
 //! returning a wrong image. The raster pass follows the same discipline: a dispatch walks a
 //! bounded number of entries of each tile's instance list, longer lists take several
 //! dispatches (partial sums kept on the device), and its canary gives
-//! [`GpuError::RasterLoopLimit`].
+//! [`GpuError::RasterLoopLimit`]; the occupancy passes split the grid's layers over
+//! dispatches likewise ([`GpuError::OccupancyLoopLimit`]).
 
+pub mod bench_scene;
 mod context;
 mod error;
 mod raster;
 mod render;
 
-pub use context::GpuContext;
+pub use context::{Backend, BackendChoice, GpuContext, fallback_note, select_backend};
 pub use error::GpuError;
 pub use raster::{
-    GpuComposer, GpuRasterStats, Layout, PatchInstance, RASTER_TILE, raster_struct_members,
+    GpuComposer, GpuRasterStats, Layout, OCCUPANCY_THRESHOLD, PatchInstance, RASTER_TILE,
+    occupancy_pass_members, raster_struct_members,
 };
 pub use render::{FieldRenderer, HeaderField, UploadPlan, plan_upload};
 /// The wgpu this crate is built with (for `Limits`, `AdapterInfo`).

@@ -1,12 +1,17 @@
 //! Patch rasterisation on the device (`raster.wgsl`) and [`GpuComposer`]: a composition's
 //! canvas, its field and the templates uploaded once, then layouts rasterised into the
-//! field's parameter buffer and rendered back to back, with no round trip through the CPU.
+//! field's parameter buffer, the occupancy grid rebuilt over the columns they touched (the
+//! `occupancy_points` and `occupancy_cells` entry points of `render.wgsl`), and rendered
+//! back to back, with no round trip through the CPU.
 
 use crate::render::{bytes_of, map, rays_of, scoped, split_views, storage_entry};
 use crate::{FieldRenderer, GpuContext, GpuError, RASTER_WGSL};
 use assetfield_core::{Camera, GroundTransform};
-use assetfield_scene::{Composition, FeaturePatch, InstanceDraw, PlaneGrid, TexelRect};
-use glam::Vec3;
+use assetfield_field::Occupancy;
+use assetfield_scene::{
+    Composition, DensityRule, FeaturePatch, InstanceDraw, PlaneGrid, TexelRect,
+};
+use glam::{Vec2, Vec3};
 
 /// Texels per side of the tiles whose instance lists the host builds.
 pub const RASTER_TILE: usize = 16;
@@ -23,6 +28,13 @@ const MAX_CHUNK: u32 = 16_384;
 const CANARY: u32 = 2;
 const STATUS_BYTES: u64 = 16;
 const CHUNK_BYTES: u64 = 16;
+/// Bytes of the occupancy pass's uniform (`OccPass` in `render.wgsl`).
+const OCC_PASS_BYTES: u64 = 32;
+/// Loop iterations one occupancy dispatch may spend per invocation (layers x density
+/// evaluations x their loops), well inside llvmpipe's 65535.
+const OCC_LOOP_BUDGET: u64 = 48_000;
+/// The opacity above which a cell is occupied, as `Composition::refresh_occupancy`.
+pub const OCCUPANCY_THRESHOLD: f32 = 1e-4;
 
 /// One instance of a layout: which template (its index in the uploaded templates) and where.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,6 +60,19 @@ pub struct GpuRasterStats {
     pub max_list: usize,
     /// Dispatches (more than one when a tile's list is longer than a dispatch may walk).
     pub dispatches: usize,
+    /// Occupancy cells re-evaluated (the columns under the rectangle; 0 with the grid off).
+    pub occupancy_cells: usize,
+}
+
+impl GpuRasterStats {
+    fn add(&mut self, s: &GpuRasterStats) {
+        self.texels += s.texels;
+        self.instances += s.instances;
+        self.entries += s.entries;
+        self.max_list = self.max_list.max(s.max_list);
+        self.dispatches += s.dispatches;
+        self.occupancy_cells += s.occupancy_cells;
+    }
 }
 
 /// 32-bit words of a shader struct, with their member names when asked (for the layout
@@ -94,6 +119,8 @@ struct RasterHeader {
     rect: [u32; 4],
     /// row, column
     base: [u32; 2],
+    /// 1: density features add to the canvas (`DensityRule::Add`), 0: replace its share
+    density_add: u32,
     canary: u32,
 }
 
@@ -122,6 +149,7 @@ impl RasterHeader {
         w.u("c1", self.rect[3]);
         w.u("r_base", self.base[0]);
         w.u("c_base", self.base[1]);
+        w.u("density_add", self.density_add);
         w.u("canary", self.canary);
     }
 }
@@ -131,6 +159,46 @@ fn pack_chunk(w: &mut Words, entry0: u32, entry1: u32, first: bool, last: bool) 
     w.u("entry1", entry1);
     w.u("first", first.into());
     w.u("last", last.into());
+}
+
+/// The occupancy pass's `OccPass`: cell columns `i0..i1 x j0..j1`, layers `k0..k1`.
+fn pack_occ_pass(w: &mut Words, cols: [u32; 4], k0: u32, k1: u32) {
+    for (name, v) in ["i0", "j0", "i1", "j1"].into_iter().zip(cols) {
+        w.u(name, v);
+    }
+    w.u("k0", k0);
+    w.u("k1", k1);
+    w.u("canary", CANARY);
+    w.f("threshold", OCCUPANCY_THRESHOLD);
+}
+
+/// The occupancy grid the composer keeps on the device: resolution, placement (as
+/// `Occupancy::full` computes them) and layers per dispatch.
+#[derive(Debug, Clone, Copy)]
+struct OccGrid {
+    res: [usize; 3],
+    min: Vec2,
+    scale: Vec2,
+    layers: u32,
+}
+
+impl OccGrid {
+    /// The cell columns whose footprint meets the world rectangle of texels `rect`, as
+    /// `Composition::refresh_occupancy` and `Occupancy::update_region` choose them:
+    /// `[i0, j0, i1, j1]`, `None` when empty.
+    fn columns(&self, grid: &PlaneGrid, rect: TexelRect) -> Option<[u32; 4]> {
+        if rect.is_empty() {
+            return None;
+        }
+        let lo = (grid.world(rect.r0, rect.c0) - self.min) * self.scale;
+        let hi = (grid.world(rect.r1.max(1) - 1, rect.c1.max(1) - 1) - self.min) * self.scale;
+        let [nx, ny, _] = self.res;
+        let i0 = (lo.x.floor().max(0.0) as usize).min(nx);
+        let j0 = (lo.y.floor().max(0.0) as usize).min(ny);
+        let i1 = ((hi.x.floor() + 1.0).max(0.0) as usize).min(nx);
+        let j1 = ((hi.y.floor() + 1.0).max(0.0) as usize).min(ny);
+        (i0 < i1 && j0 < j1).then_some([i0 as u32, j0 as u32, i1 as u32, j1 as u32])
+    }
 }
 
 /// A template on the device: the patch (for its bounds) and where its data lies in `pfeat`.
@@ -147,7 +215,7 @@ struct Template {
 /// `GroundTransform::inverse_transform_point2` computes it (cos and sin of -yaw, then a
 /// division by the scale), the instance's texel rectangle and its patch.
 fn pack_inst(w: &mut Words, t: &GroundTransform, rect: TexelRect, tpl: &Template) {
-    let rot = glam::Vec2::from_angle(-t.yaw_deg.to_radians());
+    let rot = Vec2::from_angle(-t.yaw_deg.to_radians());
     let p = &tpl.patch;
     w.f("pos_x", t.position.x);
     w.f("pos_y", t.position.y);
@@ -178,11 +246,19 @@ pub fn raster_struct_members() -> Vec<(&'static str, Vec<&'static str>)> {
     let mut c = Words::new(true);
     pack_chunk(&mut c, 0, 0, false, false);
     let mut i = Words::new(true);
-    let patch = FeaturePatch::new("x", 1, 1, glam::Vec2::ONE, vec![0.0], vec![0.0], vec![1.0])
+    let patch = FeaturePatch::new("x", 1, 1, Vec2::ONE, vec![0.0], vec![0.0], vec![1.0])
         .expect("a one-texel patch");
     let tpl = Template { patch, dens: 0, colr: 0, wt: 0 };
     pack_inst(&mut i, &GroundTransform::IDENTITY, TexelRect { r0: 0, c0: 0, r1: 0, c1: 0 }, &tpl);
     vec![("Raster", names(h)), ("Chunk", names(c)), ("Inst", names(i))]
+}
+
+/// Member names, in order, of the occupancy pass's uniform (`OccPass` in `render.wgsl`):
+/// one 32-bit word each. For the layout check in the tests.
+pub fn occupancy_pass_members() -> Vec<&'static str> {
+    let mut w = Words::new(true);
+    pack_occ_pass(&mut w, [0; 4], 0, 0);
+    w.names.unwrap_or_default()
 }
 
 /// The most entries of a tile's list a dispatch may walk with `groups` channel groups.
@@ -208,10 +284,15 @@ struct Binned {
 
 /// A composition on the device: the canvas planes and the templates uploaded once, the
 /// composed planes living in the renderer's parameter buffer. Rasterise a layout (all of
-/// the planes, or a dirty rectangle), render it, or do both for a batch of layouts.
+/// the planes, or dirty rectangles), render it, or do both for a batch of layouts.
 ///
-/// The field is rendered without an occupancy grid (the grid would change with each
-/// layout), as `render_view(&composition.field, None, ..)` renders it on the CPU.
+/// Like the CPU composer (`assetfield_scene::Composer`), it keeps an occupancy grid in step
+/// with the planes: every rasterisation re-evaluates, on the device, the grid's cell columns
+/// under the rectangle it rewrote (the rule of `Occupancy::update_region`), so renders skip
+/// empty space as `Composer::render` does. The grid has the composition's resolution when it
+/// has one, else the one `Composition::refresh_occupancy` would build (half the field's,
+/// at least 8). [`GpuComposer::set_occupancy`] turns it off (renders then march every
+/// sample, as `render_view(&field, None, ..)`).
 #[derive(Debug)]
 pub struct GpuComposer {
     renderer: FieldRenderer,
@@ -236,6 +317,24 @@ pub struct GpuComposer {
     chunk_len: u32,
     limit: u64,
     max_groups: u32,
+    occ: OccGrid,
+    occ_on: bool,
+    /// `occupancy_points`, `occupancy_cells`
+    occ_pipelines: [wgpu::ComputePipeline; 2],
+    occ_bind: wgpu::BindGroup,
+    occ_uniform: wgpu::Buffer,
+    occ_chunks: wgpu::Buffer,
+    // bound in `occ_bind`
+    _occ_corners: wgpu::Buffer,
+}
+
+/// The occupancy passes of one rectangle: `(columns, dispatches)`, their `OccPass` records
+/// already in the chunk table after those of earlier rectangles of the same submission.
+#[derive(Debug, Clone, Copy)]
+struct OccJob {
+    cols: [u32; 4],
+    first: u64,
+    dispatches: u64,
 }
 
 fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
@@ -318,7 +417,39 @@ impl GpuComposer {
         };
         let density_at = plane("density.plane", nd)?;
         let color_at = plane("color.plane", nc)?;
-        let renderer = FieldRenderer::new(ctx, field, None)?;
+        let res = field.config.res;
+        let occ_res = composition
+            .occupancy
+            .as_ref()
+            .map_or([(res[0] / 2).max(8), (res[1] / 2).max(8), (res[2] / 2).max(8)], |o| o.res);
+        // every cell occupied until the first occupancy pass below
+        let renderer = FieldRenderer::new(ctx, field, Some(&Occupancy::full(field, occ_res)))?;
+        let word = |name: &str| {
+            renderer.plan().header.iter().find(|f| f.name == name).map_or(u32::MAX, |f| f.bits)
+        };
+        let axes = ["n_density", "density[0].a0", "density[0].a1", "density[0].a2"].map(word);
+        if axes != [1, 0, 1, 2] {
+            return Err(GpuError::Unsupported(
+                "the composer's occupancy pass needs one density component, a ground plane \
+                 times a vertical line (S- and I-fields)"
+                    .into(),
+            ));
+        }
+        let aabb = field.config.aabb();
+        let extent = aabb.extent().max(Vec3::splat(1e-9));
+        // loop iterations of `occupancy_points`: the plane's channels once, then per layer
+        // the channel blocks, the tail and the layer loop; the corners take one more layer
+        let ch = nd as u64;
+        let per_layer = ch / 8 + ch % 8 + 2;
+        let fixed = ch / 4 + 4 + per_layer;
+        let layers =
+            (OCC_LOOP_BUDGET.saturating_sub(fixed) / per_layer).clamp(1, occ_res[2] as u64) as u32;
+        let occ = OccGrid {
+            res: occ_res,
+            min: aabb.min.truncate(),
+            scale: Vec2::new(occ_res[0] as f32 / extent.x, occ_res[1] as f32 / extent.y),
+            layers,
+        };
         let device = ctx.device().clone();
         let queue = ctx.queue().clone();
         let limits = ctx.limits();
@@ -345,6 +476,7 @@ impl GpuComposer {
             n_tiles: (tiles_x * tiles_y) as u32,
             rect: [0; 4],
             base: [0; 2],
+            density_add: u32::from(composition.density_rule == DensityRule::Add),
             canary: CANARY,
         };
         // the canvas, each texel's channels padded to whole vec4
@@ -370,7 +502,18 @@ impl GpuComposer {
         if canvas.len() / 4 >= u32::MAX as usize {
             return Err(input("the planes are too large for 32-bit indices"));
         }
-        let (pipeline, layout, bufs) =
+        let corners = (occ_res[0] + 1) * (occ_res[1] + 1) * (occ_res[2] + 1);
+        if corners >= u32::MAX as usize {
+            return Err(GpuError::Unsupported(format!(
+                "an occupancy grid of {occ_res:?} cells is too large for 32-bit indices"
+            )));
+        }
+        let corner_bytes = corners.div_ceil(32) as u64 * 4;
+        if corner_bytes > limit {
+            let what = "the occupancy grid's corners";
+            return Err(GpuError::BufferTooLarge { what, bytes: corner_bytes, limit });
+        }
+        let (pipeline, layout, occ_pipelines, occ_layout, bufs) =
             pollster::block_on(scoped(&device, "raster pipeline and upload", || {
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("raster.wgsl"),
@@ -392,13 +535,34 @@ impl GpuComposer {
                 });
                 let pipeline =
                     crate::context::compute_pipeline(&device, "raster", &layout, &module, "raster");
+                let occ_layout =
+                    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                        label: Some("occupancy"),
+                        entries: &[
+                            storage_entry(0, true),
+                            storage_entry(1, true),
+                            storage_entry(7, false),
+                            storage_entry(8, false),
+                            uniform_entry(9),
+                            storage_entry(10, false),
+                        ],
+                    });
+                let occ_pipelines = ["occupancy_points", "occupancy_cells"].map(|entry| {
+                    crate::context::compute_pipeline(
+                        &device,
+                        entry,
+                        &occ_layout,
+                        renderer.module(),
+                        entry,
+                    )
+                });
                 let canvas_buf = buffer(&device, "canvas", canvas.len() as u64 * 4, STORAGE_IN);
                 queue.write_buffer(&canvas_buf, 0, bytemuck::cast_slice(&canvas));
                 let b = |label, size, usage| buffer(&device, label, size, usage);
                 let bufs = [
                     canvas_buf,
                     b("templates", 16, STORAGE_IN),
-                    b("raster header", 4 * 24, U::UNIFORM | U::COPY_DST),
+                    b("raster header", 4 * 25, U::UNIFORM | U::COPY_DST),
                     b("chunk", CHUNK_BYTES, U::UNIFORM | U::COPY_DST),
                     b("chunks", CHUNK_BYTES, U::COPY_SRC | U::COPY_DST),
                     b("instances", 1 << 12, STORAGE_IN),
@@ -406,8 +570,11 @@ impl GpuComposer {
                     b("raster scratch", scratch_bytes, U::STORAGE),
                     b("raster status", STATUS_BYTES, U::STORAGE | U::COPY_DST | U::COPY_SRC),
                     b("raster readback", STATUS_BYTES, U::MAP_READ | U::COPY_DST),
+                    b("occupancy pass", OCC_PASS_BYTES, U::UNIFORM | U::COPY_DST),
+                    b("occupancy passes", OCC_PASS_BYTES * 4, U::COPY_SRC | U::COPY_DST),
+                    b("occupancy corners", corner_bytes, U::STORAGE),
                 ];
-                (pipeline, layout, bufs)
+                (pipeline, layout, occ_pipelines, occ_layout, bufs)
             }))?;
         let [
             canvas,
@@ -420,7 +587,23 @@ impl GpuComposer {
             scratch,
             status,
             staging,
+            occ_uniform,
+            occ_chunks,
+            occ_corners,
         ] = bufs;
+        let occ_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("occupancy"),
+            layout: &occ_layout,
+            entries: &[
+                (0, renderer.header_buffer()),
+                (1, renderer.params_buffer()),
+                (7, &status),
+                (8, renderer.occupancy_buffer()),
+                (9, &occ_uniform),
+                (10, &occ_corners),
+            ]
+            .map(|(binding, b)| wgpu::BindGroupEntry { binding, resource: b.as_entire_binding() }),
+        });
         let bind = Self::bind_group(
             &device,
             &layout,
@@ -459,8 +642,17 @@ impl GpuComposer {
             chunk_len: max_chunk(n_groups),
             limit,
             max_groups: limits.max_compute_workgroups_per_dimension,
+            occ,
+            occ_on: true,
+            occ_pipelines,
+            occ_bind,
+            occ_uniform,
+            occ_chunks,
+            _occ_corners: occ_corners,
         };
         composer.set_templates(templates)?;
+        // the grid of the canvas
+        composer.refresh_occupancy(None)?;
         Ok(composer)
     }
 
@@ -577,6 +769,27 @@ impl GpuComposer {
         self
     }
 
+    /// Evaluate at most `layers` layers of occupancy cells per dispatch (at least 1, at most
+    /// the default, which keeps a dispatch inside llvmpipe's loop limit): more dispatches
+    /// for the same grid. For tests of the split occupancy passes.
+    pub fn with_occupancy_layers(mut self, layers: u32) -> Self {
+        self.occ.layers = layers.clamp(1, self.occ.layers);
+        self
+    }
+
+    /// Layers of occupancy cells one dispatch evaluates at most.
+    pub fn occupancy_layers(&self) -> u32 {
+        self.occ.layers
+    }
+
+    /// [`GpuComposer::with_occupancy_layers`] without the cap: dispatches may then run past
+    /// llvmpipe's loop limit. Only for tests of the canary that detects it.
+    #[doc(hidden)]
+    pub fn with_unbounded_occupancy_layers(mut self, layers: u32) -> Self {
+        self.occ.layers = layers.max(1);
+        self
+    }
+
     /// The renderer of the composed field.
     pub fn renderer(&self) -> &FieldRenderer {
         &self.renderer
@@ -671,6 +884,7 @@ impl GpuComposer {
                 entries,
                 max_list,
                 dispatches: 0,
+                occupancy_cells: 0,
             },
         })
     }
@@ -725,6 +939,8 @@ impl GpuComposer {
             )));
         }
         binned.stats.dispatches = chunks as usize;
+        let occ_jobs = self.prepare_occupancy(&[rect])?;
+        binned.stats.occupancy_cells = self.occupancy_job_cells(&occ_jobs);
         scoped(&self.device, "rasterise", || {
             let q = &self.queue;
             if !binned.insts.is_empty() {
@@ -755,6 +971,7 @@ impl GpuComposer {
                 cp.set_bind_group(0, &self.bind, &[]);
                 cp.dispatch_workgroups(groups[0], groups[1], groups[2]);
             }
+            self.encode_occupancy(&mut enc, &occ_jobs);
             enc.copy_buffer_to_buffer(&self.status, 0, &self.staging, 0, STATUS_BYTES);
             q.submit([enc.finish()]);
         })
@@ -762,14 +979,177 @@ impl GpuComposer {
         Ok(binned.stats)
     }
 
-    /// Wait for the last rasterisation and refuse it if the driver cut its loops short.
+    /// Write the occupancy passes over the cell columns under each of `rects` (clipped to
+    /// the grid) into the pass table: nothing with the grid off. Their layers are split
+    /// over dispatches of at most `occ.layers` each.
+    fn prepare_occupancy(&mut self, rects: &[TexelRect]) -> Result<Vec<OccJob>, GpuError> {
+        if !self.occ_on {
+            return Ok(Vec::new());
+        }
+        let nz = self.occ.res[2] as u32;
+        let mut words = Words::new(false);
+        let mut jobs = Vec::new();
+        let mut at = 0u64;
+        for r in rects {
+            let Some(cols) = self.occ.columns(&self.grid, intersect(*r, self.full_rect())) else {
+                continue;
+            };
+            let groups = [
+                (cols[2] - cols[0] + 1).div_ceil(WG as u32),
+                (cols[3] - cols[1] + 1).div_ceil(WG as u32),
+            ];
+            if groups.iter().any(|g| *g > self.max_groups) {
+                return Err(input(format!(
+                    "an occupancy dispatch of {groups:?} workgroups exceeds the device's {} per \
+                     dimension",
+                    self.max_groups
+                )));
+            }
+            let first = at;
+            let mut k0 = 0;
+            while k0 < nz {
+                let k1 = (k0 + self.occ.layers).min(nz);
+                pack_occ_pass(&mut words, cols, k0, k1);
+                k0 = k1;
+                at += 1;
+            }
+            jobs.push(OccJob { cols, first, dispatches: at - first });
+        }
+        if !jobs.is_empty() {
+            let bytes = at * OCC_PASS_BYTES;
+            grow(&self.device, &mut self.occ_chunks, bytes, self.limit, "the occupancy passes")?;
+            self.queue.write_buffer(&self.occ_chunks, 0, bytes_of(&words.bits));
+        }
+        Ok(jobs)
+    }
+
+    fn occupancy_job_cells(&self, jobs: &[OccJob]) -> usize {
+        jobs.iter()
+            .map(|j| {
+                let [i0, j0, i1, j1] = j.cols.map(|v| v as usize);
+                (i1 - i0) * (j1 - j0) * self.occ.res[2]
+            })
+            .sum()
+    }
+
+    /// Record the occupancy passes of `jobs` (after the raster passes that changed the
+    /// planes they read): per layer chunk, the points (corners and centres), then the cells.
+    fn encode_occupancy(&self, enc: &mut wgpu::CommandEncoder, jobs: &[OccJob]) {
+        let wg = WG as u32;
+        for job in jobs {
+            let [i0, j0, i1, j1] = job.cols;
+            // the corners are one more than the cells along x and y
+            let points = [(i1 - i0 + 1).div_ceil(wg), (j1 - j0 + 1).div_ceil(wg), 2];
+            let cells = [(i1 - i0).div_ceil(wg), (j1 - j0).div_ceil(wg), 1];
+            for d in 0..job.dispatches {
+                enc.copy_buffer_to_buffer(
+                    &self.occ_chunks,
+                    (job.first + d) * OCC_PASS_BYTES,
+                    &self.occ_uniform,
+                    0,
+                    OCC_PASS_BYTES,
+                );
+                for (pipeline, [x, y, z]) in self.occ_pipelines.iter().zip([points, cells]) {
+                    let mut cp = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("occupancy"),
+                        timestamp_writes: None,
+                    });
+                    cp.set_pipeline(pipeline);
+                    cp.set_bind_group(0, &self.occ_bind, &[]);
+                    cp.dispatch_workgroups(x, y, z);
+                }
+            }
+        }
+    }
+
+    /// Re-evaluate the occupancy grid over the cell columns under `rect` (everything for
+    /// `None`) from the planes as they are, as `Composition::refresh_occupancy` does; the
+    /// number of cells evaluated (0 with the grid off). Waits for the device.
+    pub fn refresh_occupancy(&mut self, rect: Option<TexelRect>) -> Result<usize, GpuError> {
+        pollster::block_on(async {
+            let rect = rect.unwrap_or_else(|| self.full_rect());
+            let jobs = self.prepare_occupancy(&[rect])?;
+            if jobs.is_empty() {
+                return Ok(0);
+            }
+            scoped(&self.device, "occupancy", || {
+                let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("occupancy"),
+                });
+                enc.clear_buffer(&self.status, 0, None);
+                self.encode_occupancy(&mut enc, &jobs);
+                enc.copy_buffer_to_buffer(&self.status, 0, &self.staging, 0, STATUS_BYTES);
+                self.queue.submit([enc.finish()]);
+            })
+            .await?;
+            self.check_status().await?;
+            Ok(self.occupancy_job_cells(&jobs))
+        })
+    }
+
+    /// Whether the composer keeps an occupancy grid and renders skip the cells it marks
+    /// empty (the default).
+    pub fn occupancy_enabled(&self) -> bool {
+        self.occ_on
+    }
+
+    /// Turn the occupancy grid on (rebuilt at once from the planes as they are) or off
+    /// (renders march every sample, rasterisations no longer touch the grid).
+    pub fn set_occupancy(&mut self, on: bool) -> Result<(), GpuError> {
+        if on == self.occ_on {
+            return Ok(());
+        }
+        self.occ_on = on;
+        self.renderer.set_occupancy_enabled(on);
+        if on {
+            self.refresh_occupancy(None)?;
+        }
+        Ok(())
+    }
+
+    /// Cells of the occupancy grid per axis (x, y, z).
+    pub fn occupancy_res(&self) -> [usize; 3] {
+        self.occ.res
+    }
+
+    /// The occupancy grid as it is on the device, one byte per cell (1 = occupied), x
+    /// fastest, then y, then z (as `Occupancy::cells_u8`; `Occupancy::from_cells` makes it
+    /// a grid again).
+    pub fn occupancy_cells(&self) -> Result<Vec<u8>, GpuError> {
+        let cells = self.occ.res.iter().product::<usize>();
+        let bytes = (cells.div_ceil(32) * 4) as u64;
+        pollster::block_on(async {
+            let staging = scoped(&self.device, "occupancy readback", || {
+                let staging = buffer(&self.device, "occupancy", bytes, U::MAP_READ | U::COPY_DST);
+                let mut enc = self.device.create_command_encoder(&Default::default());
+                enc.copy_buffer_to_buffer(self.renderer.occupancy_buffer(), 0, &staging, 0, bytes);
+                self.queue.submit([enc.finish()]);
+                staging
+            })
+            .await?;
+            let view = map(&self.device, self.renderer.device_errors(), &staging, 0..bytes).await?;
+            let words: &[u32] = bytemuck::cast_slice(&view);
+            let out = (0..cells).map(|k| ((words[k / 32] >> (k % 32)) & 1) as u8).collect();
+            drop(view);
+            staging.unmap();
+            Ok(out)
+        })
+    }
+
+    /// Wait for the last rasterisation (or occupancy refresh) and refuse it if the driver
+    /// cut its loops short.
     async fn check_status(&self) -> Result<(), GpuError> {
-        let view = map(&self.device, &self.staging, 0..STATUS_BYTES).await?;
-        let cut = u32::from_le_bytes([view[0], view[1], view[2], view[3]]);
+        let view = map(&self.device, self.renderer.device_errors(), &self.staging, 0..STATUS_BYTES)
+            .await?;
+        let word = |k: usize| u32::from_le_bytes([view[k], view[k + 1], view[k + 2], view[k + 3]]);
+        let (raster, occupancy) = (word(0), word(8));
         drop(view);
         self.staging.unmap();
-        if cut > 0 {
-            return Err(GpuError::RasterLoopLimit { invocations: cut });
+        if raster > 0 {
+            return Err(GpuError::RasterLoopLimit { invocations: raster });
+        }
+        if occupancy > 0 {
+            return Err(GpuError::OccupancyLoopLimit { invocations: occupancy });
         }
         Ok(())
     }
@@ -792,8 +1172,32 @@ impl GpuComposer {
         })
     }
 
-    /// Rasterise each layout over the whole grid in turn, without rendering, waiting for the
-    /// device once at the end (the planes end as the last layout's). For timings.
+    /// Redraw the texels of each of `rects` (dirty rectangles, e.g. the old and new
+    /// footprints of a moved instance) from the canvas and `layout`'s instances, in one wait
+    /// for the device; the stats add up over the rectangles.
+    pub fn rasterise_rects(
+        &mut self,
+        layout: &[PatchInstance],
+        rects: &[TexelRect],
+    ) -> Result<GpuRasterStats, GpuError> {
+        pollster::block_on(async {
+            let mut total = GpuRasterStats::default();
+            let mut submitted = false;
+            for r in rects {
+                let s = self.submit_raster(layout, *r, !submitted).await?;
+                submitted |= s.dispatches > 0;
+                total.add(&s);
+            }
+            if submitted {
+                self.check_status().await?;
+            }
+            Ok(total)
+        })
+    }
+
+    /// Rasterise each layout over the whole grid in turn (with the occupancy refresh),
+    /// without rendering, waiting for the device once at the end (the planes end as the
+    /// last layout's). For timings.
     pub fn rasterise_only<L: AsRef<[PatchInstance]>>(
         &mut self,
         layouts: &[L],
@@ -803,11 +1207,7 @@ impl GpuComposer {
             let mut total = GpuRasterStats::default();
             for (k, l) in layouts.iter().enumerate() {
                 let s = self.submit_raster(l.as_ref(), full, k == 0).await?;
-                total.texels += s.texels;
-                total.instances += s.instances;
-                total.entries += s.entries;
-                total.max_list = total.max_list.max(s.max_list);
-                total.dispatches += s.dispatches;
+                total.add(&s);
             }
             // the counters add up over the layouts
             if !layouts.is_empty() {
@@ -846,7 +1246,8 @@ impl GpuComposer {
                 staging
             })
             .await?;
-            let view = map(&self.device, &staging, 0..db + cb).await?;
+            let view =
+                map(&self.device, self.renderer.device_errors(), &staging, 0..db + cb).await?;
             let floats: &[f32] = bytemuck::cast_slice(&view);
             let out = (floats[..(db / 4) as usize].to_vec(), floats[(db / 4) as usize..].to_vec());
             drop(view);

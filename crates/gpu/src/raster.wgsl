@@ -7,8 +7,9 @@
 // layout), the texel's world position is taken into the instance's frame, and the patch's
 // four bilinear taps, each weighted by its bilinear weight times the patch's object weight
 // (premultiplied, zero outside the patch), are added to the sums. Then the canvas keeps the
-// share `max(0, 1 - sum w)`: density = share * canvas + sum, colour = (share * canvas + sum)
-// / (share + sum w) (the canvas colour where that is ~0). Sums run in the CPU's order.
+// share `max(0, 1 - sum w)`: density = share * canvas + sum (or canvas + sum when the
+// composition's density rule is `Add`), colour = (share * canvas + sum) / (share + sum w)
+// (the canvas colour where that is ~0). Sums run in the CPU's order.
 //
 // The instances that may reach a texel come from a per-tile list (TILE x TILE texels) built
 // on the host, so the cost follows coverage. Only texels inside the dirty rectangle
@@ -56,6 +57,8 @@ struct Raster {
     c1: u32,
     r_base: u32,
     c_base: u32,
+    // 1: density features add to the canvas (`DensityRule::Add`), 0: they replace its share
+    density_add: u32,
     canary: u32,
 }
 
@@ -155,10 +158,14 @@ fn store4(at: u32, ch: u32, n: u32, v: vec4<f32>) {
     }
 }
 
-// The resolved value of one vec4 of channels: density share * canvas + sum; colour
-// (share * canvas + sum) / (share + sum w), or the canvas where the norm is ~0.
+// The resolved value of one vec4 of channels: density share * canvas + sum (canvas + sum
+// with `density_add`); colour (share * canvas + sum) / (share + sum w), or the canvas where
+// the norm is ~0.
 fn resolve(dens: bool, share: f32, norm: f32, cv: vec4<f32>, a: vec4<f32>) -> vec4<f32> {
     if dens {
+        if ra.density_add != 0u {
+            return cv + a;
+        }
         return share * cv + a;
     }
     if norm > 1e-9 {

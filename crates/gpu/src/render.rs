@@ -1,5 +1,6 @@
 //! Uploading a field and dispatching the volume rendering shader (`render.wgsl`).
 
+use crate::context::DeviceErrors;
 use crate::{GpuContext, GpuError, RENDER_WGSL};
 use assetfield_core::{Camera, Ray};
 use assetfield_field::model::Comp;
@@ -429,8 +430,10 @@ pub struct FieldRenderer {
     params: wgpu::Buffer,
     occupancy: wgpu::Buffer,
     network: wgpu::Buffer,
+    module: wgpu::ShaderModule,
     plan: UploadPlan,
     max_groups: u32,
+    errors: DeviceErrors,
 }
 
 /// Buffers for one pass of rays.
@@ -492,7 +495,7 @@ impl FieldRenderer {
             }
             None => vec![0],
         };
-        let (pipeline, layout, header, params, occupancy, network) =
+        let (pipeline, layout, header, params, occupancy, network, module) =
             pollster::block_on(scoped(&device, "pipeline and upload", || {
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("render.wgsl"),
@@ -538,7 +541,7 @@ impl FieldRenderer {
                 let params = storage("params", bytemuck::cast_slice(&field.params.data));
                 let occupancy = storage("occupancy", bytes_of(&occ_words));
                 let network = storage("network", bytemuck::cast_slice(&plan.network));
-                (pipeline, layout, header, params, occupancy, network)
+                (pipeline, layout, header, params, occupancy, network, module)
             }))?;
         let max_groups = ctx.limits().max_compute_workgroups_per_dimension;
         Ok(FieldRenderer {
@@ -550,9 +553,16 @@ impl FieldRenderer {
             params,
             occupancy,
             network,
+            module,
             plan,
             max_groups,
+            errors: ctx.errors().clone(),
         })
+    }
+
+    /// What wgpu reported outside the error scopes (checked after every readback).
+    pub(crate) fn device_errors(&self) -> &DeviceErrors {
+        &self.errors
     }
 
     /// What was uploaded.
@@ -563,6 +573,48 @@ impl FieldRenderer {
     /// The field's parameters on the device (the composer writes its planes there).
     pub(crate) fn params_buffer(&self) -> &wgpu::Buffer {
         &self.params
+    }
+
+    /// The shader's header on the device (the composer's occupancy pass reads it).
+    pub(crate) fn header_buffer(&self) -> &wgpu::Buffer {
+        &self.header
+    }
+
+    /// The occupancy bit mask on the device (the composer's occupancy pass writes it).
+    pub(crate) fn occupancy_buffer(&self) -> &wgpu::Buffer {
+        &self.occupancy
+    }
+
+    /// `render.wgsl`, compiled (it also holds the composer's occupancy entry point).
+    pub(crate) fn module(&self) -> &wgpu::ShaderModule {
+        &self.module
+    }
+
+    /// Whether the march skips the cells the occupancy grid marks empty (only for a
+    /// renderer made with a grid; `false` marches every sample).
+    pub fn occupancy_enabled(&self) -> bool {
+        self.plan.header.iter().any(|f| f.name == "has_occ" && f.bits != 0)
+    }
+
+    /// Turn the use of the uploaded occupancy grid on or off (no effect without a grid).
+    pub(crate) fn set_occupancy_enabled(&mut self, on: bool) {
+        if self.occ_cells() == 0 {
+            return;
+        }
+        for f in &mut self.plan.header {
+            if f.name == "has_occ" {
+                f.bits = on.into();
+            }
+        }
+        self.queue.write_buffer(&self.header, 0, bytes_of(&self.plan.header_words()));
+    }
+
+    /// Cells of the uploaded occupancy grid (0 without one).
+    pub(crate) fn occ_cells(&self) -> u64 {
+        let dim = |name: &str| {
+            self.plan.header.iter().find(|f| f.name == name).map_or(0, |f| f.bits as u64)
+        };
+        dim("occ_nx") * dim("occ_ny") * dim("occ_nz")
     }
 
     /// Rays per pass (default: the largest the device allows, at most 2^18): smaller passes
@@ -664,7 +716,8 @@ impl FieldRenderer {
                 }
             }
             let view =
-                map(&self.device, &slot.staging, STATUS_BYTES..STATUS_BYTES + states).await?;
+                map(&self.device, &self.errors, &slot.staging, STATUS_BYTES..STATUS_BYTES + states)
+                    .await?;
             let dst = &mut out[k * pass * 3..(k * pass + chunk.len()) * 3];
             for (d, st) in dst.chunks_exact_mut(3).zip(view.chunks_exact(STATE_BYTES as usize)) {
                 for (c, b) in d.iter_mut().zip(st.chunks_exact(4)) {
@@ -703,7 +756,7 @@ impl FieldRenderer {
             self.queue.submit([enc.finish()]);
         })
         .await?;
-        let view = map(&self.device, &slot.staging, 0..STATUS_BYTES).await?;
+        let view = map(&self.device, &self.errors, &slot.staging, 0..STATUS_BYTES).await?;
         let word = |k: usize| u32::from_le_bytes([view[k], view[k + 1], view[k + 2], view[k + 3]]);
         let status = [word(0), word(4)];
         drop(view);
@@ -780,6 +833,7 @@ pub(crate) fn split_views(rgb: &[f32], cameras: &[Camera]) -> Vec<Vec<f32>> {
 /// Map `range` of a staging buffer for reading once the device has finished with it.
 pub(crate) async fn map(
     device: &wgpu::Device,
+    errors: &DeviceErrors,
     buffer: &wgpu::Buffer,
     range: std::ops::Range<u64>,
 ) -> Result<wgpu::BufferView, GpuError> {
@@ -788,9 +842,10 @@ pub(crate) async fn map(
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
     });
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Readback(e.to_string()))?;
+    let polled = device.poll(wgpu::PollType::wait_indefinitely());
+    // a lost device or an error outside the scopes explains a failed mapping best
+    errors.check()?;
+    polled.map_err(|e| GpuError::Readback(e.to_string()))?;
     rx.recv()
         .map_err(|_| GpuError::Readback("the mapping callback never ran".into()))?
         .map_err(|e| GpuError::Readback(e.to_string()))?;

@@ -527,3 +527,145 @@ fn render(@builtin(global_invocation_id) gid: vec3<u32>,
     }
     state[r] = State(vec4<f32>(c, 0.0), t, trans, n, s.flag);
 }
+
+// ---------------------------------------------------------------------------------------
+// The occupancy grid of a composed scene, rebuilt on the device over the cell columns that
+// an edit of the ground planes touched (dispatched by `raster.rs` after the rasterisation),
+// with the rule of `Occupancy::from_field` / `Occupancy::update_region` on the CPU: a cell
+// is occupied when the opacity of one march step exceeds `threshold` at any of its eight
+// corners or at its centre, the points placed exactly as the CPU places them.
+//
+// Two passes. `occupancy_points`: one invocation per vertical line of points (cell corners,
+// `gid.z == 0`, or cell centres, `gid.z == 1`) interpolates the density plane once (the
+// field has one density component, a ground plane times a vertical line, as every
+// composable field) and walks the layers, evaluating the density of each point as
+// `density_feature` does (same sums in the same order); corners go to the bit mask
+// `occ_corners`, centres straight to the grid. `occupancy_cells`: one invocation per cell
+// column sets the cells with a dense corner. The host splits the layers over dispatches so
+// each stays inside llvmpipe's loop limit (see `render`), and the canaries count
+// invocations cut short in `status[2]` (bound to the composer's status buffer, not the
+// render pass's; its [0] counts the raster pass's).
+
+// The cell columns i0..i1 x j0..j1 and cell layers k0..k1 of one dispatch.
+struct OccPass {
+    i0: u32,
+    j0: u32,
+    i1: u32,
+    j1: u32,
+    k0: u32,
+    k1: u32,
+    canary: u32,
+    threshold: f32,
+}
+
+// the bit mask the render pass reads as `occupancy`
+@group(0) @binding(8) var<storage, read_write> occ_cells: array<atomic<u32>>;
+@group(0) @binding(9) var<uniform> occ_pass: OccPass;
+// whether each cell corner is dense: (occ_nz + 1) x (occ_ny + 1) x (occ_nx + 1) bits
+@group(0) @binding(10) var<storage, read_write> occ_corners: array<atomic<u32>>;
+
+fn occ_canary() {
+    var canary = 0u;
+    loop {
+        canary += 1u;
+        if canary >= occ_pass.canary {
+            break;
+        }
+    }
+    if canary != occ_pass.canary {
+        atomicAdd(&status[2], 1u);
+    }
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn occupancy_points(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let centre = gid.z == 1u;
+    let i = occ_pass.i0 + gid.x;
+    let j = occ_pass.j0 + gid.y;
+    // corners i0..=i1 x j0..=j1 on the layer boundaries k0..=k1; centres i0..i1 x j0..j1
+    // in the layers k0..k1
+    var end = vec3<u32>(occ_pass.i1 + 1u, occ_pass.j1 + 1u, occ_pass.k1 + 1u);
+    var off = 0.0;
+    if centre {
+        end = vec3<u32>(occ_pass.i1, occ_pass.j1, occ_pass.k1);
+        off = 0.5;
+    }
+    if i >= end.x || j >= end.y {
+        return;
+    }
+    let lo = vec3<f32>(hdr.aabb_min_x, hdr.aabb_min_y, hdr.aabb_min_z);
+    let cell = vec3<f32>(1.0) / vec3<f32>(hdr.occ_scale_x, hdr.occ_scale_y, hdr.occ_scale_z);
+    let c = hdr.density[0];
+    // the plane's channels along this line (its x and y are the same at every layer)
+    let pt = plane_taps(c, to_grid(lo + (vec3<f32>(f32(i), f32(j), 0.0) + off) * cell));
+    let n4 = c.ch / 4u * 4u;
+    for (var q = 0u; q < n4; q += 4u) {
+        va[q >> 2u] = plane4(pt, q);
+    }
+    for (var q = n4; q < c.ch; q++) {
+        put(&va, q, plane1(pt, q));
+    }
+    let full = c.ch / 8u * 8u;
+    let nx = hdr.occ_nx;
+    let ny = hdr.occ_ny;
+    for (var k = occ_pass.k0; k < end.z; k++) {
+        let g = to_grid(lo + (vec3<f32>(f32(i), f32(j), f32(k)) + off) * cell);
+        let lt = line_taps(c, g);
+        var s0 = vec4<f32>(0.0);
+        var s1 = vec4<f32>(0.0);
+        var tail = 0.0;
+        for (var q = 0u; q < full; q += 8u) {
+            s0 += va[q >> 2u] * line4(lt, q);
+            s1 += va[(q >> 2u) + 1u] * line4(lt, q + 4u);
+        }
+        for (var q = full; q < c.ch; q++) {
+            tail += va[q >> 2u][q & 3u] * line1(lt, q);
+        }
+        let feature = s0.x + s0.y + s0.z + s0.w + s1.x + s1.y + s1.z + s1.w + tail;
+        let sigma = softplus(feature + hdr.shift);
+        let dense = opacity(sigma * hdr.delta) > occ_pass.threshold;
+        if centre {
+            let at = (k * ny + j) * nx + i;
+            let bit = 1u << (at % 32u);
+            if dense {
+                atomicOr(&occ_cells[at / 32u], bit);
+            } else {
+                atomicAnd(&occ_cells[at / 32u], ~bit);
+            }
+        } else {
+            let at = (k * (ny + 1u) + j) * (nx + 1u) + i;
+            let bit = 1u << (at % 32u);
+            if dense {
+                atomicOr(&occ_corners[at / 32u], bit);
+            } else {
+                atomicAnd(&occ_corners[at / 32u], ~bit);
+            }
+        }
+    }
+    occ_canary();
+}
+
+fn corner_dense(i: u32, j: u32, k: u32) -> bool {
+    let at = (k * (hdr.occ_ny + 1u) + j) * (hdr.occ_nx + 1u) + i;
+    return ((atomicLoad(&occ_corners[at / 32u]) >> (at % 32u)) & 1u) != 0u;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn occupancy_cells(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = occ_pass.i0 + gid.x;
+    let j = occ_pass.j0 + gid.y;
+    if i >= occ_pass.i1 || j >= occ_pass.j1 {
+        return;
+    }
+    for (var k = occ_pass.k0; k < occ_pass.k1; k++) {
+        let dense = corner_dense(i, j, k) || corner_dense(i + 1u, j, k)
+            || corner_dense(i, j + 1u, k) || corner_dense(i + 1u, j + 1u, k)
+            || corner_dense(i, j, k + 1u) || corner_dense(i + 1u, j, k + 1u)
+            || corner_dense(i, j + 1u, k + 1u) || corner_dense(i + 1u, j + 1u, k + 1u);
+        if dense {
+            let at = (k * hdr.occ_ny + j) * hdr.occ_nx + i;
+            atomicOr(&occ_cells[at / 32u], 1u << (at % 32u));
+        }
+    }
+    occ_canary();
+}

@@ -1,19 +1,27 @@
-//! The GPU composer against the CPU one (`assetfield_scene::Composition`): the same canvas,
-//! templates and layouts rasterised by both (planes equal to 1e-5), composed scenes rendered
-//! by both (PSNR above 45 dB), and a batch of layouts rendered like one layout at a time.
+//! The GPU composer against the CPU one (`assetfield_scene::Composition` and the ECS
+//! `Composer`): the same canvas, templates and layouts rasterised by both (planes equal to
+//! 1e-5), occupancy grids rebuilt by both after every edit (cells equal but for a few at the
+//! threshold), composed scenes rendered by both with and without the grid (PSNR above
+//! 45 dB), and a batch of layouts rendered like one layout at a time.
 
 mod common;
 
 use assetfield_core::{Aabb3, Camera, GroundTransform, Intrinsics, Rect2};
-use assetfield_field::{DecoderKind, Field, FieldConfig, ModelKind, render_view};
-use assetfield_gpu::{GpuComposer, GpuError, Layout, PatchInstance};
-use assetfield_scene::{Composition, FeaturePatch, InstanceDraw, TexelRect};
+use assetfield_field::{DecoderKind, Field, FieldConfig, ModelKind, Occupancy, render_view};
+use assetfield_gpu::{GpuComposer, GpuError, Layout, OCCUPANCY_THRESHOLD, PatchInstance};
+use assetfield_scene::{
+    Composer, Composition, DensityRule, FeaturePatch, InstanceDraw, InstanceOf, TexelRect,
+};
 use common::{compare, context_or_skip, spread, structured_field};
 use glam::{Vec2, Vec3};
+use std::sync::Arc;
 use std::time::Instant;
 
 const MAX_PLANE_DIFF: f32 = 1e-5;
 const MIN_PSNR: f64 = 45.0;
+/// Occupancy cells on which the device and the CPU may disagree (density within rounding
+/// of the threshold), as a fraction of the grid.
+const MAX_OCC_MISMATCH: f64 = 1e-3;
 
 /// Who composes.
 enum Backend<'a> {
@@ -180,9 +188,10 @@ fn max_diff(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
 }
 
-fn planes_match(test: &str, nd: usize, nc: usize, res: usize) {
+fn planes_match(test: &str, nd: usize, nc: usize, res: usize, rule: DensityRule) {
     let Some(ctx) = context_or_skip(test) else { return };
-    let (comp, templates) = random_scene(nd, nc, res);
+    let (mut comp, templates) = random_scene(nd, nc, res);
+    comp.density_rule = rule;
     let mut gpu = GpuComposer::new(ctx, &comp, &templates).expect("upload");
     let mut resumed =
         GpuComposer::new(ctx, &comp, &templates).expect("upload").with_raster_chunk(1);
@@ -232,12 +241,18 @@ fn planes_match(test: &str, nd: usize, nc: usize, res: usize) {
 
 #[test]
 fn planes_match_cpu() {
-    planes_match("planes 10 + 12 channels", 10, 12, 48);
+    planes_match("planes 10 + 12 channels", 10, 12, 48, DensityRule::Replace);
 }
 
 #[test]
 fn planes_match_cpu_default_channels() {
-    planes_match("planes 16 + 48 channels", 16, 48, 40);
+    planes_match("planes 16 + 48 channels", 16, 48, 40, DensityRule::Replace);
+}
+
+/// Density features added to the canvas (as library compositions combine them).
+#[test]
+fn planes_match_cpu_additive_density() {
+    planes_match("planes 10 + 12 channels, added", 10, 12, 40, DensityRule::Add);
 }
 
 /// The structured field of the GPU tests with its objects cut out as templates (soft
@@ -295,6 +310,9 @@ fn composed_renders_match_cpu() {
     let Some(ctx) = context_or_skip(test) else { return };
     let (comp, templates) = object_scene();
     let mut gpu = GpuComposer::new(ctx, &comp, &templates).expect("upload");
+    // every sample marched, as render_view(field, None, ..)
+    gpu.set_occupancy(false).unwrap();
+    assert!(!gpu.occupancy_enabled());
     let layouts = object_layouts();
     let cams = object_cameras(40);
     let bg = Vec3::new(1.0, 0.9, 0.8);
@@ -424,6 +442,254 @@ fn loops_cut_short_are_detected() {
         Err(e) => {
             eprintln!("{e}");
             assert!(matches!(e, GpuError::RasterLoopLimit { .. }), "{e}");
+        }
+    }
+}
+
+/// The footprint (texel rectangle) of an instance, as the CPU composer tracks it.
+fn footprint(gpu: &GpuComposer, templates: &[FeaturePatch], i: &PatchInstance) -> TexelRect {
+    gpu.grid().texels_of(
+        InstanceDraw { transform: i.transform, patch: &templates[i.patch] }.world_bounds(),
+    )
+}
+
+/// Cells on which two grids (bytes, 1 = occupied) disagree, and the fill of the first.
+fn occ_mismatch(a: &[u8], b: &[u8]) -> (usize, f64) {
+    assert_eq!(a.len(), b.len());
+    let differ = a.iter().zip(b).filter(|(x, y)| x != y).count();
+    let fill = a.iter().filter(|x| **x != 0).count() as f64 / a.len() as f64;
+    (differ, fill)
+}
+
+/// The CPU composer (ECS) on `comp`'s canvas with templates `t0, t1, ..` and `layout`'s
+/// instances keyed `i0, i1, ..`, one frame run.
+fn cpu_composer(comp: &Composition, templates: &[FeaturePatch], layout: &Layout) -> Composer {
+    let mut c = Composer::new(comp.clone());
+    for (k, t) in templates.iter().enumerate() {
+        c.set_template(&format!("t{k}"), "object", Arc::new(t.clone())).unwrap();
+    }
+    for (k, i) in layout.iter().enumerate() {
+        c.spawn(&format!("i{k}"), &format!("t{}", i.patch), i.transform).unwrap();
+    }
+    c.update();
+    c
+}
+
+/// Make the CPU composer's instances `i0, i1, ..` match `layout` (same length): moves,
+/// turns and template swaps, then one frame (dirty rectangles and occupancy columns).
+fn cpu_edit(c: &mut Composer, layout: &Layout) {
+    for (k, i) in layout.iter().enumerate() {
+        let e = c.find(&format!("i{k}")).unwrap();
+        c.set_placement(e, i.transform).unwrap();
+        let t = c.template(&format!("t{}", i.patch)).unwrap();
+        if c.world.get::<InstanceOf>(e) != Some(&InstanceOf(t)) {
+            c.world.entity_mut(e).insert(InstanceOf(t));
+        }
+    }
+    c.update();
+}
+
+/// The CPU composer's occupancy grid as bytes.
+fn cpu_grid(c: &Composer) -> Vec<u8> {
+    c.composition().occupancy.as_ref().expect("a grid after the first render").cells_u8()
+}
+
+/// The composed scene edited in steps (a full layout, then moves, a turn, a template swap),
+/// on the CPU composer (ECS: dirty rectangles, `Occupancy::update_region`) and on the GPU
+/// (`rasterise_rects` over the old and new footprints, the occupancy pass over their
+/// columns): after every step, the occupancy grids agree but for a few cells at the
+/// threshold, and the renders (both skipping empty cells) agree above 45 dB.
+#[test]
+fn composed_renders_with_occupancy_match_the_cpu_composer() {
+    let test = "composed renders with occupancy";
+    let Some(ctx) = context_or_skip(test) else { return };
+    let (comp, templates) = object_scene();
+    let mut gpu = GpuComposer::new(ctx, &comp, &templates).expect("upload");
+    assert!(gpu.occupancy_enabled());
+    let res = gpu.occupancy_res();
+    assert_eq!(res, [20, 20, 16], "half the field's resolution, as the CPU composer");
+    let cams = object_cameras(40);
+    let bg = Vec3::new(1.0, 0.9, 0.8);
+    let base = object_layouts()[0].clone();
+    // the same instances edited: moves, a turn, a template swap, a scale
+    let mut steps = vec![base.clone()];
+    let mut l = base.clone();
+    l[0] = at(0, -0.2, 0.5, 30.0, 1.0);
+    steps.push(l.clone());
+    l[2] = at(1, 0.5, -0.45, 120.0, 1.0);
+    steps.push(l.clone());
+    l[1] = at(2, -0.5, -0.5, 200.0, 1.3);
+    steps.push(l);
+    let mut cpu = cpu_composer(&comp, &templates, &steps[0]);
+    gpu.rasterise(&steps[0], None).unwrap();
+    let mut prev: Option<(Layout, Vec<Vec<f32>>)> = None;
+    for (k, layout) in steps.iter().enumerate() {
+        let mut gstats = None;
+        if let Some((before, _)) = &prev {
+            cpu_edit(&mut cpu, layout);
+            let rects: Vec<TexelRect> = before
+                .iter()
+                .zip(layout)
+                .filter(|(a, b)| a != b)
+                .flat_map(|(a, b)| [footprint(&gpu, &templates, a), footprint(&gpu, &templates, b)])
+                .collect();
+            gstats = Some(gpu.rasterise_rects(layout, &rects).unwrap());
+        }
+        let t0 = Instant::now();
+        let cv: Vec<Vec<f32>> = cams.iter().map(|c| cpu.render(c, bg)).collect();
+        let t_cpu = t0.elapsed().as_secs_f64();
+        let t0 = Instant::now();
+        let gv = gpu.render(&cams, bg).unwrap();
+        let t_gpu = t0.elapsed().as_secs_f64();
+        let (gc, cc) = (gpu.occupancy_cells().unwrap(), cpu_grid(&cpu));
+        let (differ, fill) = occ_mismatch(&cc, &gc);
+        let (psnr, max) = compare(&cv.concat(), &gv.concat());
+        eprintln!(
+            "{test}: step {k}: grid {res:?} fill {fill:.3}, {differ} cells differ; PSNR {psnr:.1} \
+             dB, max |cpu - gpu| {:.2e}; cpu {t_cpu:.3} s, gpu {t_gpu:.3} s; {gstats:?}",
+            max.iter().fold(0.0f32, |a, b| a.max(*b)),
+        );
+        assert!(fill > 0.02 && fill < 0.6, "step {k}: the grid should skip space ({fill})");
+        assert!(
+            (differ as f64) <= MAX_OCC_MISMATCH * cc.len() as f64,
+            "step {k}: {differ} of {} cells differ",
+            cc.len()
+        );
+        assert!(spread(&cv.concat()) > 0.05, "step {k}: the reference images are flat");
+        for (v, (c, g)) in cv.iter().zip(&gv).enumerate() {
+            let (p, _) = compare(c, g);
+            assert!(p > MIN_PSNR, "step {k} view {v}: PSNR {p:.1} dB");
+        }
+        if let Some((_, before)) = &prev {
+            let (p, _) = compare(&before.concat(), &gv.concat());
+            assert!(p < 40.0, "step {k}: the edit changed nothing ({p:.1} dB)");
+        }
+        prev = Some((layout.clone(), gv));
+    }
+    // the whole layout rasterised and rendered in one batch: the same as the edits
+    let (last, edited) = prev.unwrap();
+    let batch = gpu.render_layouts(&[last], &cams, bg).unwrap();
+    let (psnr, _) = compare(&edited.concat(), &batch[0].concat());
+    assert!(psnr > 80.0, "batch vs edited: {psnr:.1} dB");
+}
+
+/// The grid on the device against `Occupancy::from_field` on the CPU's planes, for a full
+/// rasterisation, after which the grid is turned off (renders then equal those without a
+/// grid) and on again (rebuilt); its passes split over many dispatches give the same grid.
+#[test]
+fn the_device_grid_matches_a_full_cpu_rebuild() {
+    let test = "device occupancy grid";
+    let Some(ctx) = context_or_skip(test) else { return };
+    let (comp, templates) = object_scene();
+    let layout = object_layouts()[1].clone();
+    let mut gpu = GpuComposer::new(ctx, &comp, &templates).expect("upload");
+    let res = gpu.occupancy_res();
+    // the empty canvas: the composer builds its grid on upload
+    let mut blank = comp.clone();
+    blank.rasterise(blank.full_rect(), &[]);
+    let cpu_blank = Occupancy::from_field(&blank.field, res, OCCUPANCY_THRESHOLD).cells_u8();
+    let (differ, fill) = occ_mismatch(&cpu_blank, &gpu.occupancy_cells().unwrap());
+    eprintln!("{test}: canvas: fill {fill:.3}, {differ} cells differ");
+    assert!((differ as f64) <= MAX_OCC_MISMATCH * cpu_blank.len() as f64);
+    let stats = gpu.rasterise(&layout, None).unwrap();
+    assert_eq!(stats.occupancy_cells, res.iter().product::<usize>());
+    let mut cpu = comp.clone();
+    let draws: Vec<InstanceDraw> = layout
+        .iter()
+        .map(|i| InstanceDraw { transform: i.transform, patch: &templates[i.patch] })
+        .collect();
+    cpu.rasterise(cpu.full_rect(), &draws);
+    let cpu_occ = Occupancy::from_field(&cpu.field, res, OCCUPANCY_THRESHOLD);
+    let gpu_cells = gpu.occupancy_cells().unwrap();
+    let (differ, fill) = occ_mismatch(&cpu_occ.cells_u8(), &gpu_cells);
+    eprintln!("{test}: layout: fill {fill:.3}, {differ} cells differ");
+    assert!((differ as f64) <= MAX_OCC_MISMATCH * gpu_cells.len() as f64);
+    assert!(fill < 0.6 && fill > cpu_blank.iter().filter(|c| **c != 0).count() as f64 / 6400.0);
+    let cams = object_cameras(24);
+    let with_grid = gpu.render(&cams, Vec3::ONE).unwrap();
+    // off: every sample marched; the render matches the CPU without a grid
+    gpu.set_occupancy(false).unwrap();
+    let without = gpu.render(&cams, Vec3::ONE).unwrap();
+    let cpu_none: Vec<Vec<f32>> =
+        cams.iter().map(|c| render_view(&cpu.field, None, c, Vec3::ONE)).collect();
+    let (p_none, _) = compare(&cpu_none.concat(), &without.concat());
+    let cpu_grid: Vec<Vec<f32>> =
+        cams.iter().map(|c| render_view(&cpu.field, Some(&cpu_occ), c, Vec3::ONE)).collect();
+    let (p_grid, _) = compare(&cpu_grid.concat(), &with_grid.concat());
+    eprintln!("{test}: PSNR without a grid {p_none:.1} dB, with {p_grid:.1} dB");
+    assert!(p_none > MIN_PSNR && p_grid > MIN_PSNR);
+    // edits while off leave the grid alone; turning it on rebuilds it
+    let s = gpu.rasterise(&object_layouts()[2], None).unwrap();
+    assert_eq!(s.occupancy_cells, 0);
+    gpu.set_occupancy(true).unwrap();
+    gpu.rasterise(&layout, None).unwrap();
+    assert_eq!(gpu.occupancy_cells().unwrap(), gpu_cells);
+    assert_eq!(gpu.render(&cams, Vec3::ONE).unwrap(), with_grid);
+    // an explicit refresh over a rectangle changes nothing when the planes did not change
+    let n = gpu.refresh_occupancy(Some(TexelRect { r0: 3, c0: 5, r1: 17, c1: 30 })).unwrap();
+    assert!(n > 0 && n < gpu_cells.len());
+    assert_eq!(gpu.occupancy_cells().unwrap(), gpu_cells);
+}
+
+/// Occupancy passes split over many dispatches give the same grid; a field so tall that a
+/// column's cells take more loop iterations than llvmpipe allows is split by default (right
+/// grid) and, forced into one dispatch, either runs (hardware GPUs: the same grid) or is
+/// refused by the canary; never a wrong grid.
+#[test]
+fn occupancy_passes_split_and_loops_cut_short_are_detected() {
+    let test = "occupancy passes";
+    let Some(ctx) = context_or_skip(test) else { return };
+    let (comp, templates) = object_scene();
+    let layout = object_layouts()[0].clone();
+    let mut whole = GpuComposer::new(ctx, &comp, &templates).unwrap();
+    let mut split = GpuComposer::new(ctx, &comp, &templates).unwrap().with_occupancy_layers(3);
+    assert_eq!(split.occupancy_layers(), 3);
+    assert!(whole.occupancy_layers() >= 16, "{}", whole.occupancy_layers());
+    whole.rasterise(&layout, None).unwrap();
+    split.rasterise(&layout, None).unwrap();
+    assert_eq!(whole.occupancy_cells().unwrap(), split.occupancy_cells().unwrap());
+    // a tall thin field: 8 x 8 texels, 16000 samples along z, 23 density channels (a
+    // layer of points costs the occupancy pass 11 loop iterations)
+    let aabb = Aabb3::new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 3.0));
+    let mut cfg = FieldConfig::new(ModelKind::Standard, aabb, 8);
+    let nd = 23;
+    cfg.density_channels = nd;
+    cfg.color_channels = 8;
+    cfg.res = [8, 8, 16000];
+    let mut field = Field::new(cfg, 3);
+    let s = field.params.spec("density.plane").unwrap().clone();
+    for v in &mut field.params.data[s.offset..s.offset + s.len] {
+        *v = 1.0;
+    }
+    let s = field.params.spec("density.axis").unwrap().clone();
+    for (k, v) in field.params.data[s.offset..s.offset + s.len].iter_mut().enumerate() {
+        // slabs of density here and there along z
+        *v = if (k / nd) % 97 < 10 { 0.9 } else { -0.5 };
+    }
+    let tall = Composition::new(field).unwrap();
+    let bounded = GpuComposer::new(ctx, &tall, &[]).unwrap();
+    assert_eq!(bounded.occupancy_res(), [8, 8, 8000]);
+    let layers = bounded.occupancy_layers();
+    assert!(layers < 8000, "{layers} layers per dispatch");
+    let mut blank = tall.clone();
+    blank.rasterise(blank.full_rect(), &[]);
+    let cpu = Occupancy::from_field(&blank.field, [8, 8, 8000], OCCUPANCY_THRESHOLD).cells_u8();
+    let cells = bounded.occupancy_cells().unwrap();
+    let (differ, fill) = occ_mismatch(&cpu, &cells);
+    eprintln!("{test}: tall field, {layers} layers per dispatch: fill {fill:.3}, {differ} differ");
+    assert!(fill > 0.05 && fill < 0.5, "{fill}");
+    assert!((differ as f64) <= MAX_OCC_MISMATCH * cpu.len() as f64);
+    let mut forced =
+        GpuComposer::new(ctx, &tall, &[]).unwrap().with_unbounded_occupancy_layers(8000);
+    match forced.refresh_occupancy(None) {
+        Ok(n) => {
+            assert_eq!(n, 8 * 8 * 8000);
+            eprintln!("{test}: the driver ran every loop");
+            assert_eq!(forced.occupancy_cells().unwrap(), cells);
+        }
+        Err(e) => {
+            eprintln!("{test}: {e}");
+            assert!(matches!(e, GpuError::OccupancyLoopLimit { .. }), "{e}");
         }
     }
 }

@@ -1,10 +1,12 @@
 //! The GPU renderer against the CPU reference (`assetfield_field::render_view`): the same
-//! fields and cameras rendered by both, PSNR between them above 45 dB.
+//! fields and cameras rendered by both, PSNR between them above 45 dB; and the occupancy
+//! grid built on the device (the composer's pass) against the CPU's.
 
 mod common;
 
 use assetfield_field::{DecoderKind, Field, ModelKind, Occupancy};
-use assetfield_gpu::FieldRenderer;
+use assetfield_gpu::{FieldRenderer, GpuComposer};
+use assetfield_scene::Composition;
 use common::{Backend, cameras, compare, context_or_skip, occupancy, spread, structured_field};
 use glam::Vec3;
 use std::time::Instant;
@@ -163,4 +165,46 @@ fn trained_fields_400() {
         );
         assert!(psnr > MIN_PSNR, "{}: PSNR {psnr:.1}", path.display());
     }
+}
+
+/// The composer's occupancy pass on a field's own planes (a composition with no instances:
+/// the canvas is the field) builds the grid training builds (`Occupancy::from_field`, half
+/// the resolution), and renders with it match the CPU with it, for every composable model.
+fn device_grid(test: &str, field: &Field) {
+    let Some(ctx) = context_or_skip(test) else { return };
+    let occ = occupancy(field);
+    let comp = Composition::new(field.clone()).unwrap();
+    let gpu = GpuComposer::new(ctx, &comp, &[]).expect("upload");
+    assert_eq!(gpu.occupancy_res(), occ.res);
+    let cells = gpu.occupancy_cells().unwrap();
+    let cpu_cells = occ.cells_u8();
+    let differ = cells.iter().zip(&cpu_cells).filter(|(a, b)| a != b).count();
+    let cams = cameras(32);
+    let bg = Vec3::new(1.0, 0.8, 0.6);
+    let cpu = Backend::Cpu.render(field, Some(&occ), &cams, bg);
+    let out = gpu.render(&cams, bg).unwrap();
+    let (psnr, _) = compare(&cpu.concat(), &out.concat());
+    eprintln!(
+        "{test}: grid {:?} fill {:.3}: {differ} cells differ; PSNR {psnr:.1} dB",
+        occ.res,
+        occ.fill()
+    );
+    assert!(differ * 1000 <= cpu_cells.len(), "{differ} of {} cells", cpu_cells.len());
+    assert!(psnr > MIN_PSNR, "{psnr}");
+}
+
+#[test]
+fn device_occupancy_standard_mlp() {
+    device_grid("device grid S, MLP", &structured_field(ModelKind::Standard, mlp()));
+}
+
+#[test]
+fn device_occupancy_integrated_mlp() {
+    device_grid("device grid I, MLP", &structured_field(ModelKind::Integrated, mlp()));
+}
+
+#[test]
+fn device_occupancy_integrated_sh() {
+    let d = DecoderKind::Sh { degree: 2 };
+    device_grid("device grid I, SH 2", &structured_field(ModelKind::Integrated, d));
 }

@@ -4,7 +4,9 @@
 mod common;
 
 use assetfield_field::{DecoderKind, ModelKind};
-use assetfield_gpu::{RASTER_WGSL, RENDER_WGSL, plan_upload, raster_struct_members};
+use assetfield_gpu::{
+    RASTER_WGSL, RENDER_WGSL, occupancy_pass_members, plan_upload, raster_struct_members,
+};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 use naga::{ArraySize, Handle, Module, Type, TypeInner};
 use std::path::{Path, PathBuf};
@@ -112,22 +114,28 @@ fn the_header_layout_matches_the_host() {
     }
 }
 
-/// The raster shader's structs (`Raster`, `Chunk`, `Inst`) match the words the host packs:
-/// member for member, one 32-bit word each, nothing after the last.
+/// The raster shader's structs (`Raster`, `Chunk`, `Inst`) and the occupancy pass's
+/// `OccPass` (in `render.wgsl`) match the words the host packs: member for member, one
+/// 32-bit word each, nothing after the last.
 #[test]
 fn the_raster_structs_match_the_host() {
-    let module = validate(RASTER_WGSL, "raster.wgsl").unwrap();
-    for (name, host) in raster_struct_members() {
+    let raster = validate(RASTER_WGSL, "raster.wgsl").unwrap();
+    let render = validate(RENDER_WGSL, "render.wgsl").unwrap();
+    let structs = raster_struct_members()
+        .into_iter()
+        .map(|(name, host)| (&raster, name, host))
+        .chain([(&render, "OccPass", occupancy_pass_members())]);
+    for (module, name, host) in structs {
         let (ty, _) = module
             .types
             .iter()
             .find(|(_, t)| t.name.as_deref() == Some(name))
-            .unwrap_or_else(|| panic!("struct {name} in raster.wgsl"));
+            .unwrap_or_else(|| panic!("struct {name} in the shaders"));
         let mut members = Vec::new();
-        flatten(&module, ty, 0, "", &mut members);
+        flatten(module, ty, 0, "", &mut members);
         let host: Vec<(String, u32)> =
             host.iter().enumerate().map(|(k, n)| (n.to_string(), 4 * k as u32)).collect();
-        assert_eq!(host, members, "host words vs raster.wgsl's {name}");
+        assert_eq!(host, members, "host words vs the shader's {name}");
         let TypeInner::Struct { span, .. } = module.types[ty].inner else { unreachable!() };
         assert_eq!(span, 4 * host.len() as u32, "{name}");
     }

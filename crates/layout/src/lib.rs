@@ -31,4 +31,4 @@ pub use script::{
     AssetDef, Axis, Edit, Facing, Item, LibraryRef, Lighting, ObjSource, Part, Region, Script,
     Variation, ViewSettings,
 };
-pub use source::{LoadedScript, load, load_str};
+pub use source::{LoadedScript, append_edits, load, load_str};

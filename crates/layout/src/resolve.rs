@@ -147,6 +147,18 @@ pub struct ResolvedInstance {
     pub bev_aabb: Rect2,
     /// World height of the top of the instance.
     pub top: f32,
+    /// The script item that placed the instance (for a copy, the `Duplicate` edit).
+    pub placed_at: Location,
+    /// The last edit that changed the instance's transform or asset.
+    pub edited_at: Option<Location>,
+}
+
+impl ResolvedInstance {
+    /// Where in the script the instance got its current state: the last edit that changed
+    /// it, else the item that placed it (for error messages about the instance).
+    pub fn location(&self) -> &Location {
+        self.edited_at.as_ref().unwrap_or(&self.placed_at)
+    }
 }
 
 /// A resolved layout.
@@ -196,8 +208,19 @@ pub fn resolve(
     }
     let mut removed = vec![false; r.out.len()];
     for e in &script.edits {
+        let before: Vec<(GroundTransform, String)> =
+            r.out.iter().map(|i| (i.transform, i.asset.clone())).collect();
         r.edit(e, &mut removed)?;
         removed.resize(r.out.len(), false);
+        for (k, inst) in r.out.iter_mut().enumerate() {
+            let same = before.get(k).is_some_and(|(t, a)| *t == inst.transform && *a == inst.asset);
+            if !same {
+                if k >= before.len() {
+                    inst.placed_at = e.location.clone();
+                }
+                inst.edited_at = Some(e.location.clone());
+            }
+        }
     }
     let instances: Vec<ResolvedInstance> =
         r.out.into_iter().zip(removed).filter(|(_, gone)| !gone).map(|(i, _)| i).collect();
@@ -379,6 +402,7 @@ impl Resolver<'_> {
         info: &AssetInfo,
         world: GroundTransform,
         supporter: Option<u32>,
+        placed_at: &Location,
     ) -> u32 {
         let local = relative_to(&world, &self.top_frame(supporter));
         let id = self.next_id;
@@ -396,6 +420,8 @@ impl Resolver<'_> {
             footprint: info.footprint,
             bev_aabb: bev_of(info, &world),
             top: world.base + world.scale * info.height,
+            placed_at: placed_at.clone(),
+            edited_at: None,
         });
         id
     }
@@ -430,7 +456,7 @@ impl Resolver<'_> {
                 check_scale(*scale)?;
                 let info = self.info(asset, node)?;
                 let local = GroundTransform::new((*at).into(), *yaw, *scale, *base);
-                self.push(full, asset, &info, frame.compose(&local), supporter);
+                self.push(full, asset, &info, frame.compose(&local), supporter, loc);
             }
             Item::Group { at, yaw, scale, base, on, around, .. } => {
                 check_scale(*scale)?;
@@ -622,7 +648,7 @@ impl Resolver<'_> {
         for (i, s) in spots.into_iter().enumerate() {
             let key = format!("{full}[{i}]");
             let local = varied(&key, s.pos, s.yaw + yaw, scale, vary);
-            self.push(key, asset, &info, frame.compose(&local), supporter);
+            self.push(key, asset, &info, frame.compose(&local), supporter, &node.location);
         }
         Ok(())
     }
@@ -690,7 +716,7 @@ impl Resolver<'_> {
             }
             placed.push(p);
             mine.push(quad);
-            self.push(key, asset, &info, world, supporter);
+            self.push(key, asset, &info, world, supporter, loc);
         }
         if placed.len() < count as usize {
             return Err(semantic(

@@ -115,6 +115,16 @@ pub struct LibraryRef {
     pub entry: String,
     /// World size of the patch at scale 1: footprint along local x and y, and height.
     pub size: V3,
+    /// Density warping (the paper's Fig. 7): take the geometry (density features and object
+    /// weights) of this entry of the same library, stretched onto `entry`'s extent, and keep
+    /// `entry`'s colour.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub density_from: Option<String>,
+    /// Recolouring: take the colour features of this entry of the same library, stretched
+    /// onto `entry`'s extent, and keep `entry`'s geometry. With `ReplaceAsset`, recolours
+    /// a whole category.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub color_from: Option<String>,
 }
 
 /// An OBJ mesh (with its MTL colours and diffuse textures).

@@ -295,9 +295,73 @@ fn locate_item(
     ItemNode { item, location, file, children }
 }
 
+/// Append the `edits` of the script at `path` to `script` (after its own edits), ignoring
+/// that file's `base`: the same edit list can then be applied to another layout of the same
+/// scene (e.g. one written against the ground-truth scene, applied to a mined layout whose
+/// instances carry the ground-truth keys). The file may hold edits only. Returns how many
+/// edits were added.
+pub fn append_edits(script: &mut LoadedScript, path: &Path) -> Result<usize, LayoutError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| LayoutError::Io { path: path.to_path_buf(), source: e })?;
+    let parsed = parse_script(path, &text)?;
+    let file = script.files.len();
+    script.files.push(SourceFile::new(path.to_path_buf(), text));
+    let src = &script.files[file];
+    if !parsed.layout.is_empty() || !parsed.assets.is_empty() || !parsed.include.is_empty() {
+        let what = if parsed.layout.is_empty() { "assets" } else { "layout items" };
+        let location = src
+            .find_string(if parsed.layout.is_empty() { "assets" } else { "layout" })
+            .unwrap_or_else(|| src.location(0));
+        return Err(LayoutError::Semantic {
+            location,
+            message: format!(
+                "an edit list may only hold `edits` (it has {what}); to add instances, write a script with `base:` naming the layout"
+            ),
+        });
+    }
+    let mut counters: HashMap<&'static str, usize> = HashMap::new();
+    let n = parsed.edits.len();
+    for edit in parsed.edits {
+        let k = counters.entry(edit.variant()).or_default();
+        let location = script.files[file].find_ident(edit.variant(), *k);
+        *k += 1;
+        script.edits.push(EditNode { edit, location, file });
+    }
+    Ok(n)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn appended_edits_apply_after_the_scripts_own_and_locate_instances() {
+        let dir = std::env::temp_dir().join(format!("af-append-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene = "Scene(\n  assets: {\n    \"a\": Asset(parts: [Box(center: (0, 0, 0.5), size: (1, 1, 1), color: (1, 0, 0))]),\n  },\n  layout: [\n    Row(asset: \"a\", from: (0, 0), to: (4, 0), count: 3, name: \"r\"),\n  ],\n  edits: [Move(target: \"r[0]\", by: (0, 1))],\n)\n";
+        let edits = "Scene(\n  base: \"elsewhere.ron\",\n  edits: [\n    Remove(\"r[1]\"),\n    Move(target: \"r[0]\", by: (1, 0)),\n  ],\n)\n";
+        std::fs::write(dir.join("s.ron"), scene).unwrap();
+        std::fs::write(dir.join("e.ron"), edits).unwrap();
+        let mut script = load(&dir.join("s.ron")).unwrap();
+        assert_eq!(append_edits(&mut script, &dir.join("e.ron")).unwrap(), 2);
+        let catalog = crate::PartsCatalog::from_script(&script);
+        let layout = crate::resolve(&script, &catalog).unwrap();
+        let keys: Vec<&str> = layout.instances.iter().map(|i| i.key.as_str()).collect();
+        assert_eq!(keys, ["r[0]", "r[2]"]);
+        let r0 = &layout.instances[0];
+        assert_eq!(r0.transform.position, glam::Vec2::new(1.0, 1.0), "both moves, in order");
+        // the instance was last changed by the appended Move (e.ron line 5), placed at s.ron:6
+        assert_eq!((r0.placed_at.line, r0.placed_at.col), (6, 5));
+        let at = r0.location();
+        assert!(at.file.ends_with("e.ron") && at.line == 5, "{at}");
+        assert!(layout.instances[1].edited_at.is_none());
+        // an edit list with layout items is refused, naming the file
+        std::fs::write(dir.join("bad.ron"), "Scene(layout: [Instance(asset: \"a\", at: (0, 0))])")
+            .unwrap();
+        let e = append_edits(&mut load(&dir.join("s.ron")).unwrap(), &dir.join("bad.ron"));
+        assert!(e.unwrap_err().to_string().contains("bad.ron:1:"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     #[test]
     fn locations_skip_comments_and_strings() {

@@ -20,13 +20,18 @@ fn round3(v: f32) -> f32 {
 
 /// Build the layout script of a library index (see the module docs). `extent` is the ground
 /// region `[xmin, ymin, xmax, ymax]`; `library_path` the library folder relative to the
-/// script (`"."` when the script lives in it).
+/// script (`"."` when the script lives in it). Instances are named after their entries,
+/// or after `names[entry]` where given (e.g. the ground-truth keys they matched; a name is
+/// used for an object standing on another only when it starts with its host's name and a
+/// `/`, the rest becoming its name inside the host's group, so that keys stay equal).
 pub fn layout_script(
     index: &LibraryIndex,
     name: &str,
     extent: [f32; 4],
     library_path: &str,
+    names: &BTreeMap<String, String>,
 ) -> Result<Script> {
+    let display = |entry: &str| names.get(entry).cloned().unwrap_or_else(|| entry.to_string());
     let mut assets = BTreeMap::new();
     let mut heights = BTreeMap::new();
     for c in &index.categories {
@@ -51,6 +56,8 @@ pub fn layout_script(
                     path: library_path.to_string(),
                     entry: c.template.clone(),
                     size,
+                    density_from: None,
+                    color_from: None,
                 }),
             },
         );
@@ -66,7 +73,7 @@ pub fn layout_script(
                 yaw,
                 scale: 1.0,
                 base: 0.0,
-                name: Some(e.name.clone()),
+                name: Some(display(&e.name)),
             }),
             Some(parent) => {
                 let p = index.entry(parent).ok_or_else(|| MiningError::Format {
@@ -88,7 +95,12 @@ pub fn layout_script(
                     yaw: round3(wrap_degrees(yaw - pyaw)),
                     scale: 1.0,
                     base: if base.abs() < 5e-3 { 0.0 } else { base },
-                    name: Some(e.name.clone()),
+                    name: Some(
+                        display(&e.name)
+                            .strip_prefix(&format!("{}/", display(parent)))
+                            .filter(|rest| !rest.is_empty())
+                            .map_or_else(|| e.name.clone(), str::to_string),
+                    ),
                 });
             }
         }
@@ -100,7 +112,7 @@ pub fn layout_script(
             yaw: 0.0,
             scale: 1.0,
             base: 0.0,
-            on: Some(parent.to_string()),
+            on: Some(display(parent)),
             around: None,
             children: kids,
         });
@@ -197,7 +209,8 @@ mod tests {
             ],
             containers: vec![],
         };
-        let script = layout_script(&index, "mined", [-3.0, -2.0, 3.0, 2.0], ".").unwrap();
+        let script =
+            layout_script(&index, "mined", [-3.0, -2.0, 3.0, 2.0], ".", &BTreeMap::new()).unwrap();
         let path = std::env::temp_dir().join("assetfield-mining-layout-test.ron");
         let (text, n) = script_text_checked(&script, &path).unwrap();
         assert_eq!(n, 4, "{text}");

@@ -47,6 +47,10 @@ pub struct MineOptions {
     pub gt: Option<PathBuf>,
     /// IoU a detection needs to match a ground-truth box.
     pub iou: f32,
+    /// Name the layout's instances after the ground-truth keys they match (with `gt`), so
+    /// that an edit script written for the ground truth applies to the mined layout too.
+    #[serde(default)]
+    pub gt_names: bool,
     /// Replace an existing output folder.
     pub force: bool,
 }
@@ -62,6 +66,7 @@ impl Default for MineOptions {
             templates: Vec::new(),
             gt: None,
             iou: 0.5,
+            gt_names: false,
             force: false,
         }
     }
@@ -288,7 +293,17 @@ pub fn mine(
     let source = field_path.display().to_string();
     let (index, patches) =
         build_library(&source, field, &planes, &dets, &grouping, &poses, pose_opts.margin)?;
-    let shared = shared_tensors(field, &source)?;
+    let mut shared = shared_tensors(field, &source)?;
+    // what rendering the library needs besides the tensors: the background the field was
+    // trained on and the ground alignment of its dataset's cameras
+    assetfield_field::eval::FieldInfo {
+        background: loaded.info.background,
+        ground_transform: loaded.info.ground_transform,
+        dataset: loaded.info.dataset.clone(),
+        ..Default::default()
+    }
+    .write(&mut shared)
+    .map_err(|e| MiningError::io("cannot describe the shared tensors", e))?;
     let mut index = index;
     index.shared.hash = content_hash(&shared);
     index.shared.tensors = shared.names().map(str::to_string).collect();
@@ -300,8 +315,30 @@ pub fn mine(
         .file_stem()
         .map(|s| s.to_string_lossy().trim_end_matches(".ckpt").to_string())
         .unwrap_or_else(|| "mined".into());
+    let metrics = gt.as_ref().map(|gt| {
+        let preds: Vec<Predicted> = dets
+            .detections
+            .iter()
+            .map(|d| Predicted {
+                world: d.world,
+                category: grouping.category[d.id],
+                template: poses.templates[grouping.category[d.id]],
+                yaw_rel: poses.poses[d.id].yaw_deg,
+                position: poses.poses[d.id].position,
+            })
+            .collect();
+        evaluate(&preds, gt, opts.iou)
+    });
+    let mut names = std::collections::BTreeMap::new();
+    if let (true, Some(m), Some(gt)) = (opts.gt_names, &metrics, &gt) {
+        for inst in &m.per_instance {
+            if let Some(g) = inst.gt_id.and_then(|id| gt.instances.iter().find(|g| g.id == id)) {
+                names.insert(entry_name(inst.detection), g.key.clone());
+            }
+        }
+    }
     let world = grid.world_rect();
-    let script = layout_script(&index, &scene, world.to_array(), ".")?;
+    let script = layout_script(&index, &scene, world.to_array(), ".", &names)?;
     let (text, layout_instances) = script_text_checked(&script, &out.join("layout.ron"))?;
     write_atomic(&dir.join("layout.ron"), text.as_bytes())?;
     check_interrupt()?;
@@ -340,20 +377,6 @@ pub fn mine(
     let cat_pic: Canvas = categories_picture(&grid, &colors, &tiles);
     cat_pic.save_png(&dir.join("categories.png"))?;
 
-    let metrics = gt.as_ref().map(|gt| {
-        let preds: Vec<Predicted> = dets
-            .detections
-            .iter()
-            .map(|d| Predicted {
-                world: d.world,
-                category: grouping.category[d.id],
-                template: poses.templates[grouping.category[d.id]],
-                yaw_rel: poses.poses[d.id].yaw_deg,
-                position: poses.poses[d.id].position,
-            })
-            .collect();
-        evaluate(&preds, gt, opts.iou)
-    });
     if let Some(m) = &metrics {
         let mut v = serde_json::to_value(m).map_err(|e| MiningError::io("metrics", e))?;
         if let Some(o) = v.as_object_mut() {

@@ -27,6 +27,14 @@ pub enum SceneError {
     #[error("instance \"{key}\": unknown asset \"{asset}\"")]
     UnknownAsset { key: String, asset: String },
 
+    /// A problem with a script's asset definitions, at its place in the script.
+    #[error("{location}: {message}")]
+    Script { location: String, message: String },
+
+    /// An error about one instance of a script, at the place that put it there.
+    #[error("{location}: {inner}")]
+    At { location: String, inner: Box<SceneError> },
+
     /// A library file problem.
     #[error("{}: {reason}", path.display())]
     Library { path: PathBuf, reason: String },

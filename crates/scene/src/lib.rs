@@ -12,14 +12,16 @@
 
 pub mod error;
 pub mod grid;
+pub mod library;
 pub mod patch;
 pub mod raster;
 pub mod world;
 
 pub use error::SceneError;
 pub use grid::{PlaneGrid, TexelRect};
+pub use library::{AssetLibrary, Canvas, DEFAULT_HALO, ResolvedAsset, ScriptAssets};
 pub use patch::FeaturePatch;
-pub use raster::{Composition, InstanceDraw};
+pub use raster::{Composition, DensityRule, InstanceDraw};
 pub use world::{
     ComposeSet, Composer, Footprints, InstanceKey, InstanceOf, Placement, RasterStats, Template,
     compose_schedule,

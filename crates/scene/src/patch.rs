@@ -175,6 +175,51 @@ impl FeaturePatch {
         total
     }
 
+    /// Recolouring: `source`'s colour features, stretched onto this patch's extent, with this
+    /// patch's geometry (density features and weights) kept. Texels the source object does
+    /// not cover keep their own colour.
+    pub fn with_color_of(&self, source: &FeaturePatch) -> Result<FeaturePatch, SceneError> {
+        if source.nc != self.nc {
+            return Err(SceneError::Incompatible {
+                name: source.name.clone(),
+                what: "colour channels",
+                expected: self.nc.to_string(),
+                actual: source.nc.to_string(),
+            });
+        }
+        let (sh, th) = (source.half_extent(), self.half_extent());
+        let stretch = sh / th.max(Vec2::splat(1e-9));
+        let mut color = self.color.clone();
+        let mut scratch_d = vec![0.0f32; source.nd];
+        let mut acc = vec![0.0f32; source.nc];
+        for r in 0..self.rows {
+            for c in 0..self.cols {
+                let q = Vec2::new(
+                    (c as f32 - (self.cols - 1) as f32 * 0.5) * self.texel.x,
+                    (r as f32 - (self.rows - 1) as f32 * 0.5) * self.texel.y,
+                ) * stretch;
+                scratch_d.fill(0.0);
+                acc.fill(0.0);
+                let w = source.accumulate(q, &mut scratch_d, &mut acc);
+                if w > 1e-6 {
+                    let k = r * self.cols + c;
+                    for (dst, v) in color[k * self.nc..][..self.nc].iter_mut().zip(&acc) {
+                        *dst = v / w;
+                    }
+                }
+            }
+        }
+        FeaturePatch::new(
+            format!("{}~{}", self.name, source.name),
+            self.rows,
+            self.cols,
+            self.texel,
+            self.density.clone(),
+            color,
+            self.weight.clone(),
+        )
+    }
+
     /// Density warping (paper Fig. 7): `source`'s geometry (density features and weights),
     /// stretched onto this patch's extent, with this patch's colour features kept.
     pub fn with_density_of(&self, source: &FeaturePatch) -> Result<FeaturePatch, SceneError> {

@@ -41,6 +41,20 @@ pub struct Composition {
     color_at: usize,
     pub nd: usize,
     pub nc: usize,
+    /// How patch density features combine with the canvas.
+    pub density_rule: DensityRule,
+}
+
+/// How the density features of patches combine with the canvas's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DensityRule {
+    /// Objects displace the canvas: `d = max(0, 1 - sum w) * d_canvas + sum w_i d_i`
+    /// (patches hold the whole column: object and whatever was under it).
+    #[default]
+    Replace,
+    /// Objects add to the canvas: `d = d_canvas + sum w_i d_i` (patches hold the object's
+    /// density alone, the column minus the background it stood on).
+    Add,
 }
 
 fn plane_offset(field: &Field, name: &str) -> Result<(usize, usize), SceneError> {
@@ -74,6 +88,7 @@ impl Composition {
             color_at,
             nd,
             nc,
+            density_rule: DensityRule::Replace,
         })
     }
 
@@ -152,6 +167,7 @@ impl Composition {
             (&mut b[..n * nd], &mut a[c_at..][..n * nc])
         };
         let (canvas_d, canvas_c) = (&self.canvas_density, &self.canvas_color);
+        let additive = self.density_rule == DensityRule::Add;
         let width = rect.c1 - rect.c0;
         dens.par_chunks_mut(cols * nd)
             .zip(col.par_chunks_mut(cols * nc))
@@ -177,8 +193,9 @@ impl Composition {
                     let share = (1.0 - wsum).max(0.0);
                     let (od, oc) = (&mut drow[c * nd..][..nd], &mut crow[c * nc..][..nc]);
                     let (cd, cc) = (&canvas_d[k * nd..][..nd], &canvas_c[k * nc..][..nc]);
+                    let keep = if additive { 1.0 } else { share };
                     for i in 0..nd {
-                        od[i] = share * cd[i] + acc_d[i];
+                        od[i] = keep * cd[i] + acc_d[i];
                     }
                     let norm = share + wsum;
                     if norm > 1e-9 {

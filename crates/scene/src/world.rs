@@ -372,12 +372,19 @@ impl Composer {
     pub fn apply_layout(&mut self, layout: &ResolvedLayout) -> Result<(), SceneError> {
         // validate everything first, so that a bad layout changes nothing
         for inst in layout.objects() {
-            check_transform(&inst.key, &inst.transform)?;
-            let t = self.template(&inst.asset).ok_or_else(|| SceneError::UnknownAsset {
-                key: inst.key.clone(),
-                asset: inst.asset.clone(),
-            })?;
-            self.check_inside(&inst.key, t, &inst.transform)?;
+            let at = |e: SceneError| SceneError::At {
+                location: inst.location().to_string(),
+                inner: Box::new(e),
+            };
+            check_transform(&inst.key, &inst.transform).map_err(at)?;
+            let t = self
+                .template(&inst.asset)
+                .ok_or_else(|| SceneError::UnknownAsset {
+                    key: inst.key.clone(),
+                    asset: inst.asset.clone(),
+                })
+                .map_err(at)?;
+            self.check_inside(&inst.key, t, &inst.transform).map_err(at)?;
         }
         let mut q = self.world.query::<(Entity, &InstanceKey)>();
         let existing: HashMap<String, Entity> =
@@ -432,6 +439,15 @@ impl Composer {
         let mut comp = self.world.resource_mut::<ComposedPlanes>();
         let full = comp.0.full_rect();
         comp.0.rasterise(full, &draws)
+    }
+
+    /// Build the occupancy grid of the composed field if there is none yet (later frames keep
+    /// it up to date over the dirty rectangles).
+    pub fn ensure_occupancy(&mut self) {
+        let mut comp = self.world.resource_mut::<ComposedPlanes>();
+        if comp.0.occupancy.is_none() {
+            comp.0.refresh_occupancy(None);
+        }
     }
 
     /// Render a view of the composed scene (builds the occupancy grid on first use).

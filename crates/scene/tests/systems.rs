@@ -147,3 +147,37 @@ fn bad_edits_are_refused_with_the_instance_named() {
     let err = c.set_template("alien", "alien", Arc::new(other)).unwrap_err().to_string();
     assert!(err.contains("density channels"), "{err}");
 }
+
+#[test]
+fn additive_density_keeps_the_canvas_under_objects_and_sums_overlaps() {
+    let (mut c, patch, dens, col) = setup();
+    c.world.resource_mut::<assetfield_scene::world::ComposedPlanes>().0.density_rule =
+        assetfield_scene::DensityRule::Add;
+    // two copies overlapping at the same spot: density = canvas + 2 x patch, colour = patch
+    c.spawn("a", "chair", at(0.0, 0.0, 0.0)).unwrap();
+    c.spawn("b", "chair", at(0.0, 0.0, 0.0)).unwrap();
+    c.update();
+    let comp = c.composition();
+    let grid = comp.grid;
+    let (r, col_idx) = (30usize, 40usize); // the texel at (0, 0): inside both copies
+    assert!((grid.world(r, col_idx) - Vec2::ZERO).length() < 1e-4);
+    let k = r * grid.cols + col_idx;
+    let (pr, pc) = ((patch.rows - 1) / 2, (patch.cols - 1) / 2);
+    let pk = pr * patch.cols + pc;
+    assert_eq!(patch.weight[pk], 1.0);
+    let d = comp.field.params.spec("density.plane").unwrap();
+    let got = &comp.field.params.data[d.offset + k * 4..][..4];
+    for i in 0..4 {
+        let want = dens[k * 4 + i] + 2.0 * patch.density[pk * 4 + i];
+        assert!((got[i] - want).abs() < 1e-5, "channel {i}: {} vs {want}", got[i]);
+    }
+    let cs = comp.field.params.spec("color.plane").unwrap();
+    let got = &comp.field.params.data[cs.offset + k * 6..][..6];
+    for i in 0..6 {
+        assert!((got[i] - patch.color[pk * 6 + i]).abs() < 1e-5, "colour {i}");
+    }
+    // far from both, the canvas is untouched
+    let far = 5 * grid.cols + 5;
+    assert_eq!(&comp.field.params.data[d.offset + far * 4..][..4], &dens[far * 4..][..4]);
+    let _ = col;
+}

@@ -110,6 +110,11 @@ pub struct MineArgs {
     /// BEV IoU a detection needs to match a ground-truth box (with --gt).
     #[arg(long, default_value_t = 0.5)]
     pub iou: f32,
+    /// Name the instances of layout.ron after the ground-truth keys they match (with
+    /// --gt; e.g. `tables[2]`), so that an edit script written against the ground-truth
+    /// scene applies unchanged to the mined layout (`base: "LIB/layout.ron"`).
+    #[arg(long, requires = "gt")]
+    pub gt_names: bool,
     /// Seed of the K-means runs.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -218,6 +223,7 @@ pub fn mine(a: MineArgs) -> Result<()> {
     o.templates = a.template.iter().map(|t| parse_template(t)).collect::<Result<_>>()?;
     o.gt = a.gt.clone();
     o.iou = a.iou;
+    o.gt_names = a.gt_names;
     o.force = a.force;
     if let Some(seed) = a.seed {
         o.detect.seed = seed;

@@ -1,5 +1,7 @@
 //! The subcommands, one module per group; shared helpers in `util`.
 
+mod bench;
+mod compose;
 mod eval;
 mod mine;
 mod planes;
@@ -8,6 +10,8 @@ mod scene;
 mod train;
 mod util;
 
+pub use bench::{BenchArgs, bench};
+pub use compose::{ComposeArgs, compose};
 pub use eval::{EvalArgs, eval};
 pub use mine::{LibraryArgs, MineArgs, library, mine};
 pub use planes::{PlanesArgs, planes};

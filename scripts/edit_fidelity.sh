@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# Mining and edit fidelity on the scene suite (issues 4 and 5): for every scene with an edit
+# script in scenes/edits/, take the field trained by scripts/quality_suite.sh, mine it
+# against its ground truth (naming the mined instances after the ground-truth keys), compose
+# the mined layout again from the same test cameras, and compose the edit (two moves, a
+# quarter turn, a deletion, a duplication) against `synth --edited` of the same edit.
+#
+#   scripts/edit_fidelity.sh [MODEL] [SCENES...]
+#
+# MODEL: s or i (default s); the fields come from runs/suite/fields/SCENE_MODEL.safetensors
+# (run scripts/quality_suite.sh first). Output under runs/fidelity/: data/SCENE (the scene
+# synthesised with its edit), lib/SCENE_MODEL (the library), compose/SCENE_MODEL_{same,edit}
+# and table.md. Finished steps are skipped, so the script can be stopped and started again.
+# Set BIN to use another binary (default target/release/assetfield, built if missing).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+MODEL=${1:-s}
+shift $(( $# > 0 ? 1 : 0 ))
+SCENES=("$@")
+if [ ${#SCENES[@]} -eq 0 ]; then
+  for f in scenes/edits/*.ron; do SCENES+=("$(basename "$f" .ron)"); done
+fi
+BIN=${BIN:-target/release/assetfield}
+[ -x "$BIN" ] || cargo build --release --locked
+OUT=runs/fidelity
+mkdir -p "$OUT/data" "$OUT/lib" "$OUT/compose" "$OUT/logs"
+
+for scene in "${SCENES[@]}"; do
+  field="runs/suite/fields/${scene}_$MODEL.safetensors"
+  eval_json="runs/suite/eval/${scene}_$MODEL/metrics.json"
+  if [ ! -f "$field" ] || [ ! -f "$eval_json" ]; then
+    echo "== $scene: no trained field ($field); run scripts/quality_suite.sh first"
+    continue
+  fi
+  data="$OUT/data/$scene"
+  [ -f "$data/edited/transforms_test.json" ] ||
+    "$BIN" synth "scenes/$scene.ron" --edited "scenes/edits/$scene.ron" --out "$data" --force \
+      > "$OUT/logs/${scene}.synth.log" 2>&1
+  lib="$OUT/lib/${scene}_$MODEL"
+  [ -f "$lib/metrics.json" ] ||
+    "$BIN" mine "$field" --out "$lib" --gt "$data/gt_layout.json" --gt-names --force \
+      > "$OUT/logs/${scene}_$MODEL.mine.log" 2>&1
+  same="$OUT/compose/${scene}_${MODEL}_same"
+  [ -f "$same/metrics.json" ] ||
+    "$BIN" compose "$lib/layout.ron" --library "$lib" --views "$data" --metrics --out "$same" \
+      --force > "$OUT/logs/${scene}_$MODEL.same.log" 2>&1
+  edit="$OUT/compose/${scene}_${MODEL}_edit"
+  [ -f "$edit/metrics.json" ] ||
+    "$BIN" compose "$lib/layout.ron" --library "$lib" --edits "scenes/edits/$scene.ron" \
+      --views "$data/edited" --metrics --planes --out "$edit" --force \
+      > "$OUT/logs/${scene}_$MODEL.edit.log" 2>&1 ||
+    echo "== $scene: the edit did not compose (see $OUT/logs/${scene}_$MODEL.edit.log)"
+  echo "== $scene $MODEL: $(grep -o '"f1": [0-9.]*' "$lib/metrics.json"), edited $(grep -o '"psnr": [0-9.]*' "$edit/metrics.json" 2>/dev/null | head -1)"
+done
+
+python3 - "$OUT" "$MODEL" "${SCENES[@]}" <<'EOF' || echo "(python3 missing: see $OUT/*/metrics.json)"
+import json, os, sys
+out, model, scenes = sys.argv[1], sys.argv[2], sys.argv[3:]
+def load(p):
+    return json.load(open(p)) if os.path.exists(p) else None
+rows = ["| scene | field PSNR | recomposed | edited | edited - field | F1 | ARI | yaw median | yaw max | position |",
+        "|---|---|---|---|---|---|---|---|---|---|"]
+worst = None
+fmt = lambda v, d=2: "-" if v is None else f"{v:.{d}f}"
+for s in scenes:
+    f = load(f"runs/suite/eval/{s}_{model}/metrics.json")
+    m = load(f"{out}/lib/{s}_{model}/metrics.json")
+    a = load(f"{out}/compose/{s}_{model}_same/metrics.json")
+    e = load(f"{out}/compose/{s}_{model}_edit/metrics.json")
+    if not (f and m):
+        continue
+    drop = (e["psnr"] - f["psnr"]) if e else None
+    if drop is not None:
+        worst = drop if worst is None else min(worst, drop)
+    rows.append(f"| {s} | {fmt(f['psnr'])} | {fmt(a and a['psnr'])} | {fmt(e and e['psnr'])} | {fmt(drop)} | "
+                f"{fmt(m['f1'], 3)} | {fmt(m['ari'], 3)} | {fmt(m.get('yaw_median_deg'))} | "
+                f"{fmt(m.get('yaw_max_deg'), 1)} | {fmt(m.get('position_median'), 3)} |")
+text = "\n".join(rows) + f"\n\nworst edited - field: {fmt(worst)} dB (target: >= -2)\n"
+open(f"{out}/table_{model}.md", "w").write(text)
+print(text)
+EOF
