@@ -329,6 +329,80 @@ impl Field {
         softplus(self.density_feature(p) + self.config.density_shift)
     }
 
+    /// Volume densities at `(x, y, z)` for every `z` of `zs`, into `out` (same length): equal
+    /// to [`Field::density`] at each point, bit for bit, but a ground plane (an XY plane
+    /// with a Z axis: S- and I-AssetField) is interpolated once per column instead of once
+    /// per point. `scratch` is reused between calls.
+    pub fn density_column(
+        &self,
+        x: f32,
+        y: f32,
+        zs: &[f32],
+        scratch: &mut Vec<f32>,
+        out: &mut [f32],
+    ) {
+        debug_assert_eq!(zs.len(), out.len());
+        let d = &self.params.data;
+        let n = zs.len();
+        // per point: eight lanes and a tail, summed at the end exactly as density_feature does
+        let mut lanes = vec![[0.0f32; 8]; n];
+        let mut tails = vec![0.0f32; n];
+        for c in &self.density {
+            let ch = c.ch;
+            let full = ch / 8 * 8;
+            if c.axes == [0, 1, 2] {
+                let g0 = self.to_grid(Vec3::new(x, y, zs.first().copied().unwrap_or(0.0)));
+                let b = c.plane_at(g0);
+                let [w0, w1, w2, w3] = b.w;
+                let p = b.idx.map(|i| &d[c.plane + i..][..ch]);
+                scratch.clear();
+                scratch.extend(
+                    (0..ch).map(|i| w0 * p[0][i] + w1 * p[1][i] + w2 * p[2][i] + w3 * p[3][i]),
+                );
+                let line = c.line.expect("density components have lines");
+                for (k, &z) in zs.iter().enumerate() {
+                    let l = c.line_at(self.to_grid(Vec3::new(x, y, z)));
+                    let [v0, v1] = l.w;
+                    let (l0, l1) = (&d[line + l.idx[0]..][..ch], &d[line + l.idx[1]..][..ch]);
+                    let acc = &mut lanes[k];
+                    for q in (0..full).step_by(8) {
+                        for j in 0..8 {
+                            let i = q + j;
+                            acc[j] += scratch[i] * (v0 * l0[i] + v1 * l1[i]);
+                        }
+                    }
+                    for i in full..ch {
+                        tails[k] += scratch[i] * (v0 * l0[i] + v1 * l1[i]);
+                    }
+                }
+            } else {
+                for (k, &z) in zs.iter().enumerate() {
+                    let g = self.to_grid(Vec3::new(x, y, z));
+                    let (b, l) = (c.plane_at(g), c.line_at(g));
+                    let ([p0, p1, p2, p3], [l0, l1]) = c.taps(d, &b, &l);
+                    let [w0, w1, w2, w3] = b.w;
+                    let [v0, v1] = l.w;
+                    let acc = &mut lanes[k];
+                    for q in (0..full).step_by(8) {
+                        for j in 0..8 {
+                            let i = q + j;
+                            let m = w0 * p0[i] + w1 * p1[i] + w2 * p2[i] + w3 * p3[i];
+                            acc[j] += m * (v0 * l0[i] + v1 * l1[i]);
+                        }
+                    }
+                    for i in full..ch {
+                        let m = w0 * p0[i] + w1 * p1[i] + w2 * p2[i] + w3 * p3[i];
+                        tails[k] += m * (v0 * l0[i] + v1 * l1[i]);
+                    }
+                }
+            }
+        }
+        for k in 0..n {
+            let f = lanes[k].iter().sum::<f32>() + tails[k];
+            out[k] = softplus(f + self.config.density_shift);
+        }
+    }
+
     /// `d density_feature / d params * d_feat`, accumulated into `grad`.
     #[inline]
     pub fn density_backward(&self, p: Vec3, d_feat: f32, grad: &mut [f32]) {

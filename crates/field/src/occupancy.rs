@@ -28,33 +28,7 @@ impl Occupancy {
     /// this evaluates the density about twice per cell rather than nine times.
     pub fn from_field(field: &Field, res: [usize; 3], alpha_threshold: f32) -> Self {
         let mut o = Occupancy::full(field, res);
-        let step = field.config.step_size() * field.config.distance_scale;
-        let cell = Vec3::ONE / o.scale;
-        let min = o.min;
-        let [nx, ny, _] = res;
-        let (cx, cy, cz) = (nx + 1, ny + 1, res[2] + 1);
-        let dense = |p: Vec3| -crate::mlp::fast_expm1(-field.density(p) * step) > alpha_threshold;
-        let mut corners = vec![false; cx * cy * cz];
-        corners.par_chunks_mut(cx * cy).enumerate().for_each(|(k, slab)| {
-            for j in 0..cy {
-                for i in 0..cx {
-                    slab[j * cx + i] = dense(min + Vec3::new(i as f32, j as f32, k as f32) * cell);
-                }
-            }
-        });
-        let corners = &corners;
-        o.cells.par_chunks_mut(nx * ny).enumerate().for_each(|(k, slab)| {
-            for j in 0..ny {
-                for i in 0..nx {
-                    let any_corner = (0..8).any(|b| {
-                        let (di, dj, dk) = (b & 1, (b >> 1) & 1, b >> 2);
-                        corners[((k + dk) * cy + j + dj) * cx + i + di]
-                    });
-                    slab[j * nx + i] = any_corner
-                        || dense(min + (Vec3::new(i as f32, j as f32, k as f32) + 0.5) * cell);
-                }
-            }
-        });
+        o.evaluate_columns(field, [0, res[0]], [0, res[1]], alpha_threshold);
         o
     }
 
@@ -70,8 +44,6 @@ impl Occupancy {
         if xy.is_empty() {
             return;
         }
-        let step = field.config.step_size() * field.config.distance_scale;
-        let cell = Vec3::ONE / self.scale;
         let [nx, ny, _] = self.res;
         let lo = (glam::Vec2::new(xy.min.x - self.min.x, xy.min.y - self.min.y))
             * glam::Vec2::new(self.scale.x, self.scale.y);
@@ -84,20 +56,65 @@ impl Occupancy {
         if i0 >= i1 || j0 >= j1 {
             return;
         }
+        self.evaluate_columns(field, [i0, i1], [j0, j1], alpha_threshold);
+    }
+
+    /// Set the cells of columns `i0..i1` x `j0..j1` (all heights) from the field: occupied
+    /// when the opacity of one march step at the cell's centre or any corner exceeds the
+    /// threshold. Densities are evaluated a vertical column at a time
+    /// ([`Field::density_column`]: the ground plane is read once per column), corners once
+    /// each.
+    fn evaluate_columns(
+        &mut self,
+        field: &Field,
+        [i0, i1]: [usize; 2],
+        [j0, j1]: [usize; 2],
+        alpha_threshold: f32,
+    ) {
+        let step = field.config.step_size() * field.config.distance_scale;
+        let cell = Vec3::ONE / self.scale;
+        let [nx, ny, nz] = self.res;
         let min = self.min;
-        let dense = |p: Vec3| -crate::mlp::fast_expm1(-field.density(p) * step) > alpha_threshold;
+        let (wi, wj) = (i1 - i0, j1 - j0);
+        let cz = nz + 1;
+        let dense = |sigma: f32| -crate::mlp::fast_expm1(-sigma * step) > alpha_threshold;
+        let corner_z: Vec<f32> = (0..cz).map(|k| min.z + k as f32 * cell.z).collect();
+        let centre_z: Vec<f32> = (0..nz).map(|k| min.z + (k as f32 + 0.5) * cell.z).collect();
+        // corner columns [(j - j0)][(i - i0)][k] and centre columns [(j - j0)][(i - i0)][k]
+        let mut corners = vec![false; (wj + 1) * (wi + 1) * cz];
+        corners.par_chunks_mut((wi + 1) * cz).enumerate().for_each(|(dj, row)| {
+            let (mut scratch, mut sigma) = (Vec::new(), vec![0.0f32; cz]);
+            let y = min.y + (j0 + dj) as f32 * cell.y;
+            for (di, col) in row.chunks_mut(cz).enumerate() {
+                let x = min.x + (i0 + di) as f32 * cell.x;
+                field.density_column(x, y, &corner_z, &mut scratch, &mut sigma);
+                for (c, s) in col.iter_mut().zip(&sigma) {
+                    *c = dense(*s);
+                }
+            }
+        });
+        let mut centres = vec![false; wj * wi * nz];
+        centres.par_chunks_mut(wi * nz).enumerate().for_each(|(dj, row)| {
+            let (mut scratch, mut sigma) = (Vec::new(), vec![0.0f32; nz]);
+            let y = min.y + ((j0 + dj) as f32 + 0.5) * cell.y;
+            for (di, col) in row.chunks_mut(nz).enumerate() {
+                let x = min.x + ((i0 + di) as f32 + 0.5) * cell.x;
+                field.density_column(x, y, &centre_z, &mut scratch, &mut sigma);
+                for (c, s) in col.iter_mut().zip(&sigma) {
+                    *c = dense(*s);
+                }
+            }
+        });
+        let (corners, centres) = (&corners, &centres);
         self.cells.par_chunks_mut(nx * ny).enumerate().for_each(|(k, slab)| {
-            for j in j0..j1 {
-                for i in i0..i1 {
-                    let lo = min + Vec3::new(i as f32, j as f32, k as f32) * cell;
-                    slab[j * nx + i] = (0..9).any(|b| {
-                        let f = if b == 8 {
-                            Vec3::splat(0.5)
-                        } else {
-                            Vec3::new((b & 1) as f32, ((b >> 1) & 1) as f32, (b >> 2) as f32)
-                        };
-                        dense(lo + f * cell)
-                    });
+            for dj in 0..wj {
+                for di in 0..wi {
+                    let corner = |a: usize, b: usize, c: usize| {
+                        corners[((dj + b) * (wi + 1) + di + a) * cz + k + c]
+                    };
+                    let any = (0..8).any(|b| corner(b & 1, (b >> 1) & 1, b >> 2))
+                        || centres[(dj * wi + di) * nz + k];
+                    slab[(j0 + dj) * nx + i0 + di] = any;
                 }
             }
         });

@@ -220,14 +220,12 @@ pub fn select_backend(choice: BackendChoice) -> Result<Backend, GpuError> {
         BackendChoice::Auto => match GpuContext::new() {
             // a software rasteriser (Mesa's llvmpipe) is an adapter but no GPU: the CPU
             // reference renderer is about ten times faster than it on the same cores
-            Ok(c) if c.adapter_info().device_type == wgpu::DeviceType::Cpu => {
-                Ok(Backend::Cpu {
-                    fallback: Some(format!(
-                        "the only wgpu adapter is a software one ({}); using the CPU renderer, which is faster on the same cores (--backend gpu uses the adapter anyway)",
-                        c.describe()
-                    )),
-                })
-            }
+            Ok(c) if c.adapter_info().device_type == wgpu::DeviceType::Cpu => Ok(Backend::Cpu {
+                fallback: Some(format!(
+                    "the only wgpu adapter is a software one ({}); using the CPU renderer, which is faster on the same cores (--backend gpu uses the adapter anyway)",
+                    c.describe()
+                )),
+            }),
             Ok(c) => Ok(Backend::Gpu(c)),
             Err(e) => Ok(Backend::Cpu { fallback: Some(fallback_note(&e)) }),
         },

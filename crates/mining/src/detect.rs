@@ -1084,10 +1084,13 @@ fn unpack(
     while lo > start && area[lo - 1] * 2 >= area[kstar] {
         lo -= 1;
     }
-    // a support is a thin slab (a table top, a shelf, a pallet's deck) ...
+    // a support is a thin slab (a table top, a shelf, a pallet's deck) or the top of a solid
+    // body (a desk over its drawer pedestal, a side table): then only its top levels count as
+    // the surface, and the checks below are stricter (flat interior, substantial seeds)
     let thin = ((0.08 / vol.dz.max(1e-6)).ceil() as usize).max(3);
-    if hi - lo + 1 > thin {
-        return (Vec::new(), None);
+    let solid = hi - lo + 1 > thin;
+    if solid {
+        lo = hi + 1 - thin;
     }
     let raise = ((0.04 / vol.dz.max(1e-6)).ceil() as usize).max(2);
     let above = hi + raise;
@@ -1111,10 +1114,19 @@ fn unpack(
     // ... and flat: away from what rises above it, most columns end at the slab (a dome, the
     // top of a sphere, has no flat rim)
     let near_raised = crate::morphology::dilate(&raised, 3).unwrap_or_else(|_| raised.clone());
+    // a solid body's top is judged away from its blurred fringe, and its faint patches count
+    // (the fringe of a solid block fades over many levels; a thin slab has none)
+    let (judged, there_tau) = if solid {
+        let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
+        let e = erode(&padded, 2).unwrap_or(padded);
+        (Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1)), 0.25 * tau)
+    } else {
+        (f.clone(), 0.5 * tau)
+    };
     let (mut free_n, mut flat_n) = (0usize, 0usize);
     for r in 0..h {
         for c in 0..w {
-            if !f.get(r, c) || near_raised.get(r, c) {
+            if !judged.get(r, c) || near_raised.get(r, c) {
                 continue;
             }
             free_n += 1;
@@ -1122,14 +1134,18 @@ fn unpack(
             // nothing rises above the slab and the slab is there (perhaps faintly: NeRF
             // table tops have thin patches)
             let clear = !(hi + 1..vol.nz).any(|k| col[k] >= tau);
-            let there = (kstar.saturating_sub(1)..=hi).any(|k| col[k] >= 0.5 * tau);
+            let there = (kstar.saturating_sub(1)..=hi).any(|k| col[k] >= there_tau);
             flat_n += usize::from(clear && there);
         }
     }
     if debug() {
-        eprintln!("   slab {lo}..={hi} kstar {kstar} flat {flat_n}/{free_n} of {n}");
+        eprintln!("   slab {lo}..={hi} kstar {kstar} solid {solid} flat {flat_n}/{free_n} of {n}");
     }
-    if free_n * 10 < n * 3 || flat_n * 10 < free_n * 7 {
+    // free surface: 30% of a slab, 45% of a solid body's top (a chair's seat under its back
+    // is no table); flat: 70% of the free surface of a slab, 60% of a solid body's (its
+    // blurred top has more haze above it)
+    let (free_share, flat_share) = if solid { (9, 12) } else { (6, 14) };
+    if free_n * 20 < n * free_share || flat_n * 20 < free_n * flat_share {
         return (Vec::new(), Some(hi));
     }
     // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
@@ -1157,6 +1173,10 @@ fn unpack(
             .filter(|&(r, c)| at(r, c))
             .collect();
         if seed_px.iter().any(|&(r, c)| ring.get(r, c) || taken.get(r, c)) {
+            continue;
+        }
+        // on a solid body, a speck of haze above the top is no object
+        if solid && seed_px.len() < min_texels {
             continue;
         }
         let win = sb.expand(grow, h, w);
@@ -1832,6 +1852,37 @@ mod tests {
         );
         let wrong = PlaneImage::zeros(10, 20, 2).unwrap();
         assert!(detect(&grid, &v2, &wrong, None, &DetectOptions::default()).is_err());
+    }
+
+    #[test]
+    fn objects_on_a_solid_body_unpack_but_specks_do_not() {
+        // a desk-like solid body (levels 2..=12 over its whole footprint) with a dark monitor
+        // standing on its top away from the rim, and a one-texel speck of haze above it
+        let (rows, cols) = (60, 80);
+        let mut v = floor_volume(rows, cols, 24);
+        fill(&mut v, (5, 29), (10, 50), (2, 13), 0.95);
+        fill(&mut v, (12, 22), (25, 29), (13, 20), 0.95);
+        fill(&mut v, (8, 9), (45, 46), (14, 16), 0.95);
+        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+            let dark = (12..22).contains(&r) && (25..29).contains(&c);
+            if dark { [0.1, 0.1, 0.1][k] } else { [0.9, 0.9, 0.85][k] }
+        })
+        .unwrap();
+        let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
+        let d = detect(&grid, &v, &color, None, &opts).unwrap();
+        let boxes: Vec<(PixelRect, Option<usize>)> =
+            d.detections.iter().map(|x| (x.rect, x.parent)).collect();
+        assert_eq!(d.detections.len(), 2, "{boxes:?}");
+        let child = d.detections.iter().find(|x| x.parent.is_some()).unwrap();
+        assert_eq!(child.rect, PixelRect::new(12, 25, 22, 29));
+        assert!((child.base - v.height(12)).abs() < 1e-4, "{}", child.base);
+        // a body whose top is mostly covered (a chair's seat under its back) is no support
+        let mut v2 = floor_volume(rows, cols, 24);
+        fill(&mut v2, (5, 20), (10, 25), (2, 13), 0.95);
+        fill(&mut v2, (8, 17), (13, 22), (13, 20), 0.95);
+        let d2 = detect(&grid, &v2, &color, None, &opts).unwrap();
+        assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
     }
 
     #[test]
