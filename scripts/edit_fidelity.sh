@@ -11,6 +11,9 @@
 # (run scripts/quality_suite.sh first). Output under runs/fidelity/: data/SCENE (the scene
 # synthesised with its edit), lib/SCENE_MODEL (the library), compose/SCENE_MODEL_{same,edit}
 # and table.md. Finished steps are skipped, so the script can be stopped and started again.
+# OWN=R passes `mine --own-patch-residual R` (0: every instance keeps its own patch in the
+# mined layout; inf: templates only; default: the mine default) and suffixes the output
+# names with _ownR.
 # Set BIN to use another binary (default target/release/assetfield, built if missing).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -24,6 +27,9 @@ BIN=${BIN:-target/release/assetfield}
 [ -x "$BIN" ] || cargo build --release --locked
 OUT=runs/fidelity
 mkdir -p "$OUT/data" "$OUT/lib" "$OUT/compose" "$OUT/logs"
+TAG=${MODEL}${OWN:+_own$OWN}
+OWN_ARGS=()
+[ -n "${OWN:-}" ] && OWN_ARGS=(--own-patch-residual "$OWN")
 
 for scene in "${SCENES[@]}"; do
   field="runs/suite/fields/${scene}_$MODEL.safetensors"
@@ -36,26 +42,26 @@ for scene in "${SCENES[@]}"; do
   [ -f "$data/edited/transforms_test.json" ] ||
     "$BIN" synth "scenes/$scene.ron" --edited "scenes/edits/$scene.ron" --out "$data" --force \
       > "$OUT/logs/${scene}.synth.log" 2>&1
-  lib="$OUT/lib/${scene}_$MODEL"
+  lib="$OUT/lib/${scene}_$TAG"
   [ -f "$lib/metrics.json" ] ||
-    "$BIN" mine "$field" --out "$lib" --gt "$data/gt_layout.json" --gt-names --force \
-      > "$OUT/logs/${scene}_$MODEL.mine.log" 2>&1
-  same="$OUT/compose/${scene}_${MODEL}_same"
+    "$BIN" mine "$field" --out "$lib" --gt "$data/gt_layout.json" --gt-names "${OWN_ARGS[@]}" \
+      --force > "$OUT/logs/${scene}_$TAG.mine.log" 2>&1
+  same="$OUT/compose/${scene}_${TAG}_same"
   [ -f "$same/metrics.json" ] ||
     "$BIN" compose "$lib/layout.ron" --library "$lib" --views "$data" --metrics --out "$same" \
-      --force > "$OUT/logs/${scene}_$MODEL.same.log" 2>&1
-  edit="$OUT/compose/${scene}_${MODEL}_edit"
+      --force > "$OUT/logs/${scene}_$TAG.same.log" 2>&1
+  edit="$OUT/compose/${scene}_${TAG}_edit"
   [ -f "$edit/metrics.json" ] ||
     "$BIN" compose "$lib/layout.ron" --library "$lib" --edits "scenes/edits/$scene.ron" \
       --views "$data/edited" --metrics --planes --out "$edit" --force \
-      > "$OUT/logs/${scene}_$MODEL.edit.log" 2>&1 ||
-    echo "== $scene: the edit did not compose (see $OUT/logs/${scene}_$MODEL.edit.log)"
-  echo "== $scene $MODEL: $(grep -o '"f1": [0-9.]*' "$lib/metrics.json"), edited $(grep -o '"psnr": [0-9.]*' "$edit/metrics.json" 2>/dev/null | head -1)"
+      > "$OUT/logs/${scene}_$TAG.edit.log" 2>&1 ||
+    echo "== $scene: the edit did not compose (see $OUT/logs/${scene}_$TAG.edit.log)"
+  echo "== $scene $TAG: $(grep -o '"f1": [0-9.]*' "$lib/metrics.json"), edited $(grep -o '"psnr": [0-9.]*' "$edit/metrics.json" 2>/dev/null | head -1)"
 done
 
-python3 - "$OUT" "$MODEL" "${SCENES[@]}" <<'EOF' || echo "(python3 missing: see $OUT/*/metrics.json)"
+python3 - "$OUT" "$MODEL" "$TAG" "${SCENES[@]}" <<'EOF' || echo "(python3 missing: see $OUT/*/metrics.json)"
 import json, os, sys
-out, model, scenes = sys.argv[1], sys.argv[2], sys.argv[3:]
+out, model, tag, scenes = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4:]
 def load(p):
     return json.load(open(p)) if os.path.exists(p) else None
 rows = ["| scene | field PSNR | recomposed | edited | edited - field | F1 | ARI | yaw median | yaw max | position |",
@@ -64,9 +70,9 @@ worst = None
 fmt = lambda v, d=2: "-" if v is None else f"{v:.{d}f}"
 for s in scenes:
     f = load(f"runs/suite/eval/{s}_{model}/metrics.json")
-    m = load(f"{out}/lib/{s}_{model}/metrics.json")
-    a = load(f"{out}/compose/{s}_{model}_same/metrics.json")
-    e = load(f"{out}/compose/{s}_{model}_edit/metrics.json")
+    m = load(f"{out}/lib/{s}_{tag}/metrics.json")
+    a = load(f"{out}/compose/{s}_{tag}_same/metrics.json")
+    e = load(f"{out}/compose/{s}_{tag}_edit/metrics.json")
     if not (f and m):
         continue
     drop = (e["psnr"] - f["psnr"]) if e else None
@@ -76,6 +82,6 @@ for s in scenes:
                 f"{fmt(m['f1'], 3)} | {fmt(m['ari'], 3)} | {fmt(m.get('yaw_median_deg'))} | "
                 f"{fmt(m.get('yaw_max_deg'), 1)} | {fmt(m.get('position_median'), 3)} |")
 text = "\n".join(rows) + f"\n\nworst edited - field: {fmt(worst)} dB (target: >= -2)\n"
-open(f"{out}/table_{model}.md", "w").write(text)
+open(f"{out}/table_{tag}.md", "w").write(text)
 print(text)
 EOF

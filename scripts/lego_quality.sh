@@ -15,9 +15,10 @@ BIN=${BIN:-target/release/assetfield}
 [ -x "$BIN" ] || cargo build --release --locked
 OUT=runs/lego
 mkdir -p "$OUT/logs"
-for model in s vm; do
-  field="$OUT/lego_$model.safetensors"
-  for minutes in 10 30; do
+# both 10-minute runs first, then both continued to 30 minutes
+for minutes in 10 30; do
+  for model in s vm; do
+    field="$OUT/lego_$model.safetensors"
     eval_dir="$OUT/eval_${model}_$minutes"
     [ -f "$eval_dir/metrics.json" ] && continue
     if [ "$minutes" = 10 ]; then

@@ -2,7 +2,9 @@
 //! category (its template's patch, `Library(path: ".", entry: TEMPLATE, size: (x, y,
 //! height))`), one `Instance` per object on the ground at its template-aligned position and
 //! yaw (relative to the template), and the objects standing on others in `Group(on:
-//! PARENT)` items, placed in their parent's frame so that they move with it.
+//! PARENT)` items, placed in their parent's frame so that they move with it. An instance that
+//! its template reproduces badly (see [`OWN_PATCH_RESIDUAL`]) gets an asset of its own (its
+//! entry's patch, same category, at its own centre, yaw 0).
 
 use assetfield_core::GroundTransform;
 use assetfield_core::ground::wrap_degrees;
@@ -13,6 +15,11 @@ use std::path::Path;
 
 use crate::error::{MiningError, Result};
 use crate::library::{EntryKind, LibraryIndex};
+
+/// Default of `mine --own-patch-residual`: an instance whose template-matching residual
+/// exceeds this many times the library's median residual keeps its own patch in the layout (the template does not reproduce it: a
+/// fragment, a mis-grouped object).
+pub const OWN_PATCH_RESIDUAL: f32 = 2.0;
 
 fn round3(v: f32) -> f32 {
     (v * 1000.0).round() / 1000.0
@@ -30,6 +37,7 @@ pub fn layout_script(
     extent: [f32; 4],
     library_path: &str,
     names: &BTreeMap<String, String>,
+    own_patch_residual: f32,
 ) -> Result<Script> {
     let display = |entry: &str| names.get(entry).cloned().unwrap_or_else(|| entry.to_string());
     let mut assets = BTreeMap::new();
@@ -62,37 +70,82 @@ pub fn layout_script(
             },
         );
     }
+    // where each entry is placed, and with which asset: its category's template at the
+    // template-aligned pose, or, for an instance the template cannot reproduce (matching
+    // residual above `own_patch_residual` times the library's median, or unmatched), its own
+    // patch at its own centre (0: every instance; infinity: none)
+    let mut residuals: Vec<f32> = index
+        .entries
+        .iter()
+        .filter(|e| e.kind == EntryKind::Instance && e.residual >= 0.0)
+        .map(|e| e.residual)
+        .collect();
+    residuals.sort_by(f32::total_cmp);
+    let cut = residuals.get(residuals.len() / 2).map_or(f32::INFINITY, |m| m * own_patch_residual);
+    let mut placed: BTreeMap<&str, (String, GroundTransform)> = BTreeMap::new();
+    for e in &index.entries {
+        let own = e.kind == EntryKind::Instance && (e.residual < 0.0 || e.residual > cut);
+        let (asset, t) = if own {
+            let b = e.source_box;
+            let centre = Vec2::new(b[0] + b[2], b[1] + b[3]) * 0.5;
+            let size = (round3(e.extent.0), round3(e.extent.1), round3(e.extent.2.max(1e-3)));
+            assets.insert(
+                e.name.clone(),
+                AssetDef {
+                    parts: Vec::new(),
+                    obj: None,
+                    category: Some(e.category.clone()),
+                    yaw_symmetry_deg: 360.0,
+                    container: false,
+                    library: Some(LibraryRef {
+                        path: library_path.to_string(),
+                        entry: e.name.clone(),
+                        size,
+                        density_from: None,
+                        color_from: None,
+                    }),
+                },
+            );
+            heights.insert(e.name.clone(), size.2);
+            (e.name.clone(), GroundTransform::new(centre, 0.0, 1.0, 0.0))
+        } else {
+            let yaw = if e.kind == EntryKind::Template { 0.0 } else { wrap_degrees(e.yaw_deg) };
+            (
+                e.category.clone(),
+                GroundTransform::new(Vec2::new(e.position.0, e.position.1), yaw, 1.0, 0.0),
+            )
+        };
+        placed.insert(e.name.as_str(), (asset, t));
+    }
     let mut layout = Vec::new();
     let mut children: BTreeMap<&str, Vec<Item>> = BTreeMap::new();
     for e in &index.entries {
-        let yaw = round3(if e.kind == EntryKind::Template { 0.0 } else { wrap_degrees(e.yaw_deg) });
+        let (asset, t) = placed[e.name.as_str()].clone();
         match e.supported_by.as_deref() {
             None => layout.push(Item::Instance {
-                asset: e.category.clone(),
-                at: (round3(e.position.0), round3(e.position.1)),
-                yaw,
+                asset,
+                at: (round3(t.position.x), round3(t.position.y)),
+                yaw: round3(t.yaw_deg),
                 scale: 1.0,
                 base: 0.0,
                 name: Some(display(&e.name)),
             }),
             Some(parent) => {
-                let p = index.entry(parent).ok_or_else(|| MiningError::Format {
-                    path: "library index".into(),
-                    message: format!(
-                        "entry {:?} stands on {parent:?}, which is not an entry",
-                        e.name
-                    ),
-                })?;
-                let pyaw = if p.kind == EntryKind::Template { 0.0 } else { p.yaw_deg };
-                let pt =
-                    GroundTransform::new(Vec2::new(p.position.0, p.position.1), pyaw, 1.0, 0.0);
-                let local = pt.inverse_transform_point2(Vec2::new(e.position.0, e.position.1));
-                let top = heights.get(&p.category).copied().unwrap_or(0.0);
+                let (passet, pt) =
+                    placed.get(parent).cloned().ok_or_else(|| MiningError::Format {
+                        path: "library index".into(),
+                        message: format!(
+                            "entry {:?} stands on {parent:?}, which is not an entry",
+                            e.name
+                        ),
+                    })?;
+                let local = pt.inverse_transform_point2(t.position);
+                let top = heights.get(&passet).copied().unwrap_or(0.0);
                 let base = round3(e.base - top);
                 children.entry(parent).or_default().push(Item::Instance {
-                    asset: e.category.clone(),
+                    asset,
                     at: (round3(local.x), round3(local.y)),
-                    yaw: round3(wrap_degrees(yaw - pyaw)),
+                    yaw: round3(wrap_degrees(t.yaw_deg - pt.yaw_deg)),
                     scale: 1.0,
                     base: if base.abs() < 5e-3 { 0.0 } else { base },
                     name: Some(
@@ -209,8 +262,15 @@ mod tests {
             ],
             containers: vec![],
         };
-        let script =
-            layout_script(&index, "mined", [-3.0, -2.0, 3.0, 2.0], ".", &BTreeMap::new()).unwrap();
+        let script = layout_script(
+            &index,
+            "mined",
+            [-3.0, -2.0, 3.0, 2.0],
+            ".",
+            &BTreeMap::new(),
+            OWN_PATCH_RESIDUAL,
+        )
+        .unwrap();
         let path = std::env::temp_dir().join("assetfield-mining-layout-test.ron");
         let (text, n) = script_text_checked(&script, &path).unwrap();
         assert_eq!(n, 4, "{text}");

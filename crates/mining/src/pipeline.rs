@@ -51,8 +51,16 @@ pub struct MineOptions {
     /// that an edit script written for the ground truth applies to the mined layout too.
     #[serde(default)]
     pub gt_names: bool,
+    /// Instances whose template-matching residual exceeds this many times the library's
+    /// median keep their own patch in layout.ron (0: every instance; infinity: none).
+    #[serde(default = "default_own_patch_residual")]
+    pub own_patch_residual: f32,
     /// Replace an existing output folder.
     pub force: bool,
+}
+
+fn default_own_patch_residual() -> f32 {
+    crate::layout_out::OWN_PATCH_RESIDUAL
 }
 
 impl Default for MineOptions {
@@ -67,6 +75,7 @@ impl Default for MineOptions {
             gt: None,
             iou: 0.5,
             gt_names: false,
+            own_patch_residual: crate::layout_out::OWN_PATCH_RESIDUAL,
             force: false,
         }
     }
@@ -338,7 +347,8 @@ pub fn mine(
         }
     }
     let world = grid.world_rect();
-    let script = layout_script(&index, &scene, world.to_array(), ".", &names)?;
+    let script =
+        layout_script(&index, &scene, world.to_array(), ".", &names, opts.own_patch_residual)?;
     let (text, layout_instances) = script_text_checked(&script, &out.join("layout.ron"))?;
     write_atomic(&dir.join("layout.ron"), text.as_bytes())?;
     check_interrupt()?;

@@ -115,6 +115,12 @@ pub struct MineArgs {
     /// scene applies unchanged to the mined layout (`base: "LIB/layout.ron"`).
     #[arg(long, requires = "gt")]
     pub gt_names: bool,
+    /// In layout.ron, an instance whose template-matching residual exceeds this many times
+    /// the library's median keeps its own patch (its own asset, same category) instead of
+    /// its category's template: 0 makes every instance keep its own patch (the layout then
+    /// reproduces the scene exactly), `inf` uses templates only (the paper's reconfiguration).
+    #[arg(long, default_value_t = assetfield_mining::layout_out::OWN_PATCH_RESIDUAL, value_name = "R")]
+    pub own_patch_residual: f32,
     /// Seed of the K-means runs.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -191,6 +197,9 @@ pub fn mine(a: MineArgs) -> Result<()> {
     if a.categories == Some(0) {
         bail!("--categories must be at least 1");
     }
+    if a.own_patch_residual.is_nan() || a.own_patch_residual < 0.0 {
+        bail!("--own-patch-residual must be 0 or more (inf for templates only)");
+    }
     if !(a.iou > 0.0 && a.iou <= 1.0) {
         bail!("--iou must be in (0, 1], got {}", a.iou);
     }
@@ -224,6 +233,7 @@ pub fn mine(a: MineArgs) -> Result<()> {
     o.gt = a.gt.clone();
     o.iou = a.iou;
     o.gt_names = a.gt_names;
+    o.own_patch_residual = a.own_patch_residual;
     o.force = a.force;
     if let Some(seed) = a.seed {
         o.detect.seed = seed;
