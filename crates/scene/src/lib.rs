@@ -23,6 +23,6 @@ pub use library::{AssetLibrary, Canvas, DEFAULT_HALO, ResolvedAsset, ScriptAsset
 pub use patch::FeaturePatch;
 pub use raster::{Composition, DensityRule, InstanceDraw};
 pub use world::{
-    ComposeSet, Composer, Footprints, InstanceKey, InstanceOf, Placement, RasterStats, Template,
-    compose_schedule,
+    ComposeSet, Composer, ContainerPlanes, Footprints, InstanceKey, InstanceOf, Placement,
+    RasterStats, Template, compose_schedule,
 };

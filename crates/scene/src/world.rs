@@ -3,6 +3,7 @@
 //!
 //! | system | set | reads | writes |
 //! |---|---|---|---|
+//! | `track_container` | `ComposeSet::Track` | changed or removed `ContainerPlanes` | `Composition` canvas, `Footprints` (the whole grid dirty) |
 //! | `track_instances` | `ComposeSet::Track` | changed `Placement`, `InstanceOf`, `PatchOverride`, changed `Template`s, removed instances, `Composition` (grid) | `Footprints` (rect per instance, pending dirty rects) |
 //! | `rasterise_dirty` | `ComposeSet::Rasterise` | `Footprints`, every instance's `Placement` + patch | `Composition` planes in the dirty rects, `RasterStats` |
 //! | `refresh_occupancy` | `ComposeSet::Occupancy` | `Footprints` (last dirty rects), `Composition` | `Composition` occupancy grid |
@@ -42,6 +43,17 @@ pub struct InstanceKey(pub String);
 /// recolour).
 #[derive(Component, Debug, Clone)]
 pub struct PatchOverride(pub Arc<FeaturePatch>);
+
+/// A container entity: canvas planes (a trained scene with its objects removed, a room, a
+/// street) that the instances are drawn onto, `[rows][cols][nd]` and `[rows][cols][nc]` on
+/// the composition's grid. Inserting, changing or removing it (then the canvas is empty
+/// space) redraws every texel. Without one, the canvas the composition was built with stays.
+#[derive(Component, Debug, Clone)]
+pub struct ContainerPlanes {
+    pub name: String,
+    pub density: Arc<Vec<f32>>,
+    pub color: Arc<Vec<f32>>,
+}
 
 /// The composed planes and the field that renders them.
 #[derive(Resource, Debug)]
@@ -123,6 +135,32 @@ fn track_instances(
     }
 }
 
+fn track_container(
+    mut comp: ResMut<ComposedPlanes>,
+    mut fp: ResMut<Footprints>,
+    changed: Query<&ContainerPlanes, Changed<ContainerPlanes>>,
+    mut removed: RemovedComponents<ContainerPlanes>,
+    remaining: Query<(), With<ContainerPlanes>>,
+) {
+    let mut redraw = false;
+    if let Some(c) = changed.iter().last() {
+        // sizes were checked by Composer::set_container
+        if comp.0.set_canvas(c.density.to_vec(), c.color.to_vec()).is_ok() {
+            redraw = true;
+        }
+    } else if removed.read().count() > 0 && remaining.is_empty() {
+        let n = comp.0.grid.rows * comp.0.grid.cols;
+        let (nd, nc) = (comp.0.nd, comp.0.nc);
+        if comp.0.set_canvas(vec![0.0; n * nd], vec![0.0; n * nc]).is_ok() {
+            redraw = true;
+        }
+    }
+    if redraw {
+        let full = comp.0.full_rect();
+        fp.pending.push(full);
+    }
+}
+
 /// Merge overlapping rectangles until none overlap.
 fn merge_rects(mut rects: Vec<TexelRect>) -> Vec<TexelRect> {
     rects.retain(|r| !r.is_empty());
@@ -183,7 +221,7 @@ pub fn compose_schedule() -> Schedule {
     let mut s = Schedule::default();
     s.configure_sets((ComposeSet::Track, ComposeSet::Rasterise, ComposeSet::Occupancy).chain());
     s.add_systems((
-        track_instances.in_set(ComposeSet::Track),
+        (track_container, track_instances).in_set(ComposeSet::Track),
         rasterise_dirty.in_set(ComposeSet::Rasterise),
         refresh_occupancy.in_set(ComposeSet::Occupancy),
     ));
@@ -259,6 +297,54 @@ impl Composer {
                 e
             }
         })
+    }
+
+    /// Put the instances into a container (scene-level edit): its planes become the canvas
+    /// and everything is redrawn on the next frame. Replaces the current container entity if
+    /// there is one.
+    pub fn set_container(
+        &mut self,
+        name: &str,
+        density: Vec<f32>,
+        color: Vec<f32>,
+    ) -> Result<Entity, SceneError> {
+        let comp = self.composition();
+        let n = comp.grid.rows * comp.grid.cols;
+        for (what, len, ch) in
+            [("density", density.len(), comp.nd), ("color", color.len(), comp.nc)]
+        {
+            if len != n * ch {
+                return Err(SceneError::PatchShape {
+                    name: name.to_string(),
+                    what,
+                    expected: n * ch,
+                    actual: len,
+                    shape: format!("{} x {} texels x {ch}", comp.grid.rows, comp.grid.cols),
+                });
+            }
+        }
+        let c = ContainerPlanes {
+            name: name.to_string(),
+            density: Arc::new(density),
+            color: Arc::new(color),
+        };
+        let mut q = self.world.query_filtered::<Entity, With<ContainerPlanes>>();
+        Ok(match q.iter(&self.world).next() {
+            Some(e) => {
+                self.world.entity_mut(e).insert(c);
+                e
+            }
+            None => self.world.spawn(c).id(),
+        })
+    }
+
+    /// Take the instances out of their container: the canvas becomes empty space.
+    pub fn remove_container(&mut self) {
+        let mut q = self.world.query_filtered::<Entity, With<ContainerPlanes>>();
+        let all: Vec<Entity> = q.iter(&self.world).collect();
+        for e in all {
+            self.world.despawn(e);
+        }
     }
 
     pub fn template(&self, name: &str) -> Option<Entity> {

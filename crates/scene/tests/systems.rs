@@ -181,3 +181,38 @@ fn additive_density_keeps_the_canvas_under_objects_and_sums_overlaps() {
     assert_eq!(&comp.field.params.data[d.offset + far * 4..][..4], &dens[far * 4..][..4]);
     let _ = col;
 }
+
+#[test]
+fn a_container_entity_is_the_canvas_and_swapping_it_redraws_everything() {
+    let (mut c, _, dens, col) = setup();
+    c.spawn("chair[0]", "chair", at(1.0, 1.0, 45.0)).unwrap();
+    c.update();
+    let with_field_canvas = planes(&c);
+    // an empty room: zero features everywhere but under the chair
+    let n = dens.len() / 4;
+    c.set_container("empty room", vec![0.0; n * 4], vec![0.0; n * 6]).unwrap();
+    c.update();
+    let s = c.stats();
+    let grid = c.composition().grid;
+    assert_eq!(s.texels, grid.rows * grid.cols, "a new container redraws every texel");
+    let empty = planes(&c);
+    assert_ne!(empty, with_field_canvas);
+    let far = 2 * grid.cols + 2;
+    assert!(empty[far * 4..far * 4 + 4].iter().all(|v| *v == 0.0), "the canvas is the container");
+    // swapping back to the original planes restores the first picture
+    c.set_container("field", dens.clone(), col.clone()).unwrap();
+    c.update();
+    let back = planes(&c);
+    let worst =
+        back.iter().zip(&with_field_canvas).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(worst < 1e-6, "{worst}");
+    // an idle frame redraws nothing; removing the container empties the canvas
+    c.update();
+    assert_eq!(c.stats().texels, 0);
+    c.remove_container();
+    c.update();
+    assert_eq!(planes(&c), empty, "no container: empty space under the chair");
+    // a container of the wrong size is refused, naming it
+    let e = c.set_container("attic", vec![0.0; 3], vec![0.0; 3]).unwrap_err();
+    assert!(e.to_string().contains("attic"), "{e}");
+}
