@@ -277,6 +277,55 @@ fn mine_compose_round_trip_and_edit_fidelity() {
     assert!(out.contains("empty"), "{out}");
     assert!(dir.join("orbit/orbit_001.png").is_file());
 
+    // the same composed scene rendered by wgpu (lavapipe without a GPU) and by the CPU
+    let cpu = [
+        "compose",
+        "lib/layout.ron",
+        "--library",
+        "lib",
+        "--out",
+        "o_cpu",
+        "--orbit",
+        "1",
+        "--res",
+        "32",
+        "--backend",
+        "cpu",
+    ];
+    ok(&dir, &cpu);
+    let (code, out, err) = run_cli(
+        &dir,
+        &[
+            "compose",
+            "lib/layout.ron",
+            "--library",
+            "lib",
+            "--out",
+            "o_gpu",
+            "--orbit",
+            "1",
+            "--res",
+            "32",
+            "--backend",
+            "gpu",
+        ],
+    );
+    if code == 0 {
+        assert!(out.contains("on the GPU"), "{out}");
+        let a = image::open(dir.join("o_cpu/orbit_000.png")).unwrap().to_rgb8();
+        let b = image::open(dir.join("o_gpu/orbit_000.png")).unwrap().to_rgb8();
+        let worst = a
+            .pixels()
+            .zip(b.pixels())
+            .flat_map(|(p, q)| (0..3).map(move |k| (p[k] as i32 - q[k] as i32).abs()))
+            .max()
+            .unwrap();
+        assert!(worst <= 2, "CPU and GPU renders differ by {worst} levels");
+    } else {
+        assert!(err.contains("adapter"), "a GPU failure must say why: {err}");
+        eprintln!("SKIPPED: compose --backend gpu: no wgpu adapter ({})", err.trim());
+    }
+
     // bad scripts: errors name the line
     let bad = |name: &str, body: &str| {
         std::fs::write(dir.join(name), format!("Scene(\n  base: \"lib/layout.ron\",\n{body})\n"))
