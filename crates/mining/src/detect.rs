@@ -1005,6 +1005,21 @@ fn far_from_surface(points: &[f32], dim: usize, seed: &[bool]) -> Vec<bool> {
         Ok((t, _)) if t.is_finite() => (0..n).map(|i| seed[i] || dist[i] > t).collect(),
         _ => return seed.to_vec(),
     };
+    if debug() {
+        let mut ds: Vec<f32> = dist.clone();
+        ds.sort_by(f32::total_cmp);
+        let sd: Vec<f32> = (0..n).filter(|&i| seed[i]).map(|i| dist[i]).collect();
+        eprintln!(
+            "   far: n {n} far {} dist q10 {:.2} q50 {:.2} q80 {:.2} q90 {:.2} q99 {:.2} seed {:?}",
+            obj.iter().filter(|&&o| o).count(),
+            ds[n / 10],
+            ds[n / 2],
+            ds[n * 8 / 10],
+            ds[n * 9 / 10],
+            ds[n * 99 / 100],
+            &sd[..sd.len().min(8)]
+        );
+    }
     // refine: a point joins the object only if it is nearer to the object's mean than to
     // the surface (a non-uniform surface has far points that are not object-coloured)
     let d2 = |i: usize, c: &[f32]| {
@@ -1064,15 +1079,39 @@ fn unpack(
         }
     }
     let amax = area.iter().copied().max().unwrap_or(0);
+    // the same per window of `thin` levels (accumulated opacity): a briefly trained field's
+    // soft table top spreads over a few levels, none of which covers the whole top
+    let thin = ((0.08 / vol.dz.max(1e-6)).ceil() as usize).max(3);
+    let mut areaw = vec![0usize; vol.nz];
+    for r in 0..rect.rows() {
+        for c in 0..rect.cols() {
+            if f.get(r, c) {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                for k in start..vol.nz {
+                    let t = col[k..(k + thin).min(vol.nz)].iter().fold(1f32, |t, &o| t * (1.0 - o));
+                    if 1.0 - t >= ts {
+                        areaw[k] += 1;
+                    }
+                }
+            }
+        }
+    }
+    if debug() {
+        eprintln!("   windowed area {:?}", &areaw[start..]);
+    }
     if debug() {
         eprintln!("unpack {rect:?} n {n} amax {amax} area {:?}", &area[start..]);
     }
     if amax * 2 < n {
         return (Vec::new(), None);
     }
-    // the top surface: the highest level covering at least 60% of the densest one (ghost
-    // layers under a table top can be denser than the top itself)
-    let kstar = (start..vol.nz).rev().find(|&k| area[k] * 10 >= amax * 6).unwrap_or(start);
+    // the top surface: the highest window of levels covering at least 60% of the densest one
+    // (ghost layers under a table top can be denser than the top itself), at its densest level
+    let amaxw = areaw.iter().copied().max().unwrap_or(0);
+    let kw = (start..vol.nz).rev().find(|&k| areaw[k] * 10 >= amaxw * 6).unwrap_or(start);
+    let kstar = (kw..(kw + thin).min(vol.nz))
+        .max_by_key(|&k| (area[k], std::cmp::Reverse(k)))
+        .unwrap_or(kw);
     let mut hi = kstar;
     // the surface with the blur above it: levels covering a quarter of it and not growing
     // (an object standing on it does not fade upwards); and its body below: levels covering
@@ -1087,8 +1126,11 @@ fn unpack(
     // a support is a thin slab (a table top, a shelf, a pallet's deck) or the top of a solid
     // body (a desk over its drawer pedestal, a side table): then only its top levels count as
     // the surface, and the checks below are stricter (flat interior, substantial seeds)
-    let thin = ((0.08 / vol.dz.max(1e-6)).ceil() as usize).max(3);
-    let solid = hi - lo + 1 > thin;
+    // (a body with a gap of a faint level or two is solid too: most levels below the slab
+    // cover half of it, where a table's legs and ghost layers cover less)
+    let below = lo.saturating_sub(start);
+    let dense_below = (start..lo).filter(|&k| area[k] * 2 >= area[kstar]).count();
+    let solid = hi - lo + 1 > thin || (below >= thin && dense_below * 3 >= below * 2);
     if solid {
         lo = hi + 1 - thin;
     }
@@ -1173,10 +1215,24 @@ fn unpack(
             .filter(|&(r, c)| at(r, c))
             .collect();
         if seed_px.iter().any(|&(r, c)| ring.get(r, c) || taken.get(r, c)) {
+            if debug() {
+                eprintln!("   seed {sb:?} ({} texels) on the rim or taken", seed_px.len());
+            }
             continue;
         }
-        // on a solid body, a speck of haze above the top is no object
-        if solid && seed_px.len() < min_texels {
+        // on a solid body, a speck of haze above the top is no object (small and low)
+        // (solid voxels above the surface: a laptop's screen is a narrow seed, but tall)
+        let voxels: usize = seed_px
+            .iter()
+            .map(|&(r, c)| {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                (above..vol.nz).filter(|&k| col[k] >= tau).count()
+            })
+            .sum();
+        if solid && seed_px.len() < min_texels && voxels < 2 * min_texels {
+            if debug() {
+                eprintln!("   seed {sb:?} ({} texels, {voxels} voxels) too small", seed_px.len());
+            }
             continue;
         }
         let win = sb.expand(grow, h, w);
@@ -1197,33 +1253,46 @@ fn unpack(
             object.set(r, c, true);
         }
         let seedf: Vec<bool> = idx.iter().map(|&(r, c)| at(r, c)).collect();
-        let labels = far_from_surface(&pts, color.ch, &seedf);
-        for (t, &(r, c)) in idx.iter().enumerate() {
-            if labels[t] {
-                object.set(r, c, true);
-            }
-        }
         // the connected part of the object cluster that holds the seed
-        let mut comp = Mask { rows: h, cols: w, data: vec![false; h * w] };
-        let mut stack: Vec<(usize, usize)> = seed_px.clone();
-        for &(r, c) in &seed_px {
-            comp.set(r, c, true);
-        }
-        while let Some((r, c)) = stack.pop() {
-            for dr in -1isize..=1 {
-                for dc in -1isize..=1 {
-                    let (nr, nc) = (r as isize + dr, c as isize + dc);
-                    if nr < 0 || nc < 0 {
-                        continue;
-                    }
-                    let (nr, nc) = (nr as usize, nc as usize);
-                    if win.contains(nr, nc) && object.get(nr, nc) && !comp.get(nr, nc) {
-                        comp.set(nr, nc, true);
-                        stack.push((nr, nc));
+        let grow_seed = |labels: &[bool]| -> Mask {
+            let mut object = object.clone();
+            for (t, &(r, c)) in idx.iter().enumerate() {
+                if labels[t] {
+                    object.set(r, c, true);
+                }
+            }
+            let mut comp = Mask { rows: h, cols: w, data: vec![false; h * w] };
+            let mut stack: Vec<(usize, usize)> = seed_px.clone();
+            for &(r, c) in &seed_px {
+                comp.set(r, c, true);
+            }
+            while let Some((r, c)) = stack.pop() {
+                // from the seed, a one-texel gap may be jumped (the hinge between a laptop's
+                // raised screen and its keyboard has a colour of its own)
+                let reach: isize = if at(r, c) { 2 } else { 1 };
+                for dr in -reach..=reach {
+                    for dc in -reach..=reach {
+                        let (nr, nc) = (r as isize + dr, c as isize + dc);
+                        if nr < 0 || nc < 0 {
+                            continue;
+                        }
+                        let (nr, nc) = (nr as usize, nc as usize);
+                        if win.contains(nr, nc) && object.get(nr, nc) && !comp.get(nr, nc) {
+                            comp.set(nr, nc, true);
+                            stack.push((nr, nc));
+                        }
                     }
                 }
             }
-        }
+            // close the jumped gaps
+            let padded =
+                Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && comp.get(r - 1, c - 1));
+            match crate::morphology::close(&padded, 1) {
+                Ok(m) => Mask::from_fn(h, w, |r, c| m.get(r + 1, c + 1) && win.contains(r, c)),
+                Err(_) => comp,
+            }
+        };
+        let comp = grow_seed(&far_from_surface(&pts, color.ch, &seedf));
         let comp = fill_holes(&comp);
         let count = comp.count();
         let touches = (0..h * w).any(|i| comp.data[i] && (ring.data[i] || !f.data[i]));
@@ -1529,6 +1598,19 @@ pub fn detect(
                 });
                 continue;
             }
+            // ragged haze: floaters of a briefly trained field streak along the camera rays
+            // near the floor; their footprints fill little of their convex hull (real small,
+            // low objects are compact)
+            let solidity = count as f32 / crate::group::hull_area(&p.footprint).max(1.0);
+            if solidity < 0.7 && height < 0.5 && count < 4 * min_texels {
+                removed.push(Removed {
+                    world,
+                    reason: format!(
+                        "haze: ragged (solidity {solidity:.2}), low ({height:.2}) and small"
+                    ),
+                });
+                continue;
+            }
             parts.push(p);
         }
     }
@@ -1562,6 +1644,16 @@ pub fn detect(
             (Vec::new(), None)
         };
         let id = detections.len();
+        if debug() {
+            eprintln!(
+                "det {id} solidity {:.2} height {:.2} n {} kmin {} kmax {}",
+                p.footprint.count() as f32 / crate::group::hull_area(&p.footprint).max(1.0),
+                vol.height(p.kmax) - vol.height(ground),
+                p.footprint.count(),
+                p.kmin,
+                p.kmax
+            );
+        }
         let mut own = p.footprint.clone();
         let mut child_dets = Vec::new();
         for ch in &children {
@@ -1776,6 +1868,22 @@ mod tests {
         }
     }
 
+    /// Detection at 5 cm texels with a small minimum area (the unpacking tests).
+    fn detect_small(v: &OpacityVolume, color: &PlaneImage) -> Detections {
+        let grid =
+            PlaneGrid { cols: v.cols, rows: v.rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
+        detect(&grid, v, color, None, &opts).unwrap()
+    }
+
+    /// The one object standing on another, of exactly two detections.
+    fn only_child(d: &Detections) -> &Detection {
+        let boxes: Vec<(PixelRect, Option<usize>)> =
+            d.detections.iter().map(|x| (x.rect, x.parent)).collect();
+        assert_eq!(d.detections.len(), 2, "{boxes:?}");
+        d.detections.iter().find(|x| x.parent.is_some()).unwrap()
+    }
+
     fn rects(d: &Detections) -> Vec<PixelRect> {
         let mut v: Vec<PixelRect> = d.detections.iter().map(|x| x.rect).collect();
         v.sort_by_key(|r| (r.c0, r.r0));
@@ -1798,9 +1906,7 @@ mod tests {
             if red { [1.0, 0.1, 0.1][k] } else { [0.1, 0.2, 0.9][k] }
         })
         .unwrap();
-        let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
-        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
-        let d = detect(&grid, &v, &color, None, &opts).unwrap();
+        let d = detect_small(&v, &color);
         assert_eq!(
             rects(&d),
             vec![
@@ -1813,7 +1919,8 @@ mod tests {
             d.removed
         );
         // without separation: the bridged pair and the L are one object each
-        let joined = DetectOptions { split_3d: false, ..opts };
+        let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+        let joined = DetectOptions { split_3d: false, min_area: 0.01, ..Default::default() };
         assert_eq!(detect(&grid, &v, &color, None, &joined).unwrap().detections.len(), 2);
     }
 
@@ -1828,9 +1935,7 @@ mod tests {
             if cushion { [0.9, 0.8, 0.1][k] } else { [0.1, 0.5, 0.2][k] }
         })
         .unwrap();
-        let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
-        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
-        let d = detect(&grid, &v, &color, None, &opts).unwrap();
+        let d = detect_small(&v, &color);
         assert_eq!(rects(&d), vec![PixelRect::new(5, 5, 25, 25)], "{:?}", d.removed);
         assert!(d.removed.iter().any(|r| r.reason.starts_with("haze")), "{:?}", d.removed);
     }
@@ -1868,21 +1973,92 @@ mod tests {
             if dark { [0.1, 0.1, 0.1][k] } else { [0.9, 0.9, 0.85][k] }
         })
         .unwrap();
-        let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
-        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
-        let d = detect(&grid, &v, &color, None, &opts).unwrap();
-        let boxes: Vec<(PixelRect, Option<usize>)> =
-            d.detections.iter().map(|x| (x.rect, x.parent)).collect();
-        assert_eq!(d.detections.len(), 2, "{boxes:?}");
-        let child = d.detections.iter().find(|x| x.parent.is_some()).unwrap();
+        let d = detect_small(&v, &color);
+        let child = only_child(&d);
         assert_eq!(child.rect, PixelRect::new(12, 25, 22, 29));
         assert!((child.base - v.height(12)).abs() < 1e-4, "{}", child.base);
         // a body whose top is mostly covered (a chair's seat under its back) is no support
         let mut v2 = floor_volume(rows, cols, 24);
         fill(&mut v2, (5, 20), (10, 25), (2, 13), 0.95);
         fill(&mut v2, (8, 17), (13, 22), (13, 20), 0.95);
-        let d2 = detect(&grid, &v2, &color, None, &opts).unwrap();
+        let d2 = detect_small(&v2, &color);
         assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
+    }
+
+    #[test]
+    fn soft_tops_and_screens_behind_a_hinge_unpack() {
+        // a body whose top is soft (every texel opaque at one of three levels, so that no
+        // single level covers it) with a laptop: a raised screen, a hinge row of the
+        // surface's colour, and a dark keyboard lying on the top
+        let (rows, cols) = (60, 80);
+        let mut v = floor_volume(rows, cols, 24);
+        fill(&mut v, (5, 35), (10, 50), (2, 10), 0.95);
+        for r in 5..35 {
+            for c in 10..50 {
+                let k = 10 + (r + c) % 3;
+                v.data[(r * cols + c) * v.nz + k] = 0.95;
+            }
+        }
+        fill(&mut v, (12, 14), (25, 33), (14, 20), 0.95); // the screen
+        fill(&mut v, (15, 19), (25, 33), (13, 14), 0.95); // the keyboard
+        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+            let keyboard = (15..19).contains(&r) && (25..33).contains(&c);
+            let screen = (12..14).contains(&r) && (25..33).contains(&c);
+            if keyboard {
+                [0.1, 0.1, 0.1][k]
+            } else if screen {
+                [0.5, 0.5, 0.5][k]
+            } else {
+                [0.9, 0.9, 0.85][k]
+            }
+        })
+        .unwrap();
+        let d = detect_small(&v, &color);
+        let child = only_child(&d);
+        assert_eq!(child.rect, PixelRect::new(12, 25, 19, 33));
+    }
+
+    #[test]
+    fn a_solid_body_with_a_faint_level_is_no_table() {
+        // a car-like body (levels 2..=9 with one faint level) with a cabin over half of it:
+        // one object, not a cabin standing on a table
+        let (rows, cols) = (60, 80);
+        let mut v = floor_volume(rows, cols, 24);
+        fill(&mut v, (10, 40), (10, 30), (2, 10), 0.95);
+        fill(&mut v, (10, 40), (10, 30), (6, 7), 0.05);
+        fill(&mut v, (20, 30), (13, 27), (10, 16), 0.95);
+        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+            let cabin = (20..30).contains(&r) && (13..27).contains(&c);
+            if cabin { [0.2, 0.3, 0.4][k] } else { [0.8, 0.1, 0.1][k] }
+        })
+        .unwrap();
+        let d = detect_small(&v, &color);
+        assert_eq!(rects(&d), vec![PixelRect::new(10, 10, 40, 30)]);
+    }
+
+    #[test]
+    fn ragged_low_haze_goes_and_small_compact_objects_stay() {
+        let (rows, cols) = (60, 80);
+        let mut v = floor_volume(rows, cols, 24);
+        // a streaky blob of haze: thin diagonal strands, low
+        for i in 0..14 {
+            for s in [0usize, 4, 8] {
+                fill(&mut v, (10 + i, 11 + i), (10 + s + i / 2, 11 + s + i / 2), (2, 7), 0.97);
+            }
+        }
+        // a small compact box of the same height
+        fill(&mut v, (40, 46), (50, 56), (2, 7), 0.97);
+        // and a tall one, so that K-means has a background and objects
+        fill(&mut v, (40, 50), (10, 20), (2, 20), 0.97);
+        let color = PlaneImage::zeros(rows, cols, 3).unwrap();
+        let d = detect_small(&v, &color);
+        assert_eq!(
+            rects(&d),
+            vec![PixelRect::new(40, 10, 50, 20), PixelRect::new(40, 50, 46, 56)],
+            "{:?}",
+            d.removed
+        );
+        assert!(d.removed.iter().any(|r| r.reason.contains("ragged")), "{:?}", d.removed);
     }
 
     #[test]
