@@ -7,8 +7,8 @@ use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 
 pub use commands::{
-    BenchArgs, ComposeArgs, EvalArgs, InspectArgs, LayoutArgs, LibraryArgs, MineArgs, PlanesArgs,
-    RenderArgs, SynthArgs, TrainArgs,
+    BenchArgs, ComposeArgs, DemoArgs, EvalArgs, InspectArgs, LayoutArgs, LibraryArgs, MineArgs,
+    PlanesArgs, RenderArgs, SynthArgs, TrainArgs,
 };
 
 /// AssetField: editable neural scenes on ground feature planes.
@@ -33,6 +33,12 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// The whole pipeline on the built-in default scene (scenes/conference_room.ron), from
+    /// the repository root: synthesise the dataset and an edited version, train an
+    /// S-AssetField (--minutes, 3 by default), evaluate, draw the planes, mine the asset
+    /// library, compose the edit from it and compare with the ground truth, and render a
+    /// turntable of the composed scene. Everything lands in --out (runs/demo).
+    Demo(DemoArgs),
     /// Render a layout script into a multi-view NeRF-synthetic dataset with its ground truth.
     ///
     /// Writes transforms_train.json / transforms_test.json with RGBA PNGs under train/ and
@@ -120,6 +126,13 @@ pub enum Command {
     Bench(BenchArgs),
 }
 
+impl Cli {
+    /// Parse a command line (first = program name); a usage error becomes an error.
+    pub fn try_parse_from_args(args: &[&str]) -> anyhow::Result<Cli> {
+        Cli::try_parse_from(args).map_err(|e| anyhow::anyhow!("{e}"))
+    }
+}
+
 /// Run the CLI on the given arguments (first = program name); returns the exit code:
 /// 0 success, 1 failure, 2 bad usage, 130 interrupted by Ctrl-C.
 pub fn main_with_args(args: impl IntoIterator<Item = impl Into<OsString> + Clone>) -> i32 {
@@ -167,6 +180,7 @@ fn install_ctrlc() {
 /// Run a parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Demo(a) => commands::demo(a),
         Command::Synth(a) => commands::synth(a),
         Command::Inspect(a) => commands::inspect(a),
         Command::Layout(a) => commands::layout(a),

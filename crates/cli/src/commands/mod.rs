@@ -2,6 +2,7 @@
 
 mod bench;
 mod compose;
+mod demo;
 mod eval;
 mod mine;
 mod planes;
@@ -12,6 +13,7 @@ mod util;
 
 pub use bench::{BenchArgs, bench};
 pub use compose::{ComposeArgs, compose};
+pub use demo::{DemoArgs, demo};
 pub use eval::{EvalArgs, eval};
 pub use mine::{LibraryArgs, MineArgs, library, mine};
 pub use planes::{PlanesArgs, planes};

@@ -1,0 +1,116 @@
+//! `assetfield demo`: the whole pipeline on the built-in default scene, one command.
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Output folder: data/ (the synthesised dataset and its edited test views),
+    /// field.safetensors, eval/, planes/, library/, edit/ (the edit composed and compared with
+    /// the ground truth) and orbit/ (a turntable of the composed scene).
+    #[arg(long, short, default_value = "runs/demo")]
+    pub out: PathBuf,
+    /// The scene (a layout script of the suite) and its edit script.
+    #[arg(long, default_value = "scenes/conference_room.ron")]
+    pub scene: PathBuf,
+    #[arg(long, default_value = "scenes/edits/conference_room.ron")]
+    pub edit: PathBuf,
+    /// Training budget in minutes (CPU time divided by the worker threads).
+    #[arg(long, default_value_t = 3.0)]
+    pub minutes: f64,
+    /// Replace the output folder's contents if it exists.
+    #[arg(long)]
+    pub force: bool,
+}
+
+fn step(title: &str, args: &[&str]) -> Result<()> {
+    println!("\n== {title}: assetfield {}", args.join(" "));
+    let mut argv = vec!["assetfield"];
+    argv.extend_from_slice(args);
+    let cli = crate::Cli::try_parse_from_args(&argv)?;
+    crate::run(cli).with_context(|| format!("demo step: {title}"))
+}
+
+/// Run the pipeline: synth -> train -> eval -> planes -> mine -> compose (edit) -> compose
+/// (turntable).
+pub fn demo(a: DemoArgs) -> Result<()> {
+    for p in [&a.scene, &a.edit] {
+        if !p.is_file() {
+            bail!(
+                "{} not found: run the demo from the repository root, or pass --scene/--edit",
+                p.display()
+            );
+        }
+    }
+    if !(a.minutes.is_finite() && a.minutes > 0.0) {
+        bail!("--minutes must be positive");
+    }
+    if a.out.exists() && !a.force {
+        bail!("{} already exists (pass --force to replace it)", a.out.display());
+    }
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let o = |p: &str| -> String { a.out.join(p).display().to_string() };
+    let s = |p: &Path| p.display().to_string();
+    let minutes = a.minutes.to_string();
+    let (data, field, lib) = (o("data"), o("field.safetensors"), o("library"));
+    let edited = o("data/edited");
+    let gt = o("data/gt_layout.json");
+    let layout = o("library/layout.ron");
+    step(
+        "1/7 render the scene and its edit (ground truth)",
+        &["synth", &s(&a.scene), "--out", &data, "--edited", &s(&a.edit), "--force"],
+    )?;
+    step(
+        "2/7 train an S-AssetField",
+        &[
+            "train",
+            &data,
+            "--out",
+            &field,
+            "--minutes",
+            &minutes,
+            "--clock",
+            "cpu",
+            "--force",
+            "--discard-checkpoint",
+        ],
+    )?;
+    step(
+        "3/7 evaluate on the test views",
+        &["eval", &field, "--data", &data, "--out", &o("eval"), "--force"],
+    )?;
+    step("4/7 draw the ground planes", &["planes", &field, "--out", &o("planes"), "--force"])?;
+    step(
+        "5/7 mine the planes into an asset library",
+        &["mine", &field, "--out", &lib, "--gt", &gt, "--gt-names", "--force"],
+    )?;
+    step(
+        "6/7 compose the edit from the library, compare with the ground truth",
+        &[
+            "compose",
+            &layout,
+            "--library",
+            &lib,
+            "--edits",
+            &s(&a.edit),
+            "--views",
+            &edited,
+            "--metrics",
+            "--planes",
+            "--out",
+            &o("edit"),
+            "--force",
+        ],
+    )?;
+    step(
+        "7/7 a turntable of the composed scene",
+        &["compose", &layout, "--library", &lib, "--orbit", "12", "--out", &o("orbit"), "--force"],
+    )?;
+    println!(
+        "\ndemo done: {} (eval/metrics.json, library/boxes.png, edit/metrics.json, orbit/*.png)",
+        a.out.display()
+    );
+    Ok(())
+}
