@@ -118,6 +118,12 @@ pub struct Detection {
     pub base: f32,
     /// World height of its top.
     pub top: f32,
+    /// World height of its top for comparing shapes ([`crate::group::Shape`]): the highest
+    /// level occupied in at least [`SHAPE_TOP_FRACTION`] of the footprint's columns, so that
+    /// specks of haze floating over an object do not make it look taller (equal to `top`
+    /// for a support whose top is its surface).
+    #[serde(default)]
+    pub shape_top: f32,
     /// The detection this one stands on.
     pub parent: Option<usize>,
     /// Detections standing on this one.
@@ -150,6 +156,47 @@ pub struct Detections {
     pub mask: Mask,
     pub detections: Vec<Detection>,
     pub removed: Vec<Removed>,
+}
+
+/// Fraction of an object's footprint columns that must be occupied at a level for it to
+/// count as the object's top in [`Detection::shape_top`].
+pub const SHAPE_TOP_FRACTION: f32 = 0.02;
+
+/// The highest level in `lo..=hi` at which at least [`SHAPE_TOP_FRACTION`] of the footprint's
+/// columns (and at least two) hold a voxel above `tau`; `hi` when no level qualifies or the
+/// footprint is tiny. Isolated specks of haze above an object are thus ignored, while a
+/// chair's back (a good part of its footprint) still counts.
+pub fn robust_top_level(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    footprint: &Mask,
+    lo: usize,
+    hi: usize,
+    tau: f32,
+) -> usize {
+    let hi = hi.min(vol.nz.saturating_sub(1));
+    let n = footprint.count();
+    let need = ((n as f32 * SHAPE_TOP_FRACTION).ceil() as usize).max(2);
+    if n < 2 * need || lo >= hi {
+        return hi;
+    }
+    let mut count = vec![0usize; hi + 1];
+    for r in 0..rect.rows() {
+        for c in 0..rect.cols() {
+            if footprint.get(r, c) {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                for k in lo..=hi {
+                    if col[k] > tau {
+                        count[k] += 1;
+                    }
+                }
+            }
+        }
+    }
+    if debug() {
+        eprintln!("   top counts (need {need} of {n}) {:?}", &count[lo..=hi]);
+    }
+    (lo..=hi).rev().find(|&k| count[k] >= need).unwrap_or(hi)
 }
 
 /// Find the floor slab: the lowest level (in the lower half of the volume) where at least
@@ -567,6 +614,28 @@ fn lowest_level(vol: &OpacityVolume, rect: PixelRect, m: &Mask, start: usize, ta
     best
 }
 
+/// Whether the opaque voxels in the columns of `m` (over `rect`) stand on the ground: a 3D
+/// component reaching down to `ground` also reaches at least halfway up to the bottom of
+/// the largest floating one. A lamp head over a few specks of haze on the ground does not stand; a
+/// table top over what the field kept of its legs does.
+fn stands(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    m: &Mask,
+    start: usize,
+    ground: usize,
+    tau: f32,
+) -> bool {
+    let bl = blobs(vol, rect, m, start, tau);
+    // the bottom of the largest floating component (a table top over legs the field lost in
+    // part); none: standing when anything reaches the ground
+    let top = bl.iter().filter(|b| b.kmin > ground).max_by_key(|b| b.proj_count).map(|b| b.kmin);
+    let Some(top) = top else { return bl.iter().any(|b| b.kmin <= ground) };
+    bl.iter().any(|b| {
+        b.kmin <= ground && 2 * b.kmax.saturating_sub(ground) >= top.saturating_sub(ground)
+    })
+}
+
 /// Cut a region at thin bridges: the cores that survive a morphological opening of radius
 /// `radius` become seeds, every texel goes to the geodesically nearest seed, and pieces
 /// that do not reach the ground (a lamp head whose arm is too thin, a shade over its base)
@@ -617,10 +686,8 @@ fn split_bridges(
         .collect();
     // floating pieces join their longest-bordering neighbour
     loop {
-        let grounded: Vec<bool> = pieces
-            .iter()
-            .map(|p| lowest_level(vol, rect, p, start, tau) <= ground + ground_tol)
-            .collect();
+        let grounded: Vec<bool> =
+            pieces.iter().map(|p| stands(vol, rect, p, start, ground + ground_tol, tau)).collect();
         let Some(f) = (0..pieces.len()).find(|&i| !grounded[i]) else { break };
         let mut border = vec![0usize; pieces.len()];
         for r in 0..h {
@@ -764,6 +831,7 @@ fn split_by_colour(
     ground_tol: usize,
     tau: f32,
     min_texels: usize,
+    thin: usize,
     depth: usize,
 ) -> Vec<Part> {
     let (rect, f) = (part.rect, &part.footprint);
@@ -904,7 +972,10 @@ fn split_by_colour(
         }
         let continuous = pairs > 0 && level * 10 >= pairs * 8;
         if debug() {
-            eprintln!("   top surface continuous over {level}/{pairs} of the shared outline");
+            eprintln!(
+                "   top surface continuous over {level}/{pairs} of the shared outline; thin {}",
+                is_thin(piece, thin)
+            );
         }
         if nb == 0
             || shared * 2 > outline
@@ -912,6 +983,7 @@ fn split_by_colour(
             || s_all > 0.9
             || s_piece < 0.6
             || continuous
+            || is_thin(piece, thin)
         {
             continue;
         }
@@ -939,11 +1011,32 @@ fn split_by_colour(
                 ground_tol,
                 tau,
                 min_texels,
+                thin,
                 depth - 1,
             ));
         }
     }
     out
+}
+
+/// Erosion radius (texels) below which a colour piece is a thin strip ([`is_thin`]): about
+/// 0.1 world units, so that strips thinner than about 0.2 are thin.
+fn thin_radius(texel: f32) -> usize {
+    ((0.1 / texel.max(1e-6)).floor() as usize).max(1)
+}
+
+/// Whether a mask, holes filled, vanishes under an erosion of the given radius (a strip
+/// narrower than `2 * radius + 1` texels everywhere). A thin strip of another colour along an object (the
+/// back of a chair, whose colour a briefly trained field gets wrong) is part of it, not an
+/// object of its own.
+fn is_thin(mask: &Mask, radius: usize) -> bool {
+    let (h, w) = (mask.rows, mask.cols);
+    let filled = fill_holes(mask);
+    let pad = radius + 1;
+    let padded = Mask::from_fn(h + 2 * pad, w + 2 * pad, |r, c| {
+        r >= pad && c >= pad && r < h + pad && c < w + pad && filled.get(r - pad, c - pad)
+    });
+    erode(&padded, radius).is_ok_and(|e| e.count() == 0)
 }
 
 /// Remove one-texel protrusions and speckle chains from a part's footprint (an opening of
@@ -1307,7 +1400,9 @@ fn unpack(
         if debug() {
             eprintln!("   seed {:?} -> {count} texels, touches {touches}", sb);
         }
-        if touches || count < min_texels || count * 4 > n * 3 {
+        // an object on a support leaves most of it free: a piece covering more than half of
+        // it (a car's cabin over its bonnet and boot) belongs to the body
+        if touches || count < min_texels || count * 2 > n {
             continue;
         }
         // it must stand within the surface: most of the ring around it is surface
@@ -1554,7 +1649,16 @@ pub fn detect(
         for p in split {
             if opts.split_3d {
                 split2.extend(split_by_colour(
-                    vol, &pcs, p, start, ground, ground_tol, tau, min_texels, 3,
+                    vol,
+                    &pcs,
+                    p,
+                    start,
+                    ground,
+                    ground_tol,
+                    tau,
+                    min_texels,
+                    thin_radius(grid.texel_size()),
+                    3,
                 ));
             } else {
                 split2.push(p);
@@ -1681,6 +1785,14 @@ pub fn detect(
                 area: ch.footprint.count() as f32 * texel_area,
                 base,
                 top: vol.height(ch.kmax),
+                shape_top: vol.height(robust_top_level(
+                    vol,
+                    ch.rect,
+                    &ch.footprint,
+                    surface.unwrap_or(p.kmax),
+                    ch.kmax,
+                    tau,
+                )),
                 parent: Some(id),
                 children: Vec::new(),
             });
@@ -1688,9 +1800,12 @@ pub fn detect(
         if own.count() == 0 {
             own = p.footprint.clone();
         }
-        let top = match (surface, children.is_empty()) {
-            (Some(s), false) => vol.height(s),
-            _ => vol.height(p.kmax),
+        let (top, shape_top) = match (surface, children.is_empty()) {
+            (Some(s), false) => (vol.height(s), vol.height(s)),
+            _ => (
+                vol.height(p.kmax),
+                vol.height(robust_top_level(vol, p.rect, &p.footprint, p.kmin, p.kmax, tau)),
+            ),
         };
         let base = if p.kmin <= ground + ground_tol {
             floor.map_or(vol.height(ground), |f| vol.height(f.hi).max(vol.height(ground) - vol.dz))
@@ -1706,6 +1821,7 @@ pub fn detect(
             area: p.footprint.count() as f32 * texel_area,
             base,
             top,
+            shape_top,
             parent: None,
             children: Vec::new(),
         });
@@ -1740,6 +1856,20 @@ pub fn detect(
             if own.count() * 4 >= own_before {
                 detections[i].own = own;
             }
+        }
+    }
+    if debug() {
+        for d in &detections {
+            eprintln!(
+                "final {} {:?}: base {:.2} top {:.2} shape_top {:.2} hull {:.0} parent {:?}",
+                d.id,
+                d.world.to_array(),
+                d.base,
+                d.top,
+                d.shape_top,
+                crate::group::hull_area(&d.footprint),
+                d.parent
+            );
         }
     }
     Ok(Detections {
@@ -2067,5 +2197,87 @@ mod tests {
         assert_eq!(fill_holes(&m).count(), 25);
         let open = Mask::from_fn(5, 5, |r, c| (r == 0 || r == 4 || c == 0) && c < 4);
         assert_eq!(fill_holes(&open).count(), open.count());
+    }
+
+    #[test]
+    fn robust_top_ignores_specks_of_haze() {
+        let (rows, cols, nz) = (12, 12, 20);
+        let mut data = vec![0f32; rows * cols * nz];
+        // a 10 x 10 box over levels 2..=8
+        for r in 1..11 {
+            for c in 1..11 {
+                for k in 2..=8 {
+                    data[(r * cols + c) * nz + k] = 0.9;
+                }
+            }
+        }
+        // a speck of haze over one column at level 15
+        data[(5 * cols + 5) * nz + 15] = 0.9;
+        let vol = OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data };
+        let rect = PixelRect::new(0, 0, rows, cols);
+        let fp = Mask::from_fn(rows, cols, |r, c| (1..11).contains(&r) && (1..11).contains(&c));
+        assert_eq!(robust_top_level(&vol, rect, &fp, 2, 15, 0.5), 8);
+        // a tall part over a fifth of the columns (a chair's back) counts
+        let mut vol2 = vol.clone();
+        for r in 1..11 {
+            for c in 1..3 {
+                for k in 9..=14 {
+                    vol2.data[(r * cols + c) * nz + k] = 0.9;
+                }
+            }
+        }
+        assert_eq!(robust_top_level(&vol2, rect, &fp, 2, 15, 0.5), 14);
+        // a tiny footprint keeps the given top
+        let one = Mask::from_fn(rows, cols, |r, c| r == 5 && c == 5);
+        assert_eq!(robust_top_level(&vol, rect, &one, 2, 15, 0.5), 15);
+    }
+
+    #[test]
+    fn thin_strips() {
+        let strip = Mask::from_fn(20, 20, |_, c| (8..13).contains(&c));
+        assert!(is_thin(&strip, 3));
+        assert!(!is_thin(&strip, 2));
+        // a ring is judged with its hole filled
+        let ring = Mask::from_fn(12, 12, |r, c| r == 0 || c == 0 || r == 11 || c == 11);
+        assert!(!is_thin(&ring, 3));
+        assert!(is_thin(&Mask::from_fn(4, 4, |_, _| false), 1));
+        assert_eq!(thin_radius(0.025), 4);
+        assert_eq!(thin_radius(0.07), 1);
+    }
+
+    #[test]
+    fn floating_heads_do_not_stand_on_specks() {
+        let (rows, cols, nz) = (6, 6, 40);
+        let vol = |f: &dyn Fn(usize, usize, usize) -> bool| {
+            let mut data = vec![0f32; rows * cols * nz];
+            for r in 0..rows {
+                for c in 0..cols {
+                    for k in 0..nz {
+                        if f(r, c, k) {
+                            data[(r * cols + c) * nz + k] = 0.9;
+                        }
+                    }
+                }
+            }
+            OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data }
+        };
+        let rect = PixelRect::new(0, 0, rows, cols);
+        let all = Mask::from_fn(rows, cols, |_, _| true);
+        // a lamp head at levels 30..=33 over a speck of haze on the ground
+        let head = vol(&|r, c, k| {
+            (1..5).contains(&r) && (1..5).contains(&c) && (30..=33).contains(&k)
+                || (r, c) == (2, 2) && k <= 3
+        });
+        assert!(!stands(&head, rect, &all, 0, 2, 0.5));
+        // a table top at levels 10..=11 over legs the field kept up to level 6
+        let table = vol(&|r, c, k| {
+            (10..=11).contains(&k) || [(0, 0), (0, 5), (5, 0), (5, 5)].contains(&(r, c)) && k <= 6
+        });
+        assert!(stands(&table, rect, &all, 0, 2, 0.5));
+        // a post from the ground up
+        let post = vol(&|r, c, _| (r, c) == (3, 3));
+        assert!(stands(&post, rect, &all, 0, 2, 0.5));
+        // nothing at all
+        assert!(!stands(&vol(&|_, _, _| false), rect, &all, 0, 2, 0.5));
     }
 }

@@ -107,7 +107,8 @@ pub struct Shape {
     /// Area of the convex hull of the footprint (rotation invariant, and forgiving to
     /// footprints with gaps).
     pub area: f32,
-    /// Height of the top above the base.
+    /// Height of the top above the base ([`crate::detect::Detection::shape_top`]: haze
+    /// specks above the object do not count).
     pub height: f32,
 }
 
@@ -116,7 +117,7 @@ impl Shape {
     pub fn of(d: &crate::detect::Detection, texel: [f32; 2]) -> Shape {
         Shape {
             area: hull_area(&d.footprint) * texel[0] * texel[1],
-            height: (d.top - d.base).max(0.0),
+            height: (d.shape_top - d.base).max(0.0),
         }
     }
 }
