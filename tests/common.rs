@@ -77,3 +77,81 @@ pub fn run_cli(cwd: &Path, args: &[&str]) -> (i32, String, String) {
         String::from_utf8_lossy(&stderr).into_owned(),
     )
 }
+
+/// The footprint of an instance as a convex polygon in world coordinates, shrunk by `margin`:
+/// its rectangle, or a 24-gon for rotationally symmetric (round) assets.
+pub fn footprint_polygon(i: &assetfield_layout::ResolvedInstance, margin: f32) -> Vec<glam::Vec2> {
+    let (a, b) = (i.footprint.min + margin, i.footprint.max - margin);
+    let local: Vec<glam::Vec2> = if i.yaw_symmetry_deg == 0.0 {
+        let (c, r) = ((a + b) * 0.5, (b - a).min_element() * 0.5);
+        (0..24)
+            .map(|k| c + glam::Vec2::from_angle(k as f32 * std::f32::consts::TAU / 24.0) * r)
+            .collect()
+    } else {
+        vec![a, glam::Vec2::new(b.x, a.y), b, glam::Vec2::new(a.x, b.y)]
+    };
+    local.into_iter().map(|p| i.transform.transform_point2(p)).collect()
+}
+
+/// Separating-axis test for convex polygons.
+pub fn convex_overlap(p: &[glam::Vec2], q: &[glam::Vec2]) -> bool {
+    for poly in [p, q] {
+        for k in 0..poly.len() {
+            let e = poly[(k + 1) % poly.len()] - poly[k];
+            let n = glam::Vec2::new(-e.y, e.x);
+            let range = |s: &[glam::Vec2]| {
+                s.iter()
+                    .fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v.dot(n)), hi.max(v.dot(n))))
+            };
+            let ((a0, a1), (b0, b1)) = (range(p), range(q));
+            if a1 <= b0 || b1 <= a0 {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// A small scene for the mining and composing tests: two asymmetric categories (three red and
+/// blue wedges, two green blocks with a yellow corner post) at different yaws, on a floor.
+pub const SCENE: &str = r#"Scene(
+    name: "tiny",
+    assets: {
+        "floor": Asset(container: true, parts: [
+            Box(center: (0.0, 0.0, -0.01), size: (4.6, 3.6, 0.02), color: (0.55, 0.5, 0.45)),
+        ]),
+        "wedge": Asset(parts: [
+            Box(center: (0.0, 0.0, 0.2), size: (0.8, 0.5, 0.4), color: (0.8, 0.15, 0.1)),
+            Box(center: (-0.35, 0.0, 0.5), size: (0.1, 0.5, 0.2), color: (0.1, 0.2, 0.8)),
+        ]),
+        "block": Asset(parts: [
+            Box(center: (0.0, 0.0, 0.15), size: (0.6, 0.6, 0.3), color: (0.2, 0.7, 0.3)),
+            Box(center: (0.2, 0.2, 0.4), size: (0.2, 0.2, 0.2), color: (0.95, 0.85, 0.2)),
+        ]),
+    },
+    layout: [
+        Instance(asset: "floor", at: (0, 0)),
+        Instance(asset: "wedge", at: (-1.2, 0.8), yaw: 0, name: "w0"),
+        Instance(asset: "wedge", at: (0.4, 0.9), yaw: 90, name: "w1"),
+        Instance(asset: "wedge", at: (1.5, -0.3), yaw: 200, name: "w2"),
+        Instance(asset: "block", at: (-1.0, -0.9), yaw: 30, name: "b0"),
+        Instance(asset: "block", at: (0.4, -1.0), yaw: 135, name: "b1"),
+    ],
+)
+"#;
+
+/// Run `assetfield ARGS` in `dir` and expect success; returns stdout.
+pub fn ok(dir: &Path, args: &[&str]) -> String {
+    let (code, out, err) = run_cli(dir, args);
+    assert_eq!(code, 0, "{args:?}\nstdout: {out}\nstderr: {err}");
+    out
+}
+
+/// Run `assetfield ARGS` in `dir` and expect exit 1 with every needle in stderr.
+pub fn fail(dir: &Path, args: &[&str], needles: &[&str]) {
+    let (code, out, err) = run_cli(dir, args);
+    assert_eq!(code, 1, "{args:?}\nstdout: {out}\nstderr: {err}");
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: expected {n:?} in: {err}");
+    }
+}

@@ -12,34 +12,8 @@ use assetfield_field::eval::load_field;
 use assetfield_layout::resolve;
 use assetfield_mining::library::{content_hash, index_to_ron};
 use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, ScriptAssets};
-use assetfield_tests::{run_cli, scratch};
+use assetfield_tests::{SCENE, fail, ok, run_cli, scratch};
 use std::path::Path;
-
-const SCENE: &str = r#"Scene(
-    name: "tiny_compose",
-    assets: {
-        "floor": Asset(container: true, parts: [
-            Box(center: (0.0, 0.0, -0.01), size: (4.6, 3.6, 0.02), color: (0.55, 0.5, 0.45)),
-        ]),
-        "wedge": Asset(parts: [
-            Box(center: (0.0, 0.0, 0.2), size: (0.8, 0.5, 0.4), color: (0.8, 0.15, 0.1)),
-            Box(center: (-0.35, 0.0, 0.5), size: (0.1, 0.5, 0.2), color: (0.1, 0.2, 0.8)),
-        ]),
-        "block": Asset(parts: [
-            Box(center: (0.0, 0.0, 0.15), size: (0.6, 0.6, 0.3), color: (0.2, 0.7, 0.3)),
-            Box(center: (0.2, 0.2, 0.4), size: (0.2, 0.2, 0.2), color: (0.95, 0.85, 0.2)),
-        ]),
-    },
-    layout: [
-        Instance(asset: "floor", at: (0, 0)),
-        Instance(asset: "wedge", at: (-1.2, 0.8), yaw: 0, name: "w0"),
-        Instance(asset: "wedge", at: (0.4, 0.9), yaw: 90, name: "w1"),
-        Instance(asset: "wedge", at: (1.5, -0.3), yaw: 200, name: "w2"),
-        Instance(asset: "block", at: (-1.0, -0.9), yaw: 30, name: "b0"),
-        Instance(asset: "block", at: (0.4, -1.0), yaw: 135, name: "b1"),
-    ],
-)
-"#;
 
 const EDIT: &str = r#"Scene(
     base: "tiny.ron",
@@ -52,20 +26,6 @@ const EDIT: &str = r#"Scene(
     ],
 )
 "#;
-
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let (code, out, err) = run_cli(dir, args);
-    assert_eq!(code, 0, "{args:?}\nstdout: {out}\nstderr: {err}");
-    out
-}
-
-fn fail(dir: &Path, args: &[&str], needles: &[&str]) {
-    let (code, out, err) = run_cli(dir, args);
-    assert_eq!(code, 1, "{args:?}\nstdout: {out}\nstderr: {err}");
-    for n in needles {
-        assert!(err.contains(n), "{args:?}: expected {n:?} in: {err}");
-    }
-}
 
 fn psnr_of(path: &Path) -> f64 {
     let m: serde_json::Value =

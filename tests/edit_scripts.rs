@@ -9,7 +9,7 @@ use assetfield_core::ground::{wrap_degrees, yaw_difference};
 use assetfield_layout::source::parse_script;
 use assetfield_layout::{Edit, ResolvedInstance, ResolvedLayout, Script};
 use assetfield_synth::load_scene;
-use assetfield_tests::{repo, scene_files};
+use assetfield_tests::{convex_overlap, footprint_polygon, repo, scene_files};
 use glam::Vec2;
 use std::path::{Path, PathBuf};
 
@@ -73,38 +73,6 @@ fn edits_of(name: &str, script: &Script) -> Edits {
 
 fn is_ground_object(i: &ResolvedInstance) -> bool {
     !i.container && i.supported_by.is_none()
-}
-
-/// The footprint of an instance as a convex polygon in world coordinates, shrunk by `margin`:
-/// its rectangle, or a 24-gon for rotationally symmetric (round) assets.
-fn footprint_polygon(i: &ResolvedInstance, margin: f32) -> Vec<Vec2> {
-    let (a, b) = (i.footprint.min + margin, i.footprint.max - margin);
-    let local: Vec<Vec2> = if i.yaw_symmetry_deg == 0.0 {
-        let (c, r) = ((a + b) * 0.5, (b - a).min_element() * 0.5);
-        (0..24).map(|k| c + Vec2::from_angle(k as f32 * std::f32::consts::TAU / 24.0) * r).collect()
-    } else {
-        vec![a, Vec2::new(b.x, a.y), b, Vec2::new(a.x, b.y)]
-    };
-    local.into_iter().map(|p| i.transform.transform_point2(p)).collect()
-}
-
-/// Separating-axis test for convex polygons.
-fn convex_overlap(p: &[Vec2], q: &[Vec2]) -> bool {
-    for poly in [p, q] {
-        for k in 0..poly.len() {
-            let e = poly[(k + 1) % poly.len()] - poly[k];
-            let n = Vec2::new(-e.y, e.x);
-            let range = |s: &[Vec2]| {
-                s.iter()
-                    .fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v.dot(n)), hi.max(v.dot(n))))
-            };
-            let ((a0, a1), (b0, b1)) = (range(p), range(q));
-            if a1 <= b0 || b1 <= a0 {
-                return false;
-            }
-        }
-    }
-    true
 }
 
 fn point_segment_distance(p: Vec2, a: Vec2, b: Vec2) -> f32 {

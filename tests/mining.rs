@@ -5,50 +5,7 @@
 
 use assetfield_layout::{PartsCatalog, resolve};
 use assetfield_mining::library::open_library;
-use assetfield_tests::{run_cli, scratch};
-use std::path::Path;
-
-/// Two asymmetric categories: three wedges (red body, blue back) and two blocks (green with
-/// a yellow corner post), all at different yaws, on a floor.
-const SCENE: &str = r#"Scene(
-    name: "tiny_mining",
-    assets: {
-        "floor": Asset(container: true, parts: [
-            Box(center: (0.0, 0.0, -0.01), size: (4.6, 3.6, 0.02), color: (0.55, 0.5, 0.45)),
-        ]),
-        "wedge": Asset(parts: [
-            Box(center: (0.0, 0.0, 0.2), size: (0.8, 0.5, 0.4), color: (0.8, 0.15, 0.1)),
-            Box(center: (-0.35, 0.0, 0.5), size: (0.1, 0.5, 0.2), color: (0.1, 0.2, 0.8)),
-        ]),
-        "block": Asset(parts: [
-            Box(center: (0.0, 0.0, 0.15), size: (0.6, 0.6, 0.3), color: (0.2, 0.7, 0.3)),
-            Box(center: (0.2, 0.2, 0.4), size: (0.2, 0.2, 0.2), color: (0.95, 0.85, 0.2)),
-        ]),
-    },
-    layout: [
-        Instance(asset: "floor", at: (0, 0)),
-        Instance(asset: "wedge", at: (-1.2, 0.8), yaw: 0),
-        Instance(asset: "wedge", at: (0.4, 0.9), yaw: 90),
-        Instance(asset: "wedge", at: (1.5, -0.3), yaw: 200),
-        Instance(asset: "block", at: (-1.0, -0.9), yaw: 30),
-        Instance(asset: "block", at: (0.4, -1.0), yaw: 135),
-    ],
-)
-"#;
-
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let (code, out, err) = run_cli(dir, args);
-    assert_eq!(code, 0, "{args:?}\nstdout: {out}\nstderr: {err}");
-    out
-}
-
-fn fail(dir: &Path, args: &[&str], needles: &[&str]) {
-    let (code, out, err) = run_cli(dir, args);
-    assert_eq!(code, 1, "{args:?}\nstdout: {out}\nstderr: {err}");
-    for n in needles {
-        assert!(err.contains(n), "{args:?}: expected {n:?} in: {err}");
-    }
-}
+use assetfield_tests::{SCENE, fail, ok, run_cli, scratch};
 
 #[test]
 fn mine_a_small_scene_into_a_library_and_layout() {

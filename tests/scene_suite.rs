@@ -6,8 +6,7 @@ use assetfield_data::{Dataset, LoadOptions, Split};
 use assetfield_layout::script::Part;
 use assetfield_layout::{GtLayout, ResolvedLayout};
 use assetfield_synth::{SynthOptions, load_scene, synthesize};
-use assetfield_tests::{scene_files, scratch};
-use glam::Vec2;
+use assetfield_tests::{convex_overlap, footprint_polygon, scene_files, scratch};
 use std::collections::BTreeMap;
 
 fn resolved() -> Vec<(String, assetfield_layout::LoadedScript, ResolvedLayout)> {
@@ -93,38 +92,6 @@ fn the_suite_has_what_the_paper_setup_needs() {
         colour_pair.unwrap(),
         shape_pair.unwrap()
     );
-}
-
-/// The footprint of an instance as a convex polygon in world coordinates, shrunk by `margin`:
-/// its rectangle, or a 24-gon for rotationally symmetric (round) assets.
-fn footprint_polygon(i: &assetfield_layout::ResolvedInstance, margin: f32) -> Vec<Vec2> {
-    let (a, b) = (i.footprint.min + margin, i.footprint.max - margin);
-    let local: Vec<Vec2> = if i.yaw_symmetry_deg == 0.0 {
-        let (c, r) = ((a + b) * 0.5, (b - a).min_element() * 0.5);
-        (0..24).map(|k| c + Vec2::from_angle(k as f32 * std::f32::consts::TAU / 24.0) * r).collect()
-    } else {
-        vec![a, Vec2::new(b.x, a.y), b, Vec2::new(a.x, b.y)]
-    };
-    local.into_iter().map(|p| i.transform.transform_point2(p)).collect()
-}
-
-/// Separating-axis test for convex polygons.
-fn convex_overlap(p: &[Vec2], q: &[Vec2]) -> bool {
-    for poly in [p, q] {
-        for k in 0..poly.len() {
-            let e = poly[(k + 1) % poly.len()] - poly[k];
-            let n = Vec2::new(-e.y, e.x);
-            let range = |s: &[Vec2]| {
-                s.iter()
-                    .fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v.dot(n)), hi.max(v.dot(n))))
-            };
-            let ((a0, a1), (b0, b1)) = (range(p), range(q));
-            if a1 <= b0 || b1 <= a0 {
-                return false;
-            }
-        }
-    }
-    true
 }
 
 #[test]
