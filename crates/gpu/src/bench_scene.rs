@@ -237,28 +237,14 @@ impl BenchScene {
     /// footprints of every changed instance, overlapping ones merged (as the CPU composer
     /// merges its dirty rectangles).
     pub fn dirty_rects(&self, before: &[PatchInstance], after: &[PatchInstance]) -> Vec<TexelRect> {
-        let mut rects: Vec<TexelRect> = before
-            .iter()
-            .zip(after)
-            .filter(|(a, b)| a != b)
-            .flat_map(|(a, b)| [self.footprint(a), self.footprint(b)])
-            .filter(|r| !r.is_empty())
-            .collect();
-        let mut merged = true;
-        while merged {
-            merged = false;
-            let mut out: Vec<TexelRect> = Vec::with_capacity(rects.len());
-            for r in rects {
-                if let Some(o) = out.iter_mut().find(|o| o.intersects(&r)) {
-                    *o = o.union(&r);
-                    merged = true;
-                } else {
-                    out.push(r);
-                }
-            }
-            rects = out;
-        }
-        rects
+        TexelRect::merge_overlapping(
+            before
+                .iter()
+                .zip(after)
+                .filter(|(a, b)| a != b)
+                .flat_map(|(a, b)| [self.footprint(a), self.footprint(b)])
+                .collect(),
+        )
     }
 }
 

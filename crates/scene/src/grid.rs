@@ -45,6 +45,26 @@ impl TexelRect {
             c1: self.c1.max(o.c1),
         }
     }
+    /// Merge overlapping rectangles (dropping empty ones) until none overlap.
+    pub fn merge_overlapping(mut rects: Vec<TexelRect>) -> Vec<TexelRect> {
+        rects.retain(|r| !r.is_empty());
+        let mut merged = true;
+        while merged {
+            merged = false;
+            let mut out: Vec<TexelRect> = Vec::with_capacity(rects.len());
+            for r in rects {
+                if let Some(o) = out.iter_mut().find(|o| o.intersects(&r)) {
+                    *o = o.union(&r);
+                    merged = true;
+                } else {
+                    out.push(r);
+                }
+            }
+            rects = out;
+        }
+        rects
+    }
+
     pub fn intersects(&self, o: &TexelRect) -> bool {
         !self.is_empty()
             && !o.is_empty()

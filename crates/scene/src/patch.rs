@@ -175,6 +175,22 @@ impl FeaturePatch {
         total
     }
 
+    /// Call `f(k, q)` for every texel `k` of this patch with the point `q` of `source`'s
+    /// local frame that it maps to when `source` is stretched onto this patch's extent.
+    fn sample_stretched(&self, source: &FeaturePatch, mut f: impl FnMut(usize, Vec2)) {
+        let (sh, th) = (source.half_extent(), self.half_extent());
+        let stretch = sh / th.max(Vec2::splat(1e-9));
+        for r in 0..self.rows {
+            for c in 0..self.cols {
+                let q = Vec2::new(
+                    (c as f32 - (self.cols - 1) as f32 * 0.5) * self.texel.x,
+                    (r as f32 - (self.rows - 1) as f32 * 0.5) * self.texel.y,
+                ) * stretch;
+                f(r * self.cols + c, q);
+            }
+        }
+    }
+
     /// Recolouring: `source`'s colour features, stretched onto this patch's extent, with this
     /// patch's geometry (density features and weights) kept. Texels the source object does
     /// not cover keep their own colour.
@@ -187,28 +203,19 @@ impl FeaturePatch {
                 actual: source.nc.to_string(),
             });
         }
-        let (sh, th) = (source.half_extent(), self.half_extent());
-        let stretch = sh / th.max(Vec2::splat(1e-9));
         let mut color = self.color.clone();
         let mut scratch_d = vec![0.0f32; source.nd];
         let mut acc = vec![0.0f32; source.nc];
-        for r in 0..self.rows {
-            for c in 0..self.cols {
-                let q = Vec2::new(
-                    (c as f32 - (self.cols - 1) as f32 * 0.5) * self.texel.x,
-                    (r as f32 - (self.rows - 1) as f32 * 0.5) * self.texel.y,
-                ) * stretch;
-                scratch_d.fill(0.0);
-                acc.fill(0.0);
-                let w = source.accumulate(q, &mut scratch_d, &mut acc);
-                if w > 1e-6 {
-                    let k = r * self.cols + c;
-                    for (dst, v) in color[k * self.nc..][..self.nc].iter_mut().zip(&acc) {
-                        *dst = v / w;
-                    }
+        self.sample_stretched(source, |k, q| {
+            scratch_d.fill(0.0);
+            acc.fill(0.0);
+            let w = source.accumulate(q, &mut scratch_d, &mut acc);
+            if w > 1e-6 {
+                for (dst, v) in color[k * self.nc..][..self.nc].iter_mut().zip(&acc) {
+                    *dst = v / w;
                 }
             }
-        }
+        });
         FeaturePatch::new(
             format!("{}~{}", self.name, source.name),
             self.rows,
@@ -231,28 +238,19 @@ impl FeaturePatch {
                 actual: source.nd.to_string(),
             });
         }
-        let (sh, th) = (source.half_extent(), self.half_extent());
-        let stretch = sh / th.max(Vec2::splat(1e-9));
         let mut density = vec![0.0f32; self.rows * self.cols * self.nd];
         let mut weight = vec![0.0f32; self.rows * self.cols];
         let mut scratch_c = vec![0.0f32; source.nc];
-        for r in 0..self.rows {
-            for c in 0..self.cols {
-                let q = Vec2::new(
-                    (c as f32 - (self.cols - 1) as f32 * 0.5) * self.texel.x,
-                    (r as f32 - (self.rows - 1) as f32 * 0.5) * self.texel.y,
-                ) * stretch;
-                let k = r * self.cols + c;
-                let d = &mut density[k * self.nd..][..self.nd];
-                scratch_c.fill(0.0);
-                let w = source.accumulate(q, d, &mut scratch_c);
-                if w > 1e-6 {
-                    d.iter_mut().for_each(|v| *v /= w);
-                }
-                // the bilinear sum of object weights is the warped object weight
-                weight[k] = w.min(1.0);
+        self.sample_stretched(source, |k, q| {
+            let d = &mut density[k * self.nd..][..self.nd];
+            scratch_c.fill(0.0);
+            let w = source.accumulate(q, d, &mut scratch_c);
+            if w > 1e-6 {
+                d.iter_mut().for_each(|v| *v /= w);
             }
-        }
+            // the bilinear sum of object weights is the warped object weight
+            weight[k] = w.min(1.0);
+        });
         FeaturePatch::new(
             format!("{}<-{}", self.name, source.name),
             self.rows,

@@ -161,26 +161,6 @@ fn track_container(
     }
 }
 
-/// Merge overlapping rectangles until none overlap.
-fn merge_rects(mut rects: Vec<TexelRect>) -> Vec<TexelRect> {
-    rects.retain(|r| !r.is_empty());
-    let mut merged = true;
-    while merged {
-        merged = false;
-        let mut out: Vec<TexelRect> = Vec::with_capacity(rects.len());
-        for r in rects {
-            if let Some(o) = out.iter_mut().find(|o| o.intersects(&r)) {
-                *o = o.union(&r);
-                merged = true;
-            } else {
-                out.push(r);
-            }
-        }
-        rects = out;
-    }
-    rects
-}
-
 fn rasterise_dirty(
     mut comp: ResMut<ComposedPlanes>,
     mut fp: ResMut<Footprints>,
@@ -189,7 +169,7 @@ fn rasterise_dirty(
     mut stats: ResMut<RasterStats>,
 ) {
     stats.frames += 1;
-    let dirty = merge_rects(std::mem::take(&mut fp.pending));
+    let dirty = TexelRect::merge_overlapping(std::mem::take(&mut fp.pending));
     stats.rects = dirty.len();
     stats.texels = 0;
     if !dirty.is_empty() {
