@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 
-use crate::detect::{DetectOptions, Detections, detect};
+use crate::detect::{DetectOptions, Detections, FloorBand, detect};
 use crate::error::{MiningError, Result, check_interrupt};
 use crate::group::{GroupOptions, Grouping, Shape, group};
 use crate::image::{Mask, PlaneImage};
@@ -120,6 +120,19 @@ fn evidence_colors(dets: &Detections) -> Vec<[u8; 3]> {
 /// Fill the texels under `mask` with the nearest texel outside it (breadth-first from the
 /// background), so that the emptied planes continue the surrounding floor.
 pub fn fill_from_background(plane: &PlaneImage, mask: &Mask) -> Result<PlaneImage> {
+    fill_from_background_by_class(plane, mask, None)
+}
+
+/// [`fill_from_background`], keeping classes apart: with `class` (one flag per texel), a
+/// masked texel is filled from the nearest unmasked texel of its own class (the floor from
+/// the floor, empty space from empty space), and from the nearest of any class when its class
+/// has no unmasked texel. Objects overhanging the edge of a floor thus leave empty space
+/// behind, not floor continued past its edge.
+pub fn fill_from_background_by_class(
+    plane: &PlaneImage,
+    mask: &Mask,
+    class: Option<&[bool]>,
+) -> Result<PlaneImage> {
     plane.validate()?;
     if (mask.rows, mask.cols) != (plane.rows, plane.cols) {
         return Err(MiningError::SizeMismatch {
@@ -128,37 +141,79 @@ pub fn fill_from_background(plane: &PlaneImage, mask: &Mask) -> Result<PlaneImag
             right: plane.texels(),
         });
     }
+    if let Some(cl) = class
+        && cl.len() != mask.rows * mask.cols
+    {
+        return Err(MiningError::SizeMismatch {
+            what: "fill classes vs plane (texels)",
+            left: cl.len(),
+            right: plane.texels(),
+        });
+    }
     let (rows, cols, ch) = (plane.rows, plane.cols, plane.ch);
+    // nearest unmasked texel among those `keep` accepts (breadth-first, 4-connected)
+    let nearest = |keep: &dyn Fn(usize) -> bool| -> Vec<Option<usize>> {
+        let mut source: Vec<Option<usize>> = vec![None; rows * cols];
+        let mut queue = VecDeque::new();
+        for (i, s) in source.iter_mut().enumerate() {
+            if !mask.data[i] && keep(i) {
+                *s = Some(i);
+                queue.push_back(i);
+            }
+        }
+        while let Some(i) = queue.pop_front() {
+            let (r, c) = (i / cols, i % cols);
+            for (dr, dc) in [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)] {
+                let (nr, nc) = (r as isize + dr, c as isize + dc);
+                if nr < 0 || nc < 0 || nr >= rows as isize || nc >= cols as isize {
+                    continue;
+                }
+                let j = nr as usize * cols + nc as usize;
+                if source[j].is_none() {
+                    source[j] = source[i];
+                    queue.push_back(j);
+                }
+            }
+        }
+        source
+    };
+    let any = nearest(&|_| true);
+    let by_class = class.map(|cl| (nearest(&|i| cl[i]), nearest(&|i| !cl[i])));
     let mut out = plane.clone();
-    let mut source: Vec<Option<usize>> = vec![None; rows * cols];
-    let mut queue = VecDeque::new();
     for i in 0..rows * cols {
         if !mask.data[i] {
-            source[i] = Some(i);
-            queue.push_back(i);
+            continue;
         }
-    }
-    while let Some(i) = queue.pop_front() {
-        let (r, c) = (i / cols, i % cols);
-        for (dr, dc) in [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)] {
-            let (nr, nc) = (r as isize + dr, c as isize + dc);
-            if nr < 0 || nc < 0 || nr >= rows as isize || nc >= cols as isize {
-                continue;
+        let own = match (&by_class, class) {
+            (Some((yes, no)), Some(cl)) => {
+                if cl[i] {
+                    yes[i]
+                } else {
+                    no[i]
+                }
             }
-            let j = nr as usize * cols + nc as usize;
-            if source[j].is_none() {
-                source[j] = source[i];
-                queue.push_back(j);
-            }
-        }
-    }
-    for i in 0..rows * cols {
-        if let Some(s) = source[i].filter(|&s| s != i) {
+            _ => None,
+        };
+        if let Some(s) = own.or(any[i]) {
             let v: Vec<f32> = plane.data[s * ch..(s + 1) * ch].to_vec();
             out.data[i * ch..(i + 1) * ch].copy_from_slice(&v);
         }
     }
     Ok(out)
+}
+
+/// Which texels hold the floor slab: opacity at least 0.5 at one of the floor's levels.
+/// `None` without a floor.
+pub fn floor_texels(vol: &OpacityVolume, floor: Option<&FloorBand>) -> Option<Vec<bool>> {
+    let f = floor?;
+    let n = vol.rows * vol.cols;
+    Some(
+        (0..n)
+            .map(|i| {
+                (f.lo..=f.hi.min(vol.nz.saturating_sub(1))).any(|k| vol.data[i * vol.nz + k] >= 0.5)
+            })
+            .collect(),
+    )
 }
 
 /// Parse a category given as `catK` or `K`.
@@ -301,7 +356,7 @@ pub fn mine(
     progress.step(5, STEPS, "writing the library");
     let source = field_path.display().to_string();
     let (index, patches) =
-        build_library(&source, field, &planes, &dets, &grouping, &poses, pose_opts.margin)?;
+        build_library(&source, field, &planes, &dets, &grouping, &poses, pose_opts.margin, &vol)?;
     let mut shared = shared_tensors(field, &source)?;
     // what rendering the library needs besides the tensors: the background the field was
     // trained on and the ground alignment of its dataset's cameras
@@ -471,8 +526,11 @@ fn build_library(
     grouping: &Grouping,
     poses: &Poses,
     margin: usize,
+    vol: &OpacityVolume,
 ) -> Result<(LibraryIndex, TensorFile)> {
     let grid = planes.grid;
+    let floor = floor_texels(vol, dets.floor.as_ref()).filter(|f| f.len() == grid.rows * grid.cols);
+    let floor = floor.as_deref();
     let mut patches = TensorFile::new();
     patches.set_meta("format", FORMAT);
     patches.set_meta("source", source);
@@ -525,7 +583,8 @@ fn build_library(
                 .collect(),
         })
         .collect();
-    // the container: planes with every object (and a two-texel halo) filled from around it
+    // the container: planes with every object (and a two-texel halo) filled from around it,
+    // the floor from the floor and empty space from empty space
     let mut objects = Mask::empty(grid.rows, grid.cols)?;
     for d in &dets.detections {
         for r in 0..d.rect.rows() {
@@ -537,8 +596,8 @@ fn build_library(
         }
     }
     let objects = dilate(&objects, 2)?;
-    let dens = fill_from_background(&planes.density, &objects)?;
-    let col = fill_from_background(&planes.color, &objects)?;
+    let dens = fill_from_background_by_class(&planes.density, &objects, floor)?;
+    let col = fill_from_background_by_class(&planes.color, &objects, floor)?;
     let (rows, cols) = (grid.rows, grid.cols);
     patches.insert_f32("container.density", &[rows, cols, dens.ch], dens.data);
     patches.insert_f32("container.color", &[rows, cols, col.ch], col.data);
@@ -583,6 +642,25 @@ mod tests {
         let f = fill_from_background(&plane, &mask).unwrap();
         assert_eq!(f.channel(0).unwrap()[..5], [0.0, 0.0, 0.0, 4.0, 4.0]);
         assert!(fill_from_background(&plane, &Mask::empty(2, 2).unwrap()).is_err());
+    }
+
+    #[test]
+    fn background_fill_keeps_floor_and_empty_space_apart() {
+        // columns 0..=2 floor (value 1), 3..=5 empty (value 0); an object over columns 2..=3
+        let plane = PlaneImage::from_fn(3, 6, 1, |_, c, _| if c <= 2 { 1.0 } else { 0.0 }).unwrap();
+        let mask = Mask::from_fn(3, 6, |_, c| (2..=3).contains(&c));
+        let class: Vec<bool> = (0..18).map(|i| i % 6 <= 2).collect();
+        let f = fill_from_background_by_class(&plane, &mask, Some(&class)).unwrap();
+        assert_eq!(f.channel(0).unwrap()[..6], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0]);
+        // without classes, the nearest texel wins whichever it is
+        let g = fill_from_background(&plane, &mask).unwrap();
+        assert_eq!(g.channel(0).unwrap()[..6], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0]);
+        // a class with no unmasked texel falls back to the nearest of any class
+        let all_floor = vec![true; 18];
+        let mask2 = Mask::from_fn(3, 6, |_, c| c <= 2);
+        let h = fill_from_background_by_class(&plane, &mask2, Some(&all_floor)).unwrap();
+        assert_eq!(h.channel(0).unwrap()[..6], [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert!(fill_from_background_by_class(&plane, &mask, Some(&class[..5])).is_err());
     }
 
     #[test]
