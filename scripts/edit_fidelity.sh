@@ -11,9 +11,9 @@
 # (run scripts/quality_suite.sh first). Output under runs/fidelity/: data/SCENE (the scene
 # synthesised with its edit), lib/SCENE_MODEL (the library), compose/SCENE_MODEL_{same,edit}
 # and table.md. Finished steps are skipped, so the script can be stopped and started again.
-# OWN=R passes `mine --own-patch-residual R` (0: every instance keeps its own patch in the
-# mined layout; inf: templates only; default: the mine default) and suffixes the output
-# names with _ownR.
+# OWN=R passes `mine --own-patch-residual R` (default: the mine default 0, every instance
+# keeps its own patch in the mined layout; 2: templates where they fit; inf: templates only)
+# and suffixes the output names with _ownR.
 # Set BIN to use another binary (default target/release/assetfield, built if missing).
 set -euo pipefail
 cd "$(dirname "$0")/.."

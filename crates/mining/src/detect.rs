@@ -492,6 +492,80 @@ impl Part {
     }
 }
 
+/// Whether two parts on the ground are fragments of one object, and if so the merged part:
+/// their boxes overlap (a quarter of the smaller box: fragments interleave, where neighbours
+/// only touch), their footprints touch without overlapping, together they are as convex as a
+/// single object (solidity at least 0.85) and complete each other (the union clearly more
+/// convex than the less convex fragment, by 0.03: two objects side by side make a union less
+/// convex than either), and they reach the same height (tops within `top_tol` levels). A colour split can cut a
+/// chair's seat in two; a chair beside a table makes a concave union, a chair pushed under a
+/// desk rises above it, and both stay apart.
+fn fragments_merged(a: &Part, b: &Part, top_tol: usize) -> Option<Part> {
+    let (ra, rb) = (a.rect, b.rect);
+    if a.kmax.abs_diff(b.kmax) > top_tol {
+        return None;
+    }
+    let (r0, r1) = (ra.r0.max(rb.r0), ra.r1.min(rb.r1));
+    let (c0, c1) = (ra.c0.max(rb.c0), ra.c1.min(rb.c1));
+    if r0 >= r1 || c0 >= c1 {
+        return None;
+    }
+    let inter = (r1 - r0) * (c1 - c0);
+    if inter * 4 < ra.area().min(rb.area()) {
+        return None;
+    }
+    let rect = ra.union(&rb);
+    let (h, w) = (rect.rows(), rect.cols());
+    let place = |p: &Part| {
+        Mask::from_fn(h, w, |r, c| {
+            let (rr, cc) = (rect.r0 + r, rect.c0 + c);
+            p.rect.contains(rr, cc) && p.footprint.get(rr - p.rect.r0, cc - p.rect.c0)
+        })
+    };
+    let (ma, mb) = (place(a), place(b));
+    let (na, nb) = (ma.count(), mb.count());
+    let both = ma.data.iter().zip(&mb.data).filter(|(x, y)| **x && **y).count();
+    if both * 20 > na.min(nb) {
+        return None;
+    }
+    let mut touching = 0usize;
+    for r in 0..h {
+        for c in 0..w {
+            if !mb.get(r, c) || ma.get(r, c) {
+                continue;
+            }
+            let near = [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)].iter().any(|&(dr, dc)| {
+                let (nr, nc) = (r as isize + dr, c as isize + dc);
+                nr >= 0 && nc >= 0 && ma.get(nr as usize, nc as usize)
+            });
+            touching += usize::from(near);
+        }
+    }
+    if touching < 3 {
+        return None;
+    }
+    let union = Mask {
+        rows: h,
+        cols: w,
+        data: ma.data.iter().zip(&mb.data).map(|(x, y)| *x || *y).collect(),
+    };
+    let union = fill_holes(&union);
+    let solidity = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
+    let s = solidity(&union);
+    if debug() {
+        eprintln!(
+            "fragments? {ra:?} + {rb:?}: box overlap {inter}, touching {touching}, solidity {:.2} {:.2} -> {s:.2}",
+            solidity(&a.footprint),
+            solidity(&b.footprint)
+        );
+    }
+    let (sa, sb) = (solidity(&a.footprint), solidity(&b.footprint));
+    if s < 0.85 || s < sa.min(sb) + 0.03 {
+        return None;
+    }
+    Some(Part { rect, footprint: union, kmin: a.kmin.min(b.kmin), kmax: a.kmax.max(b.kmax) })
+}
+
 /// Split one first-round region into objects by 3D connectivity (see the module docs).
 fn split_region(
     vol: &OpacityVolume,
@@ -1738,6 +1812,26 @@ pub fn detect(
             );
         }
     }
+    // fragments of one object (a seat cut in two by its colours) become one part again
+    let top_tol = ((0.05 / vol.dz.max(1e-6)).round() as usize).max(1);
+    let mut merged = true;
+    while merged {
+        merged = false;
+        'pairs: for i in 0..parts.len() {
+            for j in i + 1..parts.len() {
+                let on_ground = |p: &Part| p.kmin <= ground + ground_tol;
+                if !on_ground(&parts[i]) || !on_ground(&parts[j]) {
+                    continue;
+                }
+                if let Some(m) = fragments_merged(&parts[i], &parts[j], top_tol) {
+                    parts[i] = m;
+                    parts.remove(j);
+                    merged = true;
+                    break 'pairs;
+                }
+            }
+        }
+    }
     // second round and the final list
     let mut detections: Vec<Detection> = Vec::new();
     for p in &parts {
@@ -2189,6 +2283,53 @@ mod tests {
             d.removed
         );
         assert!(d.removed.iter().any(|r| r.reason.contains("ragged")), "{:?}", d.removed);
+    }
+
+    fn part(
+        r0: usize,
+        c0: usize,
+        rows: usize,
+        cols: usize,
+        f: impl Fn(usize, usize) -> bool,
+    ) -> Part {
+        Part {
+            rect: PixelRect::new(r0, c0, r0 + rows, c0 + cols),
+            footprint: Mask::from_fn(rows, cols, f),
+            kmin: 0,
+            kmax: 5,
+        }
+    }
+
+    #[test]
+    fn fragments_of_one_object_merge_but_neighbours_do_not() {
+        // a 12 x 12 seat cut along a ragged line: the boxes interleave (the left piece
+        // reaches column 7 in some rows, the right one starts at column 5)
+        let cut = |r: usize| if r % 4 < 2 { 5 } else { 7 };
+        let left = part(10, 10, 12, 8, |r, c| c < cut(r));
+        let right = part(10, 15, 12, 7, |r, c| c + 5 >= cut(r));
+        let m = fragments_merged(&left, &right, 1).expect("fragments merge");
+        assert_eq!(m.rect, PixelRect::new(10, 10, 22, 22));
+        assert_eq!(m.footprint.count(), 144);
+        assert_eq!((m.kmin, m.kmax), (0, 5));
+        // a chair (6 x 6) at a round table (radius 8), in the corner of the table's box and
+        // touching its rim: the boxes overlap, but the union is concave
+        let inside = |r: usize, c: usize| {
+            let (y, x) = (r as f32 - 7.5, c as f32 - 7.5);
+            x * x + y * y <= 64.0
+        };
+        let table = part(0, 0, 16, 16, inside);
+        let chair = part(12, 12, 6, 6, |r, c| !inside(r + 12, c + 12));
+        assert!(fragments_merged(&table, &chair, 1).is_none());
+        // overlapping footprints are nesting, not fragments
+        let under = part(4, 4, 6, 6, |_, _| true);
+        assert!(fragments_merged(&table, &under, 1).is_none());
+        // a fragment reaching another height is another object
+        let taller = Part { kmax: 9, ..right.clone() };
+        assert!(fragments_merged(&left, &taller, 1).is_none());
+        // two crates side by side: their boxes touch but do not overlap
+        let a = part(0, 0, 8, 8, |_, _| true);
+        let b = part(0, 8, 8, 8, |_, _| true);
+        assert!(fragments_merged(&a, &b, 1).is_none());
     }
 
     #[test]

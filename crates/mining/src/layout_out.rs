@@ -3,8 +3,8 @@
 //! height))`), one `Instance` per object on the ground at its template-aligned position and
 //! yaw (relative to the template), and the objects standing on others in `Group(on:
 //! PARENT)` items, placed in their parent's frame so that they move with it. An instance that
-//! its template reproduces badly (see [`OWN_PATCH_RESIDUAL`]) gets an asset of its own (its
-//! entry's patch, same category, at its own centre, yaw 0).
+//! keeps its own patch (every one by default, see [`OWN_PATCH_RESIDUAL`]) gets an asset of
+//! its own (its entry's patch, same category, at its own centre, yaw 0).
 
 use assetfield_core::GroundTransform;
 use assetfield_core::ground::wrap_degrees;
@@ -16,10 +16,13 @@ use std::path::Path;
 use crate::error::{MiningError, Result};
 use crate::library::{EntryKind, LibraryIndex};
 
-/// Default of `mine --own-patch-residual`: an instance whose template-matching residual
-/// exceeds this many times the library's median residual keeps its own patch in the layout (the template does not reproduce it: a
-/// fragment, a mis-grouped object).
-pub const OWN_PATCH_RESIDUAL: f32 = 2.0;
+/// Default of `mine --own-patch-residual`: 0, every instance keeps its own patch, so the
+/// mined layout reproduces the trained scene exactly and edits of it stay faithful (the
+/// templates still define the categories and serve new compositions and category edits).
+/// A positive R gives an instance its category's template when its template-matching residual
+/// is at most R times the library's median (a compact layout, as in the paper's
+/// reconfiguration; rotating a template resamples it, which costs detail on thin parts).
+pub const OWN_PATCH_RESIDUAL: f32 = 0.0;
 
 fn round3(v: f32) -> f32 {
     (v * 1000.0).round() / 1000.0
@@ -262,15 +265,9 @@ mod tests {
             ],
             containers: vec![],
         };
-        let script = layout_script(
-            &index,
-            "mined",
-            [-3.0, -2.0, 3.0, 2.0],
-            ".",
-            &BTreeMap::new(),
-            OWN_PATCH_RESIDUAL,
-        )
-        .unwrap();
+        let script =
+            layout_script(&index, "mined", [-3.0, -2.0, 3.0, 2.0], ".", &BTreeMap::new(), 2.0)
+                .unwrap();
         let path = std::env::temp_dir().join("assetfield-mining-layout-test.ron");
         let (text, n) = script_text_checked(&script, &path).unwrap();
         assert_eq!(n, 4, "{text}");

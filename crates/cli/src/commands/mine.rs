@@ -117,8 +117,10 @@ pub struct MineArgs {
     pub gt_names: bool,
     /// In layout.ron, an instance whose template-matching residual exceeds this many times
     /// the library's median keeps its own patch (its own asset, same category) instead of
-    /// its category's template: 0 makes every instance keep its own patch (the layout then
-    /// reproduces the scene exactly), `inf` uses templates only (the paper's reconfiguration).
+    /// its category's template. The default 0 gives every instance its own patch: the layout
+    /// reproduces the scene exactly and edits of it stay faithful. 2 uses the template where
+    /// it fits (a compact layout; rotated templates lose some detail on thin parts), `inf`
+    /// templates only (the paper's reconfiguration).
     #[arg(long, default_value_t = assetfield_mining::layout_out::OWN_PATCH_RESIDUAL, value_name = "R")]
     pub own_patch_residual: f32,
     /// Seed of the K-means runs.
