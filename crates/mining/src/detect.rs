@@ -23,13 +23,16 @@
 //!    stand on the ground, differ clearly in colour, share at most half their outline with
 //!    the rest, and come from a concave region (a sofa against an armchair, stools against a
 //!    bar) become objects. Faint, low or small leftovers without a solid core are dropped as
-//!    haze (floaters).
+//!    haze (floaters). Fragments that a colour split cut out of one object (two halves of a
+//!    chair's seat) merge again: their boxes interleave, their footprints touch, they reach
+//!    the same height and their union is clearly more convex than either alone.
 //! 4. **Hierarchical unpacking.** Inside every object, the top surface (a table top) is
 //!    treated as background: if it is a thin, flat slab with something rising above it, each
 //!    raised blob away from the rim seeds a background subtraction of the colour features
 //!    around it (K-means on the distances to the surface's median colour), and the connected
 //!    result, when enclosed by free surface, becomes a detection supported by the object
-//!    (laptops on a table, a crate on a pallet, a lamp on a side table).
+//!    (laptops on a table, a crate on a pallet, a lamp on a side table). A low support
+//!    (within 0.25 of the ground: a pallet's deck) may carry an object over most of it.
 //!
 //! Set the environment variable `ASSETFIELD_MINING_DEBUG` to print the intermediate
 //! decisions to stderr.
@@ -1267,7 +1270,11 @@ fn unpack(
         eprintln!("   windowed area {:?}", &areaw[start..]);
     }
     if debug() {
-        eprintln!("unpack {rect:?} n {n} amax {amax} area {:?}", &area[start..]);
+        eprintln!(
+            "unpack {rect:?} n {n} amax {amax} start {start} dz {:.3} area {:?}",
+            vol.dz,
+            &area[start..]
+        );
     }
     if amax * 2 < n {
         return (Vec::new(), None);
@@ -1283,7 +1290,13 @@ fn unpack(
     // the surface with the blur above it: levels covering a quarter of it and not growing
     // (an object standing on it does not fade upwards); and its body below: levels covering
     // half of it
-    while hi + 1 < vol.nz && area[hi + 1] * 4 >= area[kstar] && area[hi + 1] * 10 <= area[hi] * 11 {
+    // (blur fades within a few levels: a box standing on a pallet's deck covers a steady
+    // half of it all the way up and is no blur)
+    while hi + 1 < vol.nz
+        && hi + 1 < kstar + thin
+        && area[hi + 1] * 4 >= area[kstar]
+        && area[hi + 1] * 10 <= area[hi] * 11
+    {
         hi += 1;
     }
     let mut lo = kstar;
@@ -1354,7 +1367,11 @@ fn unpack(
     // is no table); flat: 70% of the free surface of a slab, 60% of a solid body's (its
     // blurred top has more haze above it)
     let (free_share, flat_share) = if solid { (9, 12) } else { (6, 14) };
-    if free_n * 20 < n * free_share || flat_n * 20 < free_n * flat_share {
+    // a low support (a pallet's deck, within 0.25 of the ground) carries an object over most
+    // of it: its free surface is a margin, too narrow to judge away from the object; the
+    // rim and ring checks below still apply
+    let low = (hi.saturating_sub(start)) as f32 * vol.dz < 0.25;
+    if !low && (free_n * 20 < n * free_share || flat_n * 20 < free_n * flat_share) {
         return (Vec::new(), Some(hi));
     }
     // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
@@ -1476,7 +1493,9 @@ fn unpack(
         }
         // an object on a support leaves most of it free: a piece covering more than half of
         // it (a car's cabin over its bonnet and boot) belongs to the body
-        if touches || count < min_texels || count * 2 > n {
+        // (on a low support up to 80% of it: a crate on a pallet)
+        let most = if low { count * 5 > n * 4 } else { count * 2 > n };
+        if touches || count < min_texels || most {
             continue;
         }
         // it must stand within the surface: most of the ring around it is surface
@@ -2205,6 +2224,41 @@ mod tests {
         let mut v2 = floor_volume(rows, cols, 24);
         fill(&mut v2, (5, 20), (10, 25), (2, 13), 0.95);
         fill(&mut v2, (8, 17), (13, 22), (13, 20), 0.95);
+        let d2 = detect_small(&v2, &color);
+        assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
+    }
+
+    #[test]
+    fn a_crate_covering_most_of_a_low_pallet_unpacks() {
+        // a pallet: runners (levels 2..=3) under a deck (level 3), 1.0 x 1.2 m; a crate of
+        // 0.8 x 0.8 m on it (levels 4..=19) covers 53% of it, with a 0.1 m margin
+        let (rows, cols) = (50, 50);
+        let mut v = floor_volume(rows, cols, 24);
+        for r0 in [10, 19, 28] {
+            fill(&mut v, (r0, r0 + 2), (10, 34), (2, 3), 0.95);
+        }
+        fill(&mut v, (10, 30), (10, 34), (3, 4), 0.95);
+        fill(&mut v, (12, 28), (14, 30), (4, 20), 0.95);
+        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+            let crate_ = (12..28).contains(&r) && (14..30).contains(&c);
+            if crate_ { [0.8, 0.6, 0.3][k] } else { [0.5, 0.4, 0.3][k] }
+        })
+        .unwrap();
+        let d = detect_small(&v, &color);
+        let child = only_child(&d);
+        // the crate, give or take the one-texel margin its colour cluster may take along
+        let (r, want) = (child.rect, PixelRect::new(12, 14, 28, 30));
+        assert!(
+            r.r0.abs_diff(want.r0) <= 1
+                && r.c0.abs_diff(want.c0) <= 1
+                && r.r1.abs_diff(want.r1) <= 1
+                && r.c1.abs_diff(want.c1) <= 1,
+            "{r:?}"
+        );
+        // the same box standing on a tall solid body (a car's cabin on its body) stays one
+        let mut v2 = floor_volume(rows, cols, 24);
+        fill(&mut v2, (10, 30), (10, 34), (2, 12), 0.95);
+        fill(&mut v2, (12, 28), (14, 30), (12, 20), 0.95);
         let d2 = detect_small(&v2, &color);
         assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
     }

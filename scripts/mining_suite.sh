@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# Asset mining on the scene suite (issue 4): mine every field that scripts/quality_suite.sh
+# trained, score it against the scene's ground truth, and write a per-scene table.
+#
+#   scripts/mining_suite.sh [MODELS] [SCENES...]
+#
+# MODELS: comma-separated subset of s,i (default s,i); the fields come from
+# runs/suite/fields/SCENE_MODEL.safetensors. Output under runs/mining/: SCENE_MODEL (the
+# library, layout.ron, pictures and metrics.json) and table.md. Finished scenes are skipped
+# (delete runs/mining/SCENE_MODEL to mine it again).
+# Set BIN to use another binary (default target/release/assetfield, built if missing).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+MODELS=${1:-s,i}
+shift $(( $# > 0 ? 1 : 0 ))
+SCENES=("$@")
+if [ ${#SCENES[@]} -eq 0 ]; then
+  for f in scenes/*.ron; do SCENES+=("$(basename "$f" .ron)"); done
+fi
+BIN=${BIN:-target/release/assetfield}
+[ -x "$BIN" ] || cargo build --release --locked
+OUT=runs/mining
+mkdir -p "$OUT/logs"
+
+for scene in "${SCENES[@]}"; do
+  for model in ${MODELS//,/ }; do
+    field="runs/suite/fields/${scene}_$model.safetensors"
+    gt="runs/suite/data/$scene/gt_layout.json"
+    [ -f "$field" ] && [ -f "$gt" ] || continue
+    lib="$OUT/${scene}_$model"
+    [ -f "$lib/metrics.json" ] ||
+      "$BIN" mine "$field" --out "$lib" --gt "$gt" --force > "$OUT/logs/${scene}_$model.log" 2>&1 ||
+      echo "== $scene $model: mining failed (see $OUT/logs/${scene}_$model.log)"
+  done
+done
+
+python3 - "$OUT" "$MODELS" "${SCENES[@]}" <<'EOF' || echo "(python3 missing: see $OUT/*/metrics.json)"
+import json, os, sys
+out, models, scenes = sys.argv[1], sys.argv[2].split(','), sys.argv[3:]
+head = "| scene | " + " | ".join(f"{m.upper()} F1 | {m.upper()} ARI | {m.upper()} yaw median / max (deg)" for m in models) + " |"
+rows = [head, "|---|" + "---|---|---|" * len(models)]
+met = total = 0
+for s in scenes:
+    cells = []
+    for m in models:
+        p = os.path.join(out, f"{s}_{m}", "metrics.json")
+        if not os.path.exists(p):
+            cells += ["-", "-", "-"]
+            continue
+        r = json.load(open(p))
+        ym, yx = r.get("yaw_median_deg"), r.get("yaw_max_deg")
+        yaw = "-" if ym is None else f"{ym:.2f} / {yx:.1f}"
+        cells += [f"{r['f1']:.3f}", f"{r['ari']:.3f}", yaw]
+        total += 1
+        met += int(r["f1"] >= 0.95 and r["ari"] >= 0.9 and ym is not None and ym <= 5)
+    rows.append(f"| `{s}` | " + " | ".join(cells) + " |")
+text = "\n".join(rows) + f"\n\n{met} of {total} fields meet all three targets (F1 >= 0.95, ARI >= 0.9, yaw median <= 5 degrees).\n"
+open(os.path.join(out, "table.md"), "w").write(text)
+print(text)
+EOF
