@@ -69,7 +69,7 @@ impl Default for MineOptions {
             detect: DetectOptions::default(),
             group: GroupOptions::default(),
             group_on: PlaneChoice::Color,
-            yaw_on: PlaneChoice::Color,
+            yaw_on: PlaneChoice::Density,
             pose: PoseOptions::default(),
             templates: Vec::new(),
             gt: None,
