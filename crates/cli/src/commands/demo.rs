@@ -86,6 +86,13 @@ pub fn demo(a: DemoArgs) -> Result<()> {
         "5/7 mine the planes into an asset library",
         &["mine", &field, "--out", &lib, "--gt", &gt, "--gt-names", "--force"],
     )?;
+    // the edit names objects by their ground-truth keys: when mining missed one (a field
+    // trained too briefly), say what to do about it
+    let mined = std::fs::read_to_string(o("library/metrics.json")).ok();
+    let f1 = mined
+        .as_deref()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok())
+        .and_then(|v| v["f1"].as_f64());
     step(
         "6/7 compose the edit from the library, compare with the ground truth",
         &[
@@ -103,7 +110,15 @@ pub fn demo(a: DemoArgs) -> Result<()> {
             &o("edit"),
             "--force",
         ],
-    )?;
+    )
+    .map_err(|e| match f1 {
+        Some(f) if f < 0.95 => e.context(format!(
+            "mining found too few objects (detection F1 {f:.2}, see {lib}/boxes.png) for the \
+             edit to name them: train longer (--minutes {} or more)",
+            (a.minutes * 2.0).max(3.0)
+        )),
+        _ => e,
+    })?;
     step(
         "7/7 a turntable of the composed scene",
         &["compose", &layout, "--library", &lib, "--orbit", "12", "--out", &o("orbit"), "--force"],
