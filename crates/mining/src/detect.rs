@@ -500,9 +500,9 @@ impl Part {
 /// only touch), their footprints touch without overlapping, together they are as convex as a
 /// single object (solidity at least 0.85) and complete each other (the union clearly more
 /// convex than the less convex fragment, by 0.03: two objects side by side make a union less
-/// convex than either), and they reach the same height (tops within `top_tol` levels). A colour split can cut a
-/// chair's seat in two; a chair beside a table makes a concave union, a chair pushed under a
-/// desk rises above it, and both stay apart.
+/// convex than either), and they reach the same height (tops within `top_tol` levels). A
+/// colour split can cut a chair's seat in two; a chair beside a table makes a concave union,
+/// a chair pushed under a desk rises above it, and both stay apart.
 fn fragments_merged(a: &Part, b: &Part, top_tol: usize) -> Option<Part> {
     let (ra, rb) = (a.rect, b.rect);
     if a.kmax.abs_diff(b.kmax) > top_tol {
@@ -554,15 +554,12 @@ fn fragments_merged(a: &Part, b: &Part, top_tol: usize) -> Option<Part> {
     };
     let union = fill_holes(&union);
     let solidity = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
-    let s = solidity(&union);
+    let (s, sa, sb) = (solidity(&union), solidity(&a.footprint), solidity(&b.footprint));
     if debug() {
         eprintln!(
-            "fragments? {ra:?} + {rb:?}: box overlap {inter}, touching {touching}, solidity {:.2} {:.2} -> {s:.2}",
-            solidity(&a.footprint),
-            solidity(&b.footprint)
+            "fragments? {ra:?} + {rb:?}: box overlap {inter}, touching {touching}, solidity {sa:.2} {sb:.2} -> {s:.2}"
         );
     }
-    let (sa, sb) = (solidity(&a.footprint), solidity(&b.footprint));
     if s < 0.85 || s < sa.min(sb) + 0.03 {
         return None;
     }

@@ -184,16 +184,10 @@ pub fn fill_from_background_by_class(
         if !mask.data[i] {
             continue;
         }
-        let own = match (&by_class, class) {
-            (Some((yes, no)), Some(cl)) => {
-                if cl[i] {
-                    yes[i]
-                } else {
-                    no[i]
-                }
-            }
-            _ => None,
-        };
+        let own = by_class
+            .as_ref()
+            .zip(class)
+            .and_then(|((yes, no), cl)| if cl[i] { yes[i] } else { no[i] });
         if let Some(s) = own.or(any[i]) {
             let v: Vec<f32> = plane.data[s * ch..(s + 1) * ch].to_vec();
             out.data[i * ch..(i + 1) * ch].copy_from_slice(&v);
