@@ -110,7 +110,8 @@ fn mine_compose_round_trip_and_edit_fidelity() {
         );
     }
 
-    // the mined layout (templates) re-renders the test views, and the edit holds up
+    // the mined layout (every instance its own patch, the default) re-renders the test views,
+    // and the edit holds up
     let out = ok(
         &dir,
         &[
