@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use crate::error::{MiningError, Result};
-use crate::library::{EntryKind, LibraryIndex};
+use crate::library::{Entry, EntryKind, LibraryIndex};
 
 /// Default of `mine --own-patch-residual`: 0, every instance keeps its own patch, so the
 /// mined layout reproduces the trained scene exactly and edits of it stay faithful (the
@@ -26,6 +26,27 @@ pub const OWN_PATCH_RESIDUAL: f32 = 0.0;
 
 fn round3(v: f32) -> f32 {
     (v * 1000.0).round() / 1000.0
+}
+
+/// The layout asset of a library entry in `category` (its patch at the entry's extent, sizes
+/// rounded to the millimetre), with its height.
+fn library_asset(e: &Entry, category: &str, library_path: &str) -> (AssetDef, f32) {
+    let size = (round3(e.extent.0), round3(e.extent.1), round3(e.extent.2.max(1e-3)));
+    let def = AssetDef {
+        parts: Vec::new(),
+        obj: None,
+        category: Some(category.to_string()),
+        yaw_symmetry_deg: 360.0,
+        container: false,
+        library: Some(LibraryRef {
+            path: library_path.to_string(),
+            entry: e.name.clone(),
+            size,
+            density_from: None,
+            color_from: None,
+        }),
+    };
+    (def, size.2)
 }
 
 /// Build the layout script of a library index (see the module docs). `extent` is the ground
@@ -53,25 +74,9 @@ pub fn layout_script(
                 c.name, c.template
             ),
         })?;
-        let size = (round3(t.extent.0), round3(t.extent.1), round3(t.extent.2.max(1e-3)));
-        heights.insert(c.name.clone(), size.2);
-        assets.insert(
-            c.name.clone(),
-            AssetDef {
-                parts: Vec::new(),
-                obj: None,
-                category: Some(c.name.clone()),
-                yaw_symmetry_deg: 360.0,
-                container: false,
-                library: Some(LibraryRef {
-                    path: library_path.to_string(),
-                    entry: c.template.clone(),
-                    size,
-                    density_from: None,
-                    color_from: None,
-                }),
-            },
-        );
+        let (def, height) = library_asset(t, &c.name, library_path);
+        heights.insert(c.name.clone(), height);
+        assets.insert(c.name.clone(), def);
     }
     // where each entry is placed, and with which asset: its category's template at the
     // template-aligned pose, or, for an instance the template cannot reproduce (matching
@@ -91,25 +96,9 @@ pub fn layout_script(
         let (asset, t) = if own {
             let b = e.source_box;
             let centre = Vec2::new(b[0] + b[2], b[1] + b[3]) * 0.5;
-            let size = (round3(e.extent.0), round3(e.extent.1), round3(e.extent.2.max(1e-3)));
-            assets.insert(
-                e.name.clone(),
-                AssetDef {
-                    parts: Vec::new(),
-                    obj: None,
-                    category: Some(e.category.clone()),
-                    yaw_symmetry_deg: 360.0,
-                    container: false,
-                    library: Some(LibraryRef {
-                        path: library_path.to_string(),
-                        entry: e.name.clone(),
-                        size,
-                        density_from: None,
-                        color_from: None,
-                    }),
-                },
-            );
-            heights.insert(e.name.clone(), size.2);
+            let (def, height) = library_asset(e, &e.category, library_path);
+            assets.insert(e.name.clone(), def);
+            heights.insert(e.name.clone(), height);
             (e.name.clone(), GroundTransform::new(centre, 0.0, 1.0, 0.0))
         } else {
             let yaw = if e.kind == EntryKind::Template { 0.0 } else { wrap_degrees(e.yaw_deg) };
