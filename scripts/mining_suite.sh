@@ -5,9 +5,10 @@
 #   scripts/mining_suite.sh [MODELS] [SCENES...]
 #
 # MODELS: comma-separated subset of s,i (default s,i); the fields come from
-# runs/suite/fields/SCENE_MODEL.safetensors. Output under runs/mining/: SCENE_MODEL (the
-# library, layout.ron, pictures and metrics.json) and table.md. Finished scenes are skipped
-# (delete runs/mining/SCENE_MODEL to mine it again).
+# $SUITE/fields/SCENE_MODEL.safetensors (SUITE as for quality_suite.sh, default runs/suite).
+# Output under $SUITE/mining (runs/mining for the default suite): SCENE_MODEL (the library,
+# layout.ron, pictures and metrics.json) and table.md. Finished scenes are skipped (delete
+# the SCENE_MODEL folder to mine it again).
 # Set BIN to use another binary (default target/release/assetfield, built if missing).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,12 +20,14 @@ if [ ${#SCENES[@]} -eq 0 ]; then
 fi
 BIN=${BIN:-target/release/assetfield}
 [ -x "$BIN" ] || cargo build --release --locked
+SUITE=${SUITE:-runs/suite}
 OUT=runs/mining
+[ "$SUITE" = runs/suite ] || OUT="$SUITE/mining"
 mkdir -p "$OUT/logs"
 
 for scene in "${SCENES[@]}"; do
   for model in ${MODELS//,/ }; do
-    field="runs/suite/fields/${scene}_$model.safetensors"
+    field="$SUITE/fields/${scene}_$model.safetensors"
     gt="runs/suite/data/$scene/gt_layout.json"
     [ -f "$field" ] && [ -f "$gt" ] || continue
     lib="$OUT/${scene}_$model"

@@ -5,11 +5,12 @@
 #   scripts/quality_suite.sh [MINUTES] [MODELS] [SCENES...]
 #
 # MINUTES: training budget per run (default 10), measured with `--clock cpu` so that runs
-# on a busy machine get the same compute as on an idle one. MODELS: comma-separated subset
-# of s,i,vm (default s,i,vm). SCENES: names under scenes/ (default: all).
-# Output under runs/suite/: data/SCENE (synthesised views), fields/SCENE_MODEL.safetensors,
-# eval/SCENE_MODEL/metrics.json, and table.md. Finished runs are skipped, so the script can
-# be stopped and started again.
+# on a busy machine get the same compute as on an idle one; `default` trains with the
+# default settings instead (30000 iterations, no time budget). MODELS: comma-separated
+# subset of s,i,vm (default s,i,vm). SCENES: names under scenes/ (default: all).
+# Output under $SUITE (default runs/suite): data/SCENE (synthesised views; another SUITE
+# reuses runs/suite/data), fields/SCENE_MODEL.safetensors, eval/SCENE_MODEL/metrics.json,
+# and table.md. Finished runs are skipped, so the script can be stopped and started again.
 # Set BIN to use another binary (default target/release/assetfield, built if missing).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,18 +23,20 @@ if [ ${#SCENES[@]} -eq 0 ]; then
 fi
 BIN=${BIN:-target/release/assetfield}
 [ -x "$BIN" ] || cargo build --release --locked
-OUT=runs/suite
-mkdir -p "$OUT/data" "$OUT/fields" "$OUT/eval" "$OUT/logs"
+OUT=${SUITE:-runs/suite}
+mkdir -p "$OUT/fields" "$OUT/eval" "$OUT/logs" runs/suite/data
+BUDGET=(--minutes "$MINUTES" --clock cpu)
+[ "$MINUTES" = default ] && BUDGET=()
 
 for scene in "${SCENES[@]}"; do
-  data="$OUT/data/$scene"
+  data="runs/suite/data/$scene"
   [ -f "$data/transforms_test.json" ] || "$BIN" synth "scenes/$scene.ron" --out "$data" --force
   for model in ${MODELS//,/ }; do
     field="$OUT/fields/${scene}_$model.safetensors"
     eval_dir="$OUT/eval/${scene}_$model"
     if [ ! -f "$field" ]; then
-      echo "== $scene $model: training $MINUTES min"
-      "$BIN" train "$data" --out "$field" --model "$model" --minutes "$MINUTES" --clock cpu \
+      echo "== $scene $model: training (${MINUTES}$([ "$MINUTES" = default ] || echo ' min'))"
+      "$BIN" train "$data" --out "$field" --model "$model" "${BUDGET[@]}" \
         --force --discard-checkpoint > "$OUT/logs/${scene}_$model.train.log" 2>&1
     fi
     if [ ! -f "$eval_dir/metrics.json" ]; then

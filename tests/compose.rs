@@ -77,13 +77,12 @@ fn mine_compose_round_trip_and_edit_fidelity() {
         assert!(layout.contains(key), "--gt-names: {key} missing from\n{layout}");
     }
 
-    // round trip: every entry's own patch placed back where it was mined restores the
-    // trained planes (the container holds the rest)
+    // round trip: every entry's own patch placed back where it was mined (its pivot)
+    // restores the trained planes (the container holds the rest)
     let lib = AssetLibrary::open(&dir.join("lib")).unwrap();
     let mut items = String::new();
     for e in &lib.index.entries {
-        let b = e.source_box;
-        let (x, y) = ((b[0] + b[2]) * 0.5, (b[1] + b[3]) * 0.5);
+        let (x, y) = e.pivot_world().into();
         items += &format!("Instance(asset: \"{}\", at: ({x}, {y})),\n", e.name);
     }
     let own = dir.join("own.ron");

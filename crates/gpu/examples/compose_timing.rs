@@ -135,10 +135,8 @@ fn main() {
         let t_gpu = median(15, || {
             gpu.rasterise(&l, None).unwrap();
         });
-        let draws: Vec<InstanceDraw> = l
-            .iter()
-            .map(|i| InstanceDraw { transform: i.transform, patch: &templates[i.patch] })
-            .collect();
+        let draws: Vec<InstanceDraw> =
+            l.iter().map(|i| InstanceDraw::new(&i.transform, &templates[i.patch])).collect();
         let full = comp.full_rect();
         let t_cpu = median(15, || {
             comp.rasterise(full, &draws);
@@ -175,10 +173,8 @@ fn main() {
     });
     let t_cpu = median(3, || {
         for l in &layouts {
-            let draws: Vec<InstanceDraw> = l
-                .iter()
-                .map(|i| InstanceDraw { transform: i.transform, patch: &templates[i.patch] })
-                .collect();
+            let draws: Vec<InstanceDraw> =
+                l.iter().map(|i| InstanceDraw::new(&i.transform, &templates[i.patch])).collect();
             comp.rasterise(comp.full_rect(), &draws);
             let _ = render_view(&comp.field, None, &cam, bg);
         }

@@ -229,7 +229,7 @@ impl BenchScene {
 
     /// The texels an instance reaches (as the CPU composer tracks its footprint).
     pub fn footprint(&self, i: &PatchInstance) -> TexelRect {
-        let draw = InstanceDraw { transform: i.transform, patch: &self.templates[i.patch] };
+        let draw = InstanceDraw::new(&i.transform, &self.templates[i.patch]);
         self.composition.grid.texels_of(draw.world_bounds())
     }
 

@@ -827,12 +827,12 @@ impl GpuComposer {
             if !(finite && t.scale.is_finite() && t.scale > 0.0) {
                 return Err(input(format!("instance {i} has a bad transform {t:?}")));
             }
-            let draw = InstanceDraw { transform: *t, patch: &tpl.patch };
+            let draw = InstanceDraw::new(t, &tpl.patch);
             let reach = self.grid.texels_of(draw.world_bounds());
             if !reach.intersects(&rect) {
                 continue;
             }
-            pack_inst(&mut words, t, reach, tpl);
+            pack_inst(&mut words, &draw.transform, reach, tpl);
             spans.push(intersect(reach, rect));
         }
         let tiles_x = self.header.tiles_x as usize;

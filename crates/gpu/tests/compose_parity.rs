@@ -37,7 +37,7 @@ impl Backend<'_> {
             Backend::Cpu(comp) => {
                 let draws: Vec<InstanceDraw> = layout
                     .iter()
-                    .map(|i| InstanceDraw { transform: i.transform, patch: &templates[i.patch] })
+                    .map(|i| InstanceDraw::new(&i.transform, &templates[i.patch]))
                     .collect();
                 let rect = rect.unwrap_or_else(|| comp.full_rect());
                 comp.rasterise(rect, &draws);
@@ -104,8 +104,8 @@ fn smooth(x: f32) -> f32 {
 }
 
 /// A random field (planes scaled up to ~N(0, 0.5^2)) and four templates with soft weights:
-/// two cut from its planes (one not square), one made by hand with its own texel size, one
-/// density-warped.
+/// two cut from its planes (one not square), one made by hand with its own texel size and a
+/// pivot off its centre, one density-warped.
 fn random_scene(nd: usize, nc: usize, res: usize) -> (Composition, Vec<FeaturePatch>) {
     let aabb = Aabb3::new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.8));
     let mut cfg = FieldConfig::new(ModelKind::Standard, aabb, res);
@@ -148,7 +148,10 @@ fn random_scene(nd: usize, nc: usize, res: usize) -> (Composition, Vec<FeaturePa
     let color = rand(rows * cols * nc, 4.0);
     let weight = rand(rows * cols, 1.0).into_iter().map(|w| (w + 0.5).clamp(0.0, 1.0)).collect();
     let texel = grid.step * Vec2::new(0.7, 1.2);
-    let hand = FeaturePatch::new("hand", rows, cols, texel, density, color, weight).unwrap();
+    // its pivot off the patch centre: placed and turned about a point beside it
+    let hand = FeaturePatch::new("hand", rows, cols, texel, density, color, weight)
+        .unwrap()
+        .with_origin(Vec2::new(0.12, -0.05));
     let warped = b.with_density_of(&a).unwrap();
     (comp, vec![a, b, hand, warped])
 }
@@ -202,9 +205,7 @@ fn planes_match(test: &str, nd: usize, nc: usize, res: usize, rule: DensityRule)
     // the dirty rectangle of the edit: the old and new footprints of what changed
     let grid = gpu.grid();
     let footprint = |i: &PatchInstance| {
-        grid.texels_of(
-            InstanceDraw { transform: i.transform, patch: &templates[i.patch] }.world_bounds(),
-        )
+        grid.texels_of(InstanceDraw::new(&i.transform, &templates[i.patch]).world_bounds())
     };
     let dirty = [&a[2], &a[4], &a[6], &b[5], &b[8]]
         .into_iter()
@@ -448,9 +449,7 @@ fn loops_cut_short_are_detected() {
 
 /// The footprint (texel rectangle) of an instance, as the CPU composer tracks it.
 fn footprint(gpu: &GpuComposer, templates: &[FeaturePatch], i: &PatchInstance) -> TexelRect {
-    gpu.grid().texels_of(
-        InstanceDraw { transform: i.transform, patch: &templates[i.patch] }.world_bounds(),
-    )
+    gpu.grid().texels_of(InstanceDraw::new(&i.transform, &templates[i.patch]).world_bounds())
 }
 
 /// Cells on which two grids (bytes, 1 = occupied) disagree, and the fill of the first.
@@ -594,10 +593,8 @@ fn the_device_grid_matches_a_full_cpu_rebuild() {
     let stats = gpu.rasterise(&layout, None).unwrap();
     assert_eq!(stats.occupancy_cells, res.iter().product::<usize>());
     let mut cpu = comp.clone();
-    let draws: Vec<InstanceDraw> = layout
-        .iter()
-        .map(|i| InstanceDraw { transform: i.transform, patch: &templates[i.patch] })
-        .collect();
+    let draws: Vec<InstanceDraw> =
+        layout.iter().map(|i| InstanceDraw::new(&i.transform, &templates[i.patch])).collect();
     cpu.rasterise(cpu.full_rect(), &draws);
     let cpu_occ = Occupancy::from_field(&cpu.field, res, OCCUPANCY_THRESHOLD);
     let gpu_cells = gpu.occupancy_cells().unwrap();

@@ -111,13 +111,16 @@ fn axis_vec(a: Axis) -> Vec3 {
 
 impl AssetDef {
     /// Union of the parts' bounds (empty for an asset without parts); for a library
-    /// asset, its patch's box too (centred on the origin in x and y, from z = 0).
+    /// asset, its patch's box too (centred on the origin in x and y, or around the given
+    /// pivot, from z = 0).
     pub fn parts_bounds(&self) -> Aabb3 {
         let parts = self.parts.iter().fold(Aabb3::EMPTY, |acc, p| acc.union(&p.bounds()));
         match &self.library {
             Some(l) => {
                 let h = Vec3::new(l.size.0 * 0.5, l.size.1 * 0.5, 0.0);
-                parts.union(&Aabb3::new(-h, h + Vec3::Z * l.size.2))
+                let (px, py) = l.pivot.unwrap_or((0.0, 0.0));
+                let c = Vec3::new(-px, -py, 0.0);
+                parts.union(&Aabb3::new(c - h, c + h + Vec3::Z * l.size.2))
             }
             None => parts,
         }

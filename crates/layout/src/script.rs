@@ -115,6 +115,12 @@ pub struct LibraryRef {
     pub entry: String,
     /// World size of the patch at scale 1: footprint along local x and y, and height.
     pub size: V3,
+    /// The asset's pivot (the point `at` places and `yaw` turns about) relative to the patch
+    /// centre, along local x and y at scale 1: `(-0.5, 0.0)` for a street lamp whose pole
+    /// stands half a metre behind its box centre. Default: the pivot the library records
+    /// for the entry (`assetfield mine` puts it at the centre of the object's ground contact).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pivot: Option<(f32, f32)>,
     /// Density warping (the paper's Fig. 7): take the geometry (density features and object
     /// weights) of this entry of the same library, stretched onto `entry`'s extent, and keep
     /// `entry`'s colour.

@@ -49,7 +49,7 @@ use crate::morphology::{erode, remove_small};
 use crate::planes::{OpacityVolume, PlaneChoice, PlaneGrid};
 
 /// Whether diagnostics go to stderr (environment variable `ASSETFIELD_MINING_DEBUG` set).
-fn debug() -> bool {
+pub(crate) fn debug() -> bool {
     static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *ON.get_or_init(|| std::env::var_os("ASSETFIELD_MINING_DEBUG").is_some())
 }
@@ -2001,6 +2001,7 @@ pub fn detect(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec2;
 
     /// A volume with a floor slab at levels 0..=1 and boxes standing on it.
     fn scene() -> OpacityVolume {
@@ -2130,6 +2131,48 @@ mod tests {
         let mut v: Vec<PixelRect> = d.detections.iter().map(|x| x.rect).collect();
         v.sort_by_key(|r| (r.c0, r.r0));
         v
+    }
+
+    #[test]
+    fn pivots_sit_at_the_centre_of_the_ground_contact() {
+        let (rows, cols) = (40, 60);
+        let mut v = floor_volume(rows, cols, 20);
+        // a street lamp: a pole at one end of its box, an arm and a head reaching over
+        fill(&mut v, (10, 12), (10, 12), (2, 18), 0.95);
+        fill(&mut v, (9, 12), (10, 30), (17, 19), 0.95);
+        fill(&mut v, (6, 15), (22, 30), (14, 19), 0.95);
+        // a table on four legs: turns about its centre
+        for (r, c) in [(25, 10), (25, 28), (33, 10), (33, 28)] {
+            fill(&mut v, (r, r + 2), (c, c + 2), (2, 9), 0.95);
+        }
+        fill(&mut v, (25, 35), (10, 30), (9, 10), 0.95);
+        // a chair whose foot is lost in the floor, touching down only along a thin panel at
+        // one edge: a strip is no post, it turns about its centre
+        fill(&mut v, (8, 16), (40, 50), (5, 12), 0.95);
+        fill(&mut v, (8, 16), (40, 41), (2, 12), 0.95);
+        let color = PlaneImage::from_fn(rows, cols, 3, |_, _, k| k as f32 * 0.3).unwrap();
+        let d = detect_small(&v, &color);
+        assert_eq!(
+            rects(&d),
+            vec![
+                PixelRect::new(6, 10, 15, 30),
+                PixelRect::new(25, 10, 35, 30),
+                PixelRect::new(8, 40, 16, 50)
+            ],
+            "{:?}",
+            d.removed
+        );
+        let pivots = crate::pivot::contact_pivots(&v, &d);
+        for (det, p) in d.detections.iter().zip(&pivots) {
+            let centre = crate::pivot::box_centre(det);
+            if det.rect.r0 == 6 {
+                // the pole's centre: texels 10..12 at 5 cm, between the centres of 10 and 11
+                assert!((*p - Vec2::new(0.525, 0.525)).length() < 1e-4, "lamp pivot {p}");
+                assert!((centre.x - p.x) > 0.4, "the box centre {centre} is out on the arm");
+            } else {
+                assert_eq!(*p, centre, "{:?}: pivot at the box centre", det.rect);
+            }
+        }
     }
 
     #[test]

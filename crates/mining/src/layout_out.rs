@@ -4,7 +4,9 @@
 //! yaw (relative to the template), and the objects standing on others in `Group(on:
 //! PARENT)` items, placed in their parent's frame so that they move with it. An instance that
 //! keeps its own patch (every one by default, see [`OWN_PATCH_RESIDUAL`]) gets an asset of
-//! its own (its entry's patch, same category, at its own centre, yaw 0).
+//! its own (its entry's patch, same category, at its own pivot, yaw 0). Every asset is
+//! placed and turned about its entry's pivot (the centre of its ground contact, see
+//! [`crate::pivot`]), written as `pivot` where it is off the patch centre.
 
 use assetfield_core::GroundTransform;
 use assetfield_core::ground::wrap_degrees;
@@ -28,10 +30,12 @@ fn round3(v: f32) -> f32 {
     (v * 1000.0).round() / 1000.0
 }
 
-/// The layout asset of a library entry in `category` (its patch at the entry's extent, sizes
-/// rounded to the millimetre), with its height.
+/// The layout asset of a library entry in `category` (its patch at the entry's extent, its
+/// pivot where it is off the patch centre, sizes rounded to the millimetre), with its height.
 fn library_asset(e: &Entry, category: &str, library_path: &str) -> (AssetDef, f32) {
     let size = (round3(e.extent.0), round3(e.extent.1), round3(e.extent.2.max(1e-3)));
+    let pivot = e.pivot_offset();
+    let pivot = (round3(pivot.x), round3(pivot.y));
     let def = AssetDef {
         parts: Vec::new(),
         obj: None,
@@ -42,6 +46,7 @@ fn library_asset(e: &Entry, category: &str, library_path: &str) -> (AssetDef, f3
             path: library_path.to_string(),
             entry: e.name.clone(),
             size,
+            pivot: (pivot != (0.0, 0.0)).then_some(pivot),
             density_from: None,
             color_from: None,
         }),
@@ -94,12 +99,10 @@ pub fn layout_script(
     for e in &index.entries {
         let own = e.kind == EntryKind::Instance && (e.residual < 0.0 || e.residual > cut);
         let (asset, t) = if own {
-            let b = e.source_box;
-            let centre = Vec2::new(b[0] + b[2], b[1] + b[3]) * 0.5;
             let (def, height) = library_asset(e, &e.category, library_path);
             assets.insert(e.name.clone(), def);
             heights.insert(e.name.clone(), height);
-            (e.name.clone(), GroundTransform::new(centre, 0.0, 1.0, 0.0))
+            (e.name.clone(), GroundTransform::new(e.pivot_world(), 0.0, 1.0, 0.0))
         } else {
             let yaw = if e.kind == EntryKind::Template { 0.0 } else { wrap_degrees(e.yaw_deg) };
             (
@@ -206,6 +209,7 @@ mod tests {
             base: 0.0,
             source_box: [0.0; 4],
             position: pos,
+            pivot: None,
             yaw_deg: yaw,
             residual: 0.0,
             supported_by: None,
@@ -282,5 +286,58 @@ mod tests {
         // and the text is stable under a second round trip
         let again = assetfield_layout::source::parse_script(&path, &text).unwrap();
         assert_eq!(again, script);
+    }
+
+    #[test]
+    fn assets_are_placed_and_turned_about_their_pivots() {
+        // two street lamps whose poles stand 0.5 m behind their box centres; the second is
+        // the first turned a quarter, its pole at (4, 1)
+        let mut a = entry("obj000", "cat0", EntryKind::Template, (0.0, 0.0), 0.0);
+        a.extent = (1.3, 0.3, 4.0);
+        a.source_box = [-0.15, -0.15, 1.15, 0.15];
+        a.pivot = Some((0.0, 0.0));
+        let mut b = entry("obj001", "cat0", EntryKind::Instance, (4.0, 1.0), 90.0);
+        b.extent = (0.3, 1.3, 4.0);
+        b.source_box = [3.85, 0.85, 4.15, 2.15];
+        b.pivot = Some((4.0, 1.0));
+        let index = LibraryIndex {
+            format: crate::library::FORMAT.into(),
+            sources: vec![],
+            model: "s".into(),
+            texel_size: (0.05, 0.05),
+            channels: (16, 48),
+            patches: "patches.safetensors".into(),
+            shared: SharedRef {
+                file: "shared.safetensors".into(),
+                hash: String::new(),
+                tensors: vec![],
+            },
+            categories: vec![Category {
+                name: "cat0".into(),
+                template: "obj000".into(),
+                members: vec!["obj000".into(), "obj001".into()],
+            }],
+            entries: vec![a, b],
+            containers: vec![],
+        };
+        let path = std::env::temp_dir().join("assetfield-mining-pivot-test.ron");
+        // with the template (both placed by their poles) and with own patches: the same boxes
+        for own in [f32::INFINITY, 0.0] {
+            let script =
+                layout_script(&index, "lamps", [-3.0, -3.0, 6.0, 4.0], ".", &BTreeMap::new(), own)
+                    .unwrap();
+            let (text, _) = script_text_checked(&script, &path).unwrap();
+            assert!(text.contains("pivot: (-0.5, 0.0)"), "{text}");
+            let loaded = assetfield_layout::load_str(&path, &text).unwrap();
+            let r = resolve(&loaded, &PartsCatalog::from_script(&loaded)).unwrap();
+            let lamp = r.by_key("obj001").unwrap();
+            assert!((lamp.transform.position - Vec2::new(4.0, 1.0)).length() < 1e-3);
+            let expected = Vec2::new(4.0, 1.5);
+            let got = (lamp.bev_aabb.min + lamp.bev_aabb.max) * 0.5;
+            assert!((got - expected).length() < 1e-3, "own {own}: box centre {got}\n{text}");
+            assert!((lamp.bev_aabb.size() - Vec2::new(0.3, 1.3)).length() < 1e-3);
+            let first = r.by_key("obj000").unwrap();
+            assert!((first.transform.position - Vec2::ZERO).length() < 1e-3);
+        }
     }
 }

@@ -28,6 +28,7 @@ pub mod metrics;
 pub mod morphology;
 pub mod picture;
 pub mod pipeline;
+pub mod pivot;
 pub mod planes;
 pub mod pose;
 mod rng;

@@ -23,6 +23,7 @@
 
 use assetfield_core::TensorFile;
 use assetfield_core::fsx::{StagingDir, write_atomic};
+use glam::Vec2;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -65,8 +66,12 @@ pub struct Entry {
     pub base: f32,
     /// The object's box in the source plane `[xmin, ymin, xmax, ymax]`.
     pub source_box: [f32; 4],
-    /// World `(x, y)` where the template's origin (its patch centre) lands on this object.
+    /// World `(x, y)` where the template's origin (its pivot) lands on this object.
     pub position: (f32, f32),
+    /// World `(x, y)` of this object's pivot, the point layouts place and turn it about
+    /// (the centre of its ground contact, see [`crate::pivot`]); absent: its box centre.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pivot: Option<(f32, f32)>,
     /// Counter-clockwise yaw taking the template onto this object, degrees.
     pub yaw_deg: f32,
     /// Template-matching residual (0 for the template, -1 when the patches could not be
@@ -78,6 +83,25 @@ pub struct Entry {
     /// Index into [`LibraryIndex::sources`].
     #[serde(default)]
     pub source: usize,
+}
+
+impl Entry {
+    /// World centre of the object's box (and of its patch).
+    pub fn box_centre(&self) -> Vec2 {
+        let b = self.source_box;
+        Vec2::new(b[0] + b[2], b[1] + b[3]) * 0.5
+    }
+
+    /// World pivot (see [`Entry::pivot`]).
+    pub fn pivot_world(&self) -> Vec2 {
+        self.pivot.map_or_else(|| self.box_centre(), |(x, y)| Vec2::new(x, y))
+    }
+
+    /// The pivot relative to the patch centre (local x and y of the entry's own frame, which
+    /// is the source scene's at yaw 0).
+    pub fn pivot_offset(&self) -> Vec2 {
+        self.pivot_world() - self.box_centre()
+    }
 }
 
 /// A category of entries.
@@ -266,6 +290,14 @@ pub fn validate(
         check(&e.density, vec![h, w, nd])?;
         check(&e.color, vec![h, w, nc])?;
         check(&e.mask, vec![h, w])?;
+        if let Some((x, y)) = e.pivot
+            && !(x.is_finite() && y.is_finite())
+        {
+            return Err(MiningError::Format {
+                path: dir.join(INDEX_FILE).display().to_string(),
+                message: format!("entry {:?} has pivot ({x}, {y}), which is not finite", e.name),
+            });
+        }
     }
     for c in &index.containers {
         let (h, w) = c.size;
@@ -509,6 +541,7 @@ pub(crate) mod tests {
                 base: 0.0,
                 source_box: [0.0, 0.0, 0.3, 0.2],
                 position: (0.15, 0.1),
+                pivot: None,
                 yaw_deg: 90.0 * k as f32,
                 residual: 0.0,
                 supported_by: None,

@@ -12,6 +12,7 @@ use assetfield_core::plot::{colormap, pca_colors};
 use assetfield_field::eval::load_field;
 use assetfield_field::{Field, ModelKind};
 use assetfield_layout::GtLayout;
+use glam::Vec2;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -28,6 +29,7 @@ use crate::library::{
 use crate::metrics::{Metrics, Predicted, evaluate};
 use crate::morphology::dilate;
 use crate::picture::{BoxMark, TemplateTile, boxes_picture, categories_picture, picture_scale};
+use crate::pivot::contact_pivots;
 use crate::planes::{FieldPlanes, OpacityVolume, PlaneChoice, field_planes, semantic_plane};
 use crate::pose::{PatchRect, PoseOptions, Poses, estimate_poses, mask_in_patch, padded_crop};
 
@@ -337,7 +339,7 @@ pub fn mine(
     for (c, d) in &opts.templates {
         pose_opts.templates.push((parse_category(c, grouping.n_categories)?, *d));
     }
-    let poses = estimate_poses(
+    let mut poses = estimate_poses(
         &grid,
         &dets,
         feature_plane(opts.yaw_on, &planes, &semantic)?,
@@ -345,12 +347,24 @@ pub fn mine(
         &grouping.distance,
         &pose_opts,
     )?;
+    // every object turns about the centre of its ground contact (a lamp about its pole)
+    let pivots = contact_pivots(&vol, &dets);
+    poses.to_pivots(&dets, &grouping.category, &pivots);
     check_interrupt()?;
 
     progress.step(5, STEPS, "writing the library");
     let source = field_path.display().to_string();
-    let (index, patches) =
-        build_library(&source, field, &planes, &dets, &grouping, &poses, pose_opts.margin, &vol)?;
+    let (index, patches) = build_library(
+        &source,
+        field,
+        &planes,
+        &dets,
+        &grouping,
+        &poses,
+        &pivots,
+        pose_opts.margin,
+        &vol,
+    )?;
     let mut shared = shared_tensors(field, &source)?;
     // what rendering the library needs besides the tensors: the background the field was
     // trained on and the ground alignment of its dataset's cameras
@@ -519,6 +533,7 @@ fn build_library(
     dets: &Detections,
     grouping: &Grouping,
     poses: &Poses,
+    pivots: &[Vec2],
     margin: usize,
     vol: &OpacityVolume,
 ) -> Result<(LibraryIndex, TensorFile)> {
@@ -561,6 +576,7 @@ fn build_library(
             base: if d.parent.is_some() { d.base } else { 0.0 },
             source_box: d.world.to_array(),
             position: (pose.position.x, pose.position.y),
+            pivot: pivots.get(d.id).map(|p| (p.x, p.y)),
             yaw_deg: pose.yaw_deg,
             residual: pose.residual,
             supported_by: d.parent.map(entry_name),

@@ -79,7 +79,8 @@ pub struct Pose {
     /// Weighted mean squared feature difference at the optimum (0 for the template, -1 when
     /// the patches could not be matched).
     pub residual: f32,
-    /// World position of the template's origin placed on this instance.
+    /// World position of the template's origin placed on this instance: its patch centre as
+    /// [`estimate_poses`] returns it, its pivot after [`Poses::to_pivots`].
     pub position: Vec2,
 }
 
@@ -90,6 +91,21 @@ pub struct Poses {
     pub templates: Vec<usize>,
     /// Pose of every detection.
     pub poses: Vec<Pose>,
+}
+
+impl Poses {
+    /// Move every position from where the template's patch centre lands to where its pivot
+    /// lands (`pivots`: world pivot of every detection, see [`crate::pivot`]): the template
+    /// asset turns about its pivot, so an instance placed there at its yaw covers the same
+    /// texels as before.
+    pub fn to_pivots(&mut self, dets: &Detections, category: &[usize], pivots: &[Vec2]) {
+        for (i, pose) in self.poses.iter_mut().enumerate() {
+            let Some(&t) = category.get(i).and_then(|&c| self.templates.get(c)) else { continue };
+            let (Some(td), Some(&pt)) = (dets.detections.get(t), pivots.get(t)) else { continue };
+            let offset = pt - crate::pivot::box_centre(td);
+            pose.position += Vec2::from_angle(pose.yaw_deg.to_radians()).rotate(offset);
+        }
+    }
 }
 
 /// Parameters of [`estimate_poses`].

@@ -299,7 +299,8 @@ impl AssetLibrary {
                 }
             }
         }
-        FeaturePatch::new(e.name.clone(), h, w, self.texel(), d, c, weight)
+        Ok(FeaturePatch::new(e.name.clone(), h, w, self.texel(), d, c, weight)?
+            .with_origin(-e.pivot_offset()))
     }
 
     /// The container of an entry's source scene and the texel of it where the entry's patch
@@ -382,13 +383,14 @@ impl AssetLibrary {
         Ok(Some(Ownership { owner }))
     }
 
-    /// What layout resolution needs to know about an entry: a footprint centred on its
-    /// patch centre with the entry's extent.
+    /// What layout resolution needs to know about an entry: a footprint of the entry's
+    /// extent around its patch centre, in the frame of its pivot.
     pub fn entry_info(&self, e: &Entry) -> AssetInfo {
         let half = Vec2::new(e.extent.0, e.extent.1) * 0.5;
+        let centre = -e.pivot_offset();
         AssetInfo {
             category: e.category.clone(),
-            footprint: Rect2::new(-half, half),
+            footprint: Rect2::new(centre - half, centre + half),
             height: e.extent.2,
             yaw_symmetry_deg: 360.0,
             container: false,
@@ -547,8 +549,26 @@ impl ScriptAssets {
                     lref.entry
                 ),
             })?;
-            let info = parts.asset_info(name).unwrap_or_else(|| lib.entry_info(e));
+            let mut info = parts.asset_info(name).unwrap_or_else(|| lib.entry_info(e));
             let mut patch = lib.patch(&e.name, halo)?;
+            // the pivot: the script's, else the entry's (the parts catalog placed the
+            // footprint around the script's pivot, or around the patch centre without one)
+            match lref.pivot {
+                Some((x, y)) if !(x.is_finite() && y.is_finite()) => {
+                    return Err(SceneError::Script {
+                        location: here(),
+                        message: format!(
+                            "asset \"{name}\": pivot ({x}, {y}) must be finite (metres from the patch centre)"
+                        ),
+                    });
+                }
+                Some((x, y)) => patch = patch.with_origin(-Vec2::new(x, y)),
+                None => {
+                    let shift = -e.pivot_offset();
+                    info.footprint =
+                        Rect2::new(info.footprint.min + shift, info.footprint.max + shift);
+                }
+            }
             let mut source = format!("{} entry {}", dir.display(), e.name);
             for (other, what) in
                 [(&lref.density_from, "density_from"), (&lref.color_from, "color_from")]

@@ -3,11 +3,16 @@
 
 use crate::SceneError;
 use crate::grid::{PlaneGrid, TexelRect};
+use assetfield_core::GroundTransform;
 use glam::Vec2;
 
-/// A feature patch. Texel `(r, c)` sits at local
-/// `((c - (cols - 1) / 2) * texel.x, (r - (rows - 1) / 2) * texel.y)`: the patch is centred
-/// on the asset's local origin, its columns along local +X (the asset's front).
+/// A feature patch. Texel `(r, c)` sits at
+/// `((c - (cols - 1) / 2) * texel.x, (r - (rows - 1) / 2) * texel.y)` from the patch centre,
+/// its columns along local +X (the asset's front). The patch centre lies at [`origin`] in the
+/// asset's local frame, whose origin is the asset's pivot: the point a transform places and
+/// turns about (the centre of a street lamp's pole rather than of its box).
+///
+/// [`origin`]: FeaturePatch::origin
 #[derive(Debug, Clone, PartialEq)]
 pub struct FeaturePatch {
     pub name: String,
@@ -24,6 +29,9 @@ pub struct FeaturePatch {
     pub color: Vec<f32>,
     /// `[rows][cols]`, 0..1: the object's share of each texel.
     pub weight: Vec<f32>,
+    /// Where the patch centre lies in the asset's local frame (unscaled; zero when the
+    /// asset turns about its patch centre).
+    pub origin: Vec2,
 }
 
 /// Bilinear taps of a local point: four texel indices and weights (zero outside).
@@ -81,7 +89,32 @@ impl FeaturePatch {
             });
         }
         let (nd, nc) = (density.len() / n, color.len() / n);
-        Ok(FeaturePatch { name, rows, cols, nd, nc, texel, density, color, weight })
+        Ok(FeaturePatch {
+            name,
+            rows,
+            cols,
+            nd,
+            nc,
+            texel,
+            density,
+            color,
+            weight,
+            origin: Vec2::ZERO,
+        })
+    }
+
+    /// The same patch with its centre at `origin` in the asset's local frame (the asset's
+    /// pivot at `-origin` from the patch centre).
+    pub fn with_origin(mut self, origin: Vec2) -> Self {
+        self.origin = origin;
+        self
+    }
+
+    /// The transform of the patch centre when the asset is placed by `t`: the same turn and
+    /// scale, moved by `origin` in the asset's frame. Rasterisers draw the patch centred
+    /// there.
+    pub fn placement(&self, t: &GroundTransform) -> GroundTransform {
+        GroundTransform { position: t.transform_point2(self.origin), ..*t }
     }
 
     /// Cut the texels `rect` out of ground planes (`[rows][cols][nd]`, `[rows][cols][nc]` on
@@ -225,6 +258,7 @@ impl FeaturePatch {
             color,
             self.weight.clone(),
         )
+        .map(|p| p.with_origin(self.origin))
     }
 
     /// Density warping (paper Fig. 7): `source`'s geometry (density features and weights),
@@ -260,5 +294,6 @@ impl FeaturePatch {
             self.color.clone(),
             weight,
         )
+        .map(|p| p.with_origin(self.origin))
     }
 }

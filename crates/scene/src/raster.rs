@@ -11,11 +11,18 @@ use rayon::prelude::*;
 /// One instance to draw: where, and which patch.
 #[derive(Debug, Clone, Copy)]
 pub struct InstanceDraw<'a> {
+    /// The transform of the patch centre ([`FeaturePatch::placement`] of the asset's
+    /// transform); [`InstanceDraw::new`] computes it.
     pub transform: GroundTransform,
     pub patch: &'a FeaturePatch,
 }
 
-impl InstanceDraw<'_> {
+impl<'a> InstanceDraw<'a> {
+    /// The draw of `patch` for an asset placed by `asset` (its pivot there).
+    pub fn new(asset: &GroundTransform, patch: &'a FeaturePatch) -> Self {
+        InstanceDraw { transform: patch.placement(asset), patch }
+    }
+
     /// World rectangle the instance's patch covers.
     pub fn world_bounds(&self) -> Rect2 {
         let h = self.patch.half_extent();

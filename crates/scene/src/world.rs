@@ -127,7 +127,7 @@ fn track_instances(
             continue;
         }
         let Some(patch) = patch_of((of, ov), &templates) else { continue };
-        let rect = grid.texels_of(InstanceDraw { transform: place.0, patch }.world_bounds());
+        let rect = grid.texels_of(InstanceDraw::new(&place.0, patch).world_bounds());
         if let Some(old) = fp.rects.insert(e, rect) {
             fp.pending.push(old);
         }
@@ -176,8 +176,7 @@ fn rasterise_dirty(
         let draws: Vec<InstanceDraw> = instances
             .iter()
             .filter_map(|(p, of, ov)| {
-                patch_of((of, ov), &templates)
-                    .map(|patch| InstanceDraw { transform: p.0, patch: patch.as_ref() })
+                patch_of((of, ov), &templates).map(|patch| InstanceDraw::new(&p.0, patch.as_ref()))
             })
             .collect();
         for r in &dirty {
@@ -362,7 +361,7 @@ impl Composer {
         t: &GroundTransform,
     ) -> Result<(), SceneError> {
         let patch = &self.world.get::<Template>(template).expect("template entity").patch;
-        let b = InstanceDraw { transform: *t, patch }.world_bounds();
+        let b = InstanceDraw::new(t, patch).world_bounds();
         let canvas = self.composition().grid.world_rect();
         let inside = b.min.x < canvas.max.x
             && b.max.x > canvas.min.x
@@ -500,8 +499,7 @@ impl Composer {
                 Some((p.0, patch))
             })
             .collect();
-        let draws: Vec<InstanceDraw> =
-            items.iter().map(|(t, p)| InstanceDraw { transform: *t, patch: p }).collect();
+        let draws: Vec<InstanceDraw> = items.iter().map(|(t, p)| InstanceDraw::new(t, p)).collect();
         let mut comp = self.world.resource_mut::<ComposedPlanes>();
         let full = comp.0.full_rect();
         comp.0.rasterise(full, &draws)

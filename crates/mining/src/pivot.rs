@@ -1,0 +1,128 @@
+//! Pivots: the point of an object that a layout places and turns about. People turn a street
+//! lamp about its pole and a car about the middle of its wheels, not about the centre of
+//! their bounding boxes (a lamp's arm reaches a metre to one side). The pivot of a mined
+//! object is the centre of the bounding box of its **ground contact**: the texels of its own
+//! footprint occupied in the lowest levels above the surface it stands on. For most furniture
+//! (legs at the corners, a solid base) that is the box centre. The field's lowest levels are
+//! its least certain (a thin foot merges with the floor slab, a neighbour's panel reaches
+//! into a footprint), so the pivot leaves the box centre only on clear evidence: the contact
+//! lies beside the box centre, is a compact post (at most [`MAX_CONTACT_SHARE`] of the
+//! object, its box at most [`MAX_CONTACT_ASPECT`] times longer than wide), and a column
+//! rises from it through at least [`MIN_COLUMN_SHARE`] of the object's height (a pole
+//! carrying an arm); pivots within [`SNAP_TEXELS`] of the centre snap to it.
+
+use glam::Vec2;
+
+use crate::detect::{Detection, Detections};
+use crate::planes::OpacityVolume;
+
+/// Share of an object's height counted as its contact band (at least [`MIN_BAND_LEVELS`]
+/// levels): a chair's legs, a lamp's foot, a car's wheels.
+pub const CONTACT_BAND: f32 = 0.1;
+
+/// Fewest levels in the contact band.
+pub const MIN_BAND_LEVELS: usize = 2;
+
+/// A pivot this close to the box centre (in texels) is the box centre.
+pub const SNAP_TEXELS: f32 = 1.5;
+
+/// Largest share of an object's own texels its contact may cover for the pivot to leave the
+/// box centre.
+pub const MAX_CONTACT_SHARE: f32 = 0.25;
+
+/// Largest aspect ratio of the contact's box for the pivot to leave the box centre: a post
+/// (a pole, a trunk), not a panel or a strip of a neighbour's foot.
+pub const MAX_CONTACT_ASPECT: f32 = 2.0;
+
+/// Smallest share of the levels from the contact to the object's top at which the contact's
+/// box must be occupied (a column carrying the object, not a neighbour's foot in its mask).
+pub const MIN_COLUMN_SHARE: f32 = 0.8;
+
+/// World centre of a detection's box.
+pub fn box_centre(d: &Detection) -> Vec2 {
+    (d.world.min + d.world.max) * 0.5
+}
+
+/// The pivot of every detection (world XY), in detection order.
+pub fn contact_pivots(vol: &OpacityVolume, dets: &Detections) -> Vec<Vec2> {
+    dets.detections.iter().map(|d| contact_pivot(vol, dets, d)).collect()
+}
+
+/// The pivot of one detection (see the module docs); its box centre when nothing of it
+/// touches the ground in the volume.
+pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> Vec2 {
+    let centre = box_centre(d);
+    if vol.nz == 0 || vol.dz <= 0.0 || vol.rows != dets.grid.rows || vol.cols != dets.grid.cols {
+        return centre;
+    }
+    // first level above the supporting surface
+    let k_base = ((d.base - vol.z0) / vol.dz).round();
+    let k_base = if k_base.is_finite() && k_base >= 0.0 { k_base as usize + 1 } else { 0 };
+    let k0 = if d.parent.is_some() { k_base } else { k_base.max(dets.start_level) };
+    let band =
+        (((d.top - d.base).max(0.0) * CONTACT_BAND / vol.dz).ceil() as usize).max(MIN_BAND_LEVELS);
+    let k1 = (k0 + band).min(vol.nz);
+    if k0 >= k1 {
+        return centre;
+    }
+    let tau = dets.voxel_threshold;
+    let (mut rmin, mut rmax, mut cmin, mut cmax) = (usize::MAX, 0, usize::MAX, 0);
+    let (mut contact, mut own) = (0usize, 0usize);
+    for r in 0..d.rect.rows() {
+        for c in 0..d.rect.cols() {
+            if !d.own.get(r, c) {
+                continue;
+            }
+            own += 1;
+            let (rr, cc) = (d.rect.r0 + r, d.rect.c0 + c);
+            if vol.column(rr, cc)[k0..k1].iter().any(|&o| o > tau) {
+                contact += 1;
+                rmin = rmin.min(rr);
+                rmax = rmax.max(rr);
+                cmin = cmin.min(cc);
+                cmax = cmax.max(cc);
+            }
+        }
+    }
+    if contact == 0 {
+        return centre;
+    }
+    let pivot = dets.grid.to_world((cmin + cmax) as f32 * 0.5, (rmin + rmax) as f32 * 0.5);
+    let texel = Vec2::new(dets.grid.texel[0], dets.grid.texel[1]);
+    if ((pivot - centre) / texel).length() <= SNAP_TEXELS {
+        return centre;
+    }
+    // the box centre must lie off the contact, the contact be small, and a column rise from
+    // it through the object (a pole carrying an arm)
+    let (cc, cr) = dets.grid.to_texel(centre);
+    let off = cc < cmin as f32 - 1.0
+        || cc > cmax as f32 + 1.0
+        || cr < rmin as f32 - 1.0
+        || cr > rmax as f32 + 1.0;
+    let (h, w) = ((rmax + 1 - rmin) as f32, (cmax + 1 - cmin) as f32);
+    let small = contact as f32 <= MAX_CONTACT_SHARE * own as f32
+        && h.max(w) <= MAX_CONTACT_ASPECT * h.min(w);
+    let k_top = (((d.top - vol.z0) / vol.dz).round().max(0.0) as usize).min(vol.nz - 1);
+    let carried = if k_top >= k0 {
+        let held = (k0..=k_top)
+            .filter(|&k| {
+                (rmin..=rmax).any(|r| {
+                    (cmin..=cmax).any(|c| {
+                        let (lr, lc) = (r - d.rect.r0, c - d.rect.c0);
+                        d.own.get(lr, lc) && vol.column(r, c)[k] > tau
+                    })
+                })
+            })
+            .count();
+        held as f32 >= MIN_COLUMN_SHARE * (k_top + 1 - k0) as f32
+    } else {
+        false
+    };
+    if crate::detect::debug() {
+        eprintln!(
+            "pivot det {} rect {:?} levels {k0}..{k1} contact rows {rmin}..={rmax} cols {cmin}..={cmax} ({contact} of {own} texels) -> {pivot} (box centre {centre}): off {off} small {small} carried {carried}",
+            d.id, d.rect
+        );
+    }
+    if off && small && carried { pivot } else { centre }
+}
