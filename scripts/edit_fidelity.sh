@@ -7,10 +7,11 @@
 #
 #   scripts/edit_fidelity.sh [MODEL] [SCENES...]
 #
-# MODEL: s or i (default s); the fields come from runs/suite/fields/SCENE_MODEL.safetensors
-# (run scripts/quality_suite.sh first). Output under runs/fidelity/: data/SCENE (the scene
-# synthesised with its edit), lib/SCENE_MODEL (the library), compose/SCENE_MODEL_{same,edit}
-# and table.md. Finished steps are skipped, so the script can be stopped and started again.
+# MODEL: s or i (default s); the fields come from $SUITE/fields/SCENE_MODEL.safetensors
+# (SUITE as for scripts/quality_suite.sh, default runs/suite; run that first). Output under
+# runs/fidelity/ ($SUITE/fidelity for another suite; the synthesised scenes are always in
+# runs/fidelity/data): data/SCENE (the scene synthesised with its edit), lib/SCENE_MODEL (the
+# library), compose/SCENE_MODEL_{same,edit} and table.md. Finished steps are skipped, so the script can be stopped and started again.
 # OWN=R passes `mine --own-patch-residual R` (default: the mine default 0, every instance
 # keeps its own patch in the mined layout; 2: templates where they fit; inf: templates only)
 # and suffixes the output names with _ownR.
@@ -25,20 +26,23 @@ if [ ${#SCENES[@]} -eq 0 ]; then
 fi
 BIN=${BIN:-target/release/assetfield}
 [ -x "$BIN" ] || cargo build --release --locked
+SUITE=${SUITE:-runs/suite}
 OUT=runs/fidelity
+[ "$SUITE" = runs/suite ] || OUT="$SUITE/fidelity"
+mkdir -p runs/fidelity/data
 mkdir -p "$OUT/data" "$OUT/lib" "$OUT/compose" "$OUT/logs"
 TAG=${MODEL}${OWN:+_own$OWN}
 OWN_ARGS=()
 [ -n "${OWN:-}" ] && OWN_ARGS=(--own-patch-residual "$OWN")
 
 for scene in "${SCENES[@]}"; do
-  field="runs/suite/fields/${scene}_$MODEL.safetensors"
-  eval_json="runs/suite/eval/${scene}_$MODEL/metrics.json"
+  field="$SUITE/fields/${scene}_$MODEL.safetensors"
+  eval_json="$SUITE/eval/${scene}_$MODEL/metrics.json"
   if [ ! -f "$field" ] || [ ! -f "$eval_json" ]; then
     echo "== $scene: no trained field ($field); run scripts/quality_suite.sh first"
     continue
   fi
-  data="$OUT/data/$scene"
+  data="runs/fidelity/data/$scene"
   [ -f "$data/edited/transforms_test.json" ] ||
     "$BIN" synth "scenes/$scene.ron" --edited "scenes/edits/$scene.ron" --out "$data" --force \
       > "$OUT/logs/${scene}.synth.log" 2>&1
@@ -59,9 +63,9 @@ for scene in "${SCENES[@]}"; do
   echo "== $scene $TAG: $(grep -o '"f1": [0-9.]*' "$lib/metrics.json"), edited $(grep -o '"psnr": [0-9.]*' "$edit/metrics.json" 2>/dev/null | head -1)"
 done
 
-python3 - "$OUT" "$MODEL" "$TAG" "${SCENES[@]}" <<'EOF' || echo "(python3 missing: see $OUT/*/metrics.json)"
+python3 - "$OUT" "$MODEL" "$TAG" "$SUITE" "${SCENES[@]}" <<'EOF' || echo "(python3 missing: see $OUT/*/metrics.json)"
 import json, os, sys
-out, model, tag, scenes = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4:]
+out, model, tag, suite, scenes = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5:]
 def load(p):
     return json.load(open(p)) if os.path.exists(p) else None
 rows = ["| scene | field PSNR | recomposed | edited | edited - field | F1 | ARI | yaw median | yaw max | position |",
@@ -69,7 +73,7 @@ rows = ["| scene | field PSNR | recomposed | edited | edited - field | F1 | ARI 
 worst = None
 fmt = lambda v, d=2: "-" if v is None else f"{v:.{d}f}"
 for s in scenes:
-    f = load(f"runs/suite/eval/{s}_{model}/metrics.json")
+    f = load(f"{suite}/eval/{s}_{model}/metrics.json")
     m = load(f"{out}/lib/{s}_{tag}/metrics.json")
     a = load(f"{out}/compose/{s}_{tag}_same/metrics.json")
     e = load(f"{out}/compose/{s}_{tag}_edit/metrics.json")

@@ -10,7 +10,8 @@
 # subset of s,i,vm (default s,i,vm). SCENES: names under scenes/ (default: all).
 # Output under $SUITE (default runs/suite): data/SCENE (synthesised views; another SUITE
 # reuses runs/suite/data), fields/SCENE_MODEL.safetensors, eval/SCENE_MODEL/metrics.json,
-# and table.md. Finished runs are skipped, so the script can be stopped and started again.
+# and table.md. Finished runs are skipped and stopped ones resume from their checkpoints, so
+# the script can be stopped and started again.
 # Set BIN to use another binary (default target/release/assetfield, built if missing).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -36,8 +37,11 @@ for scene in "${SCENES[@]}"; do
     eval_dir="$OUT/eval/${scene}_$model"
     if [ ! -f "$field" ]; then
       echo "== $scene $model: training (${MINUTES}$([ "$MINUTES" = default ] || echo ' min'))"
+      # a run stopped part way (Ctrl-C, a machine going away) continues from its checkpoint
+      start=(--force)
+      [ -f "${field%.safetensors}.ckpt.safetensors" ] && start=(--resume)
       "$BIN" train "$data" --out "$field" --model "$model" "${BUDGET[@]}" \
-        --force --discard-checkpoint > "$OUT/logs/${scene}_$model.train.log" 2>&1
+        "${start[@]}" --discard-checkpoint >> "$OUT/logs/${scene}_$model.train.log" 2>&1
     fi
     if [ ! -f "$eval_dir/metrics.json" ]; then
       "$BIN" eval "$field" --data "$data" --out "$eval_dir" --force \
