@@ -119,7 +119,8 @@ struct RasterHeader {
     rect: [u32; 4],
     /// row, column
     base: [u32; 2],
-    /// 1: density features add to the canvas (`DensityRule::Add`), 0: replace its share
+    /// 1: density features add to the canvas outside the patches' cores
+    /// (`DensityRule::Add`), 0: replace its share
     density_add: u32,
     canary: u32,
 }
@@ -205,10 +206,12 @@ impl OccGrid {
 #[derive(Debug, Clone)]
 struct Template {
     patch: FeaturePatch,
-    /// vec4 offsets of the density and colour features, f32 offset of the weights
+    /// vec4 offsets of the density and colour features, f32 offsets of the weights and of
+    /// the core weights
     dens: u32,
     colr: u32,
     wt: u32,
+    core: u32,
 }
 
 /// The shader's `Inst`: the inverse ground transform exactly as
@@ -231,6 +234,7 @@ fn pack_inst(w: &mut Words, t: &GroundTransform, rect: TexelRect, tpl: &Template
     w.u("dens", tpl.dens);
     w.u("colr", tpl.colr);
     w.u("wt", tpl.wt);
+    w.u("core", tpl.core);
     w.f("texel_x", p.texel.x);
     w.f("texel_y", p.texel.y);
     w.f("half_cols", (p.cols - 1) as f32 * 0.5);
@@ -248,7 +252,7 @@ pub fn raster_struct_members() -> Vec<(&'static str, Vec<&'static str>)> {
     let mut i = Words::new(true);
     let patch = FeaturePatch::new("x", 1, 1, Vec2::ONE, vec![0.0], vec![0.0], vec![1.0])
         .expect("a one-texel patch");
-    let tpl = Template { patch, dens: 0, colr: 0, wt: 0 };
+    let tpl = Template { patch, dens: 0, colr: 0, wt: 0, core: 0 };
     pack_inst(&mut i, &GroundTransform::IDENTITY, TexelRect { r0: 0, c0: 0, r1: 0, c1: 0 }, &tpl);
     vec![("Raster", names(h)), ("Chunk", names(c)), ("Inst", names(i))]
 }
@@ -490,7 +494,8 @@ impl GpuComposer {
         if n_groups as u32 > LOOP_BUDGET / 4 {
             return Err(GpuError::Unsupported(format!("{nd} + {nc} channels are too many")));
         }
-        let scratch_bytes = (n * 4) as u64;
+        // the weight and core weight sums of every texel
+        let scratch_bytes = (n * 2 * 4) as u64;
         for (what, bytes) in [
             ("the canvas planes", canvas.len() as u64 * 4),
             ("the raster scratch sums", scratch_bytes),
@@ -722,6 +727,8 @@ impl GpuComposer {
             }
             let wt = data.len();
             data.extend_from_slice(&p.weight);
+            let core = data.len();
+            data.extend_from_slice(&p.core);
             data.resize(data.len().next_multiple_of(4), 0.0);
             if data.len() >= u32::MAX as usize {
                 return Err(input("the templates are too large for 32-bit indices"));
@@ -731,6 +738,7 @@ impl GpuComposer {
                 dens: dens as u32,
                 colr: colr as u32,
                 wt: wt as u32,
+                core: core as u32,
             });
         }
         let bytes = data.len() as u64 * 4;

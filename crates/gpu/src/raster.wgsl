@@ -6,10 +6,11 @@
 // other. For every instance whose texel rectangle holds the texel (in the order of the
 // layout), the texel's world position is taken into the instance's frame, and the patch's
 // four bilinear taps, each weighted by its bilinear weight times the patch's object weight
-// (premultiplied, zero outside the patch), are added to the sums. Then the canvas keeps the
-// share `max(0, 1 - sum w)`: density = share * canvas + sum (or canvas + sum when the
-// composition's density rule is `Add`), colour = (share * canvas + sum) / (share + sum w)
-// (the canvas colour where that is ~0). Sums run in the CPU's order.
+// (premultiplied, zero outside the patch), are added to the sums, and the bilinear weights
+// times the patch's core weights to the core sum. Then the canvas keeps the share
+// `max(0, 1 - sum w)`: density = share * canvas + sum (or max(0, 1 - sum core) * canvas +
+// sum when the composition's density rule is `Add`), colour = (share * canvas + sum) /
+// (share + sum w) (the canvas colour where that is ~0). Sums run in the CPU's order.
 //
 // The instances that may reach a texel come from a per-tile list (TILE x TILE texels) built
 // on the host, so the cost follows coverage. Only texels inside the dirty rectangle
@@ -19,7 +20,7 @@
 // iterated 65535 times in total: a dispatch walks at most `entry1 - entry0` entries of each
 // tile's list per channel group (the host keeps groups x entries well inside the limit).
 // When a list is longer, several dispatches share the work: the partial sums wait in the
-// planes (features) and in `scratch` (the weight sum) between them. A last loop with a known
+// planes (features) and in `scratch` (the weight and core sums) between them. A last loop with a known
 // trip count detects a driver that cut loops short anyway: the texel is counted in `status`
 // and the host refuses the planes.
 
@@ -57,7 +58,8 @@ struct Raster {
     c1: u32,
     r_base: u32,
     c_base: u32,
-    // 1: density features add to the canvas (`DensityRule::Add`), 0: they replace its share
+    // 1: density features add to the canvas outside the patches' cores (`DensityRule::Add`),
+    // 0: they replace its share
     density_add: u32,
     canary: u32,
 }
@@ -73,8 +75,8 @@ struct Chunk {
 
 // An instance: the inverse of its ground transform (position, cos and sin of -yaw, scale),
 // the texels it may reach (as the CPU's `PlaneGrid::texels_of` of its bounds), and its patch
-// (size, offsets of its features in `pfeat` (vec4) and of its weights (f32), texel size and
-// centre).
+// (size, offsets of its features in `pfeat` (vec4) and of its weights and core weights
+// (f32), texel size and centre).
 struct Inst {
     pos_x: f32,
     pos_y: f32,
@@ -90,6 +92,7 @@ struct Inst {
     dens: u32,
     colr: u32,
     wt: u32,
+    core: u32,
     texel_x: f32,
     texel_y: f32,
     half_cols: f32,
@@ -107,7 +110,7 @@ struct Inst {
 @group(0) @binding(5) var<storage, read> tiles: array<u32>;
 // the field's parameters: the composed planes are written here
 @group(0) @binding(6) var<storage, read_write> params: array<f32>;
-// the weight sum of each texel between dispatches
+// the weight and core sums of each texel between dispatches (two per texel)
 @group(0) @binding(7) var<storage, read_write> scratch: array<f32>;
 // [0]: invocations whose loops the driver cut short
 @group(0) @binding(8) var<storage, read_write> status: array<atomic<u32>, 4>;
@@ -158,13 +161,13 @@ fn store4(at: u32, ch: u32, n: u32, v: vec4<f32>) {
     }
 }
 
-// The resolved value of one vec4 of channels: density share * canvas + sum (canvas + sum
-// with `density_add`); colour (share * canvas + sum) / (share + sum w), or the canvas where
-// the norm is ~0.
-fn resolve(dens: bool, share: f32, norm: f32, cv: vec4<f32>, a: vec4<f32>) -> vec4<f32> {
+// The resolved value of one vec4 of channels: density share * canvas + sum
+// (`core_share` * canvas + sum with `density_add`); colour (share * canvas + sum) /
+// (share + sum w), or the canvas where the norm is ~0.
+fn resolve(dens: bool, share: f32, core_share: f32, norm: f32, cv: vec4<f32>, a: vec4<f32>) -> vec4<f32> {
     if dens {
         if ra.density_add != 0u {
-            return cv + a;
+            return core_share * cv + a;
         }
         return share * cv + a;
     }
@@ -176,13 +179,15 @@ fn resolve(dens: bool, share: f32, norm: f32, cv: vec4<f32>, a: vec4<f32>) -> ve
 
 // The sums of one texel for one group of channels (vec4 `v0..v0+nv` of the texel's
 // `nvec`), over the entries `lo..hi` of its tile's list, added to the partial sums `a*`
-// (zero, or those of earlier dispatches); `wsum` gets the texel's weight sum.
+// (zero, or those of earlier dispatches); `wsum` and `csum` get the texel's weight and core
+// sums.
 struct Sums {
     a0: vec4<f32>,
     a1: vec4<f32>,
     a2: vec4<f32>,
     a3: vec4<f32>,
     wsum: f32,
+    csum: f32,
 }
 
 fn accumulate(r: u32, c: u32, lo: u32, hi: u32, dens: bool, v0: u32, nvec: u32, s0: Sums) -> Sums {
@@ -231,6 +236,14 @@ fn accumulate(r: u32, c: u32, lo: u32, hi: u32, dens: bool, v0: u32, nvec: u32, 
         );
         let w = select(vec4<f32>(0.0), bw * ow, ok);
         s.wsum += w.x + w.y + w.z + w.w;
+        let cw = vec4<f32>(
+            weight_at(it.core + idx.x),
+            weight_at(it.core + idx.y),
+            weight_at(it.core + idx.z),
+            weight_at(it.core + idx.w),
+        );
+        let cs = select(vec4<f32>(0.0), bw * cw, ok);
+        s.csum += cs.x + cs.y + cs.z + cs.w;
         var base = it.colr;
         if dens {
             base = it.dens;
@@ -265,10 +278,13 @@ fn raster(@builtin(global_invocation_id) gid: vec3<u32>) {
     let lo = start + chunk.entry0;
     let hi = min(tiles[t + 1u], start + chunk.entry1);
     var wsum0 = 0.0;
+    var csum0 = 0.0;
     if chunk.first == 0u {
-        wsum0 = scratch[k];
+        wsum0 = scratch[2u * k];
+        csum0 = scratch[2u * k + 1u];
     }
     var wsum = wsum0;
+    var csum = csum0;
     for (var g = 0u; g < ra.n_groups; g++) {
         let dens = g < ra.gd;
         // this group's vec4s: v0.. of the texel's `nvec`; its channels ch.. of `n`
@@ -286,7 +302,7 @@ fn raster(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         cb += v0;
         let ch = v0 * 4u;
-        var s = Sums(vec4<f32>(0.0), vec4<f32>(0.0), vec4<f32>(0.0), vec4<f32>(0.0), wsum0);
+        var s = Sums(vec4<f32>(0.0), vec4<f32>(0.0), vec4<f32>(0.0), vec4<f32>(0.0), wsum0, csum0);
         if chunk.first == 0u {
             s.a0 = load4(at, ch, n);
             s.a1 = load4(at, ch + 4u, n);
@@ -295,6 +311,7 @@ fn raster(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         s = accumulate(r, c, lo, hi, dens, v0, nvec, s);
         wsum = s.wsum;
+        csum = s.csum;
         if chunk.last == 0u {
             store4(at, ch, n, s.a0);
             store4(at, ch + 4u, n, s.a1);
@@ -303,17 +320,18 @@ fn raster(@builtin(global_invocation_id) gid: vec3<u32>) {
             continue;
         }
         let share = max(1.0 - wsum, 0.0);
+        let core_share = max(1.0 - csum, 0.0);
         let norm = share + wsum;
         let nv = min(G, nvec - v0);
-        store4(at, ch, n, resolve(dens, share, norm, canvas[cb], s.a0));
+        store4(at, ch, n, resolve(dens, share, core_share, norm, canvas[cb], s.a0));
         if nv > 1u {
-            store4(at, ch + 4u, n, resolve(dens, share, norm, canvas[cb + 1u], s.a1));
+            store4(at, ch + 4u, n, resolve(dens, share, core_share, norm, canvas[cb + 1u], s.a1));
         }
         if nv > 2u {
-            store4(at, ch + 8u, n, resolve(dens, share, norm, canvas[cb + 2u], s.a2));
+            store4(at, ch + 8u, n, resolve(dens, share, core_share, norm, canvas[cb + 2u], s.a2));
         }
         if nv > 3u {
-            store4(at, ch + 12u, n, resolve(dens, share, norm, canvas[cb + 3u], s.a3));
+            store4(at, ch + 12u, n, resolve(dens, share, core_share, norm, canvas[cb + 3u], s.a3));
         }
     }
     // llvmpipe ends every further loop once the iteration budget is spent: this one then
@@ -329,6 +347,7 @@ fn raster(@builtin(global_invocation_id) gid: vec3<u32>) {
         atomicAdd(&status[0], 1u);
     }
     if chunk.last == 0u {
-        scratch[k] = wsum;
+        scratch[2u * k] = wsum;
+        scratch[2u * k + 1u] = csum;
     }
 }

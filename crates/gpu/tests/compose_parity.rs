@@ -104,8 +104,8 @@ fn smooth(x: f32) -> f32 {
 }
 
 /// A random field (planes scaled up to ~N(0, 0.5^2)) and four templates with soft weights:
-/// two cut from its planes (one not square), one made by hand with its own texel size and a
-/// pivot off its centre, one density-warped.
+/// two cut from its planes (one not square, one with a core), one made by hand with its own
+/// texel size and a pivot off its centre, one density-warped (taking the core along).
 fn random_scene(nd: usize, nc: usize, res: usize) -> (Composition, Vec<FeaturePatch>) {
     let aabb = Aabb3::new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.8));
     let mut cfg = FieldConfig::new(ModelKind::Standard, aabb, res);
@@ -128,6 +128,10 @@ fn random_scene(nd: usize, nc: usize, res: usize) -> (Composition, Vec<FeaturePa
         smooth((1.0 - (u * u + v * v).sqrt()) * 3.0)
     })
     .unwrap();
+    // a core (where its features are the whole column under the additive rule): the inner
+    // part of its weight, soft at the edge
+    let core = a.weight.iter().map(|w| ((w - 0.4) * 2.0).clamp(0.0, 1.0)).collect();
+    let a = a.with_core(core).unwrap();
     let rect_b = TexelRect { r0: 25, c0: 25, r1: 34, c1: 34 };
     let (b, _) =
         FeaturePatch::cut(

@@ -101,6 +101,63 @@ pub struct FloorBand {
     pub coverage: f32,
 }
 
+/// Share of each footprint two detections must have in common (with the same top) for the
+/// one on the ground to be the other, standing on its host, found twice.
+const DUPLICATE_OVERLAP: f32 = 0.6;
+
+/// Texels the footprints of two detections have in common.
+fn footprint_overlap(a: &Detection, b: &Detection) -> usize {
+    let (ra, rb) = (a.rect, b.rect);
+    let mut n = 0;
+    for r in ra.r0.max(rb.r0)..ra.r1.min(rb.r1) {
+        for c in ra.c0.max(rb.c0)..ra.c1.min(rb.c1) {
+            if a.footprint.get(r - ra.r0, c - ra.c0) && b.footprint.get(r - rb.r0, c - rb.c0) {
+                n += 1;
+            }
+        }
+    }
+    n
+}
+
+/// Drop every object found twice, as a piece of the ground (a colour split of its host's
+/// column) and standing on its host: a ground detection without children whose footprint
+/// and a supported detection's cover [`DUPLICATE_OVERLAP`] of each other, with tops within
+/// two levels (`dz` apart). Ids, parents and children are renumbered.
+pub fn drop_duplicates(detections: Vec<Detection>, dz: f32) -> Vec<Detection> {
+    let duplicate = |g: &Detection, s: &Detection| {
+        let overlap = footprint_overlap(g, s) as f32;
+        g.parent.is_none()
+            && g.children.is_empty()
+            && s.parent.is_some()
+            && overlap >= DUPLICATE_OVERLAP * g.footprint.count() as f32
+            && overlap >= DUPLICATE_OVERLAP * s.footprint.count() as f32
+            && (g.top - s.top).abs() <= 2.0 * dz
+    };
+    let dropped: Vec<bool> =
+        detections.iter().map(|g| detections.iter().any(|s| duplicate(g, s))).collect();
+    if !dropped.iter().any(|&d| d) {
+        return detections;
+    }
+    let mut new_id = vec![usize::MAX; detections.len()];
+    let mut kept = Vec::with_capacity(detections.len());
+    for (i, d) in detections.into_iter().enumerate() {
+        if dropped[i] {
+            if debug() {
+                eprintln!("drop {i} {:?}: the same object as one standing on another", d.rect);
+            }
+            continue;
+        }
+        new_id[i] = kept.len();
+        kept.push(d);
+    }
+    for d in &mut kept {
+        d.id = new_id[d.id];
+        d.parent = d.parent.map(|p| new_id[p]);
+        d.children = d.children.iter().map(|&c| new_id[c]).collect();
+    }
+    kept
+}
+
 /// One detected object.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Detection {
@@ -1943,6 +2000,7 @@ pub fn detect(
             detections.push(c);
         }
     }
+    let mut detections = drop_duplicates(detections, vol.dz);
     // an object inside or partly under another (nested in its outline, or separated in 3D):
     // the larger one's own texels leave it out, as the paper sets a nested chair to the
     // background feature in the table's patch
@@ -2131,6 +2189,43 @@ mod tests {
         let mut v: Vec<PixelRect> = d.detections.iter().map(|x| x.rect).collect();
         v.sort_by_key(|r| (r.c0, r.r0));
         v
+    }
+
+    #[test]
+    fn an_object_found_twice_keeps_the_copy_standing_on_its_host() {
+        let det = |id: usize, rect: PixelRect, top: f32, parent: Option<usize>| {
+            let mut footprint = Mask::empty(rect.rows(), rect.cols()).unwrap();
+            footprint.data.fill(true);
+            Detection {
+                id,
+                rect,
+                own: footprint.clone(),
+                footprint,
+                world: Rect2::EMPTY,
+                area: 0.0,
+                base: 0.0,
+                top,
+                shape_top: top,
+                parent,
+                children: Vec::new(),
+            }
+        };
+        let mut table = det(0, PixelRect::new(0, 0, 20, 30), 0.75, None);
+        table.children = vec![1, 3];
+        let lamp = det(1, PixelRect::new(5, 5, 12, 12), 1.2, Some(0));
+        // the lamp's column again, from the ground: dropped
+        let twice = det(2, PixelRect::new(5, 5, 13, 12), 1.2, None);
+        // a laptop over a chair pushed under the table: kept (the chair is much larger)
+        let laptop = det(3, PixelRect::new(14, 20, 17, 24), 0.8, Some(0));
+        let chair = det(4, PixelRect::new(12, 18, 24, 30), 0.8, None);
+        let kept = drop_duplicates(vec![table, lamp, twice, laptop, chair], 0.05);
+        let rects: Vec<PixelRect> = kept.iter().map(|d| d.rect).collect();
+        assert_eq!(rects.len(), 4, "{rects:?}");
+        assert!(!rects.contains(&PixelRect::new(5, 5, 13, 12)));
+        // renumbered: the laptop is now 2 and still the table's child
+        assert_eq!(kept[0].children, vec![1, 2]);
+        assert_eq!((kept[2].id, kept[2].parent), (2, Some(0)));
+        assert_eq!((kept[3].id, kept[3].parent), (3, None));
     }
 
     #[test]

@@ -287,8 +287,12 @@ impl AssetLibrary {
                         continue;
                     }
                     let t = rr as usize * cols + cc as usize;
-                    for (v, f) in d[k * nd..][..nd].iter_mut().zip(&fill[t * nd..][..nd]) {
-                        *v -= f;
+                    // the ring holds the object minus its background; the core keeps the
+                    // whole column
+                    if !mask.data[k] {
+                        for (v, f) in d[k * nd..][..nd].iter_mut().zip(&fill[t * nd..][..nd]) {
+                            *v -= f;
+                        }
                     }
                     if let Some(o) = owner
                         && !mask.data[k]
@@ -299,7 +303,9 @@ impl AssetLibrary {
                 }
             }
         }
+        let core = mask.data.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
         Ok(FeaturePatch::new(e.name.clone(), h, w, self.texel(), d, c, weight)?
+            .with_core(core)?
             .with_origin(-e.pivot_offset()))
     }
 

@@ -29,6 +29,12 @@ pub struct FeaturePatch {
     pub color: Vec<f32>,
     /// `[rows][cols]`, 0..1: the object's share of each texel.
     pub weight: Vec<f32>,
+    /// `[rows][cols]`, 0..weight: the share of each texel where the patch's density
+    /// features are the whole column (the object itself, standing on its own background)
+    /// and displace the canvas's; in the rest of `weight` they are a residual added to the
+    /// canvas (see [`crate::DensityRule::Add`]). Zero unless set with
+    /// [`FeaturePatch::with_core`].
+    pub core: Vec<f32>,
     /// Where the patch centre lies in the asset's local frame (unscaled; zero when the
     /// asset turns about its patch centre).
     pub origin: Vec2,
@@ -38,6 +44,9 @@ pub struct FeaturePatch {
 #[derive(Debug, Clone, Copy)]
 struct Taps {
     idx: [usize; 4],
+    /// Bilinear weights (zero outside the patch).
+    b: [f32; 4],
+    /// Bilinear weights times object weights.
     w: [f32; 4],
 }
 
@@ -98,9 +107,26 @@ impl FeaturePatch {
             texel,
             density,
             color,
+            core: vec![0.0; n],
             weight,
             origin: Vec2::ZERO,
         })
+    }
+
+    /// The same patch with `core` as its core weights (one per texel, clamped to
+    /// `0..=weight`).
+    pub fn with_core(mut self, core: Vec<f32>) -> Result<Self, SceneError> {
+        if core.len() != self.weight.len() {
+            return Err(SceneError::PatchShape {
+                name: self.name,
+                what: "core weight",
+                expected: self.weight.len(),
+                actual: core.len(),
+                shape: format!("{} x {} texels", self.rows, self.cols),
+            });
+        }
+        self.core = core.iter().zip(&self.weight).map(|(c, w)| c.clamp(0.0, *w)).collect();
+        Ok(self)
     }
 
     /// The same patch with its centre at `origin` in the asset's local frame (the asset's
@@ -162,7 +188,7 @@ impl FeaturePatch {
         let (xf, yf) = (x.floor(), y.floor());
         let (fx, fy) = (x - xf, y - yf);
         let (x0, y0) = (xf as isize, yf as isize);
-        let mut t = Taps { idx: [0; 4], w: [0.0; 4] };
+        let mut t = Taps { idx: [0; 4], b: [0.0; 4], w: [0.0; 4] };
         for (k, (dx, dy, bw)) in [
             (0, 0, (1.0 - fx) * (1.0 - fy)),
             (1, 0, fx * (1.0 - fy)),
@@ -176,6 +202,7 @@ impl FeaturePatch {
             if xx >= 0 && yy >= 0 && (xx as usize) < self.cols && (yy as usize) < self.rows {
                 let i = yy as usize * self.cols + xx as usize;
                 t.idx[k] = i;
+                t.b[k] = bw;
                 t.w[k] = bw * self.weight[i];
             }
         }
@@ -188,7 +215,23 @@ impl FeaturePatch {
     /// weight `sum_taps b_t w_t`.
     #[inline]
     pub fn accumulate(&self, q: Vec2, acc_d: &mut [f32], acc_c: &mut [f32]) -> f32 {
-        let Some(t) = self.taps(q) else { return 0.0 };
+        self.accumulate_with_core(q, acc_d, acc_c).0
+    }
+
+    /// [`FeaturePatch::accumulate`], also returning the summed core weight
+    /// `sum_taps b_t core_t`.
+    #[inline]
+    pub fn accumulate_with_core(
+        &self,
+        q: Vec2,
+        acc_d: &mut [f32],
+        acc_c: &mut [f32],
+    ) -> (f32, f32) {
+        let Some(t) = self.taps(q) else { return (0.0, 0.0) };
+        let mut core = 0.0;
+        for k in 0..4 {
+            core += t.b[k] * self.core[t.idx[k]];
+        }
         let mut total = 0.0;
         for k in 0..4 {
             let w = t.w[k];
@@ -205,7 +248,7 @@ impl FeaturePatch {
                 *a += w * v;
             }
         }
-        total
+        (total, core)
     }
 
     /// Call `f(k, q)` for every texel `k` of this patch with the point `q` of `source`'s
@@ -257,7 +300,8 @@ impl FeaturePatch {
             self.density.clone(),
             color,
             self.weight.clone(),
-        )
+        )?
+        .with_core(self.core.clone())
         .map(|p| p.with_origin(self.origin))
     }
 
@@ -274,16 +318,18 @@ impl FeaturePatch {
         }
         let mut density = vec![0.0f32; self.rows * self.cols * self.nd];
         let mut weight = vec![0.0f32; self.rows * self.cols];
+        let mut core = vec![0.0f32; self.rows * self.cols];
         let mut scratch_c = vec![0.0f32; source.nc];
         self.sample_stretched(source, |k, q| {
             let d = &mut density[k * self.nd..][..self.nd];
             scratch_c.fill(0.0);
-            let w = source.accumulate(q, d, &mut scratch_c);
+            let (w, c) = source.accumulate_with_core(q, d, &mut scratch_c);
             if w > 1e-6 {
                 d.iter_mut().for_each(|v| *v /= w);
             }
-            // the bilinear sum of object weights is the warped object weight
+            // the bilinear sums of object and core weights are the warped ones
             weight[k] = w.min(1.0);
+            core[k] = c.min(1.0);
         });
         FeaturePatch::new(
             format!("{}<-{}", self.name, source.name),
@@ -293,7 +339,8 @@ impl FeaturePatch {
             density,
             self.color.clone(),
             weight,
-        )
+        )?
+        .with_core(core)
         .map(|p| p.with_origin(self.origin))
     }
 }

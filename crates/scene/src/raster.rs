@@ -59,8 +59,13 @@ pub enum DensityRule {
     /// (patches hold the whole column: object and whatever was under it).
     #[default]
     Replace,
-    /// Objects add to the canvas: `d = d_canvas + sum w_i d_i` (patches hold the object's
-    /// density alone, the column minus the background it stood on).
+    /// Objects add to the canvas, except in their cores: `d = max(0, 1 - sum c_i) d_canvas +
+    /// sum w_i d_i`, where `c_i` is a patch's core weight ([`FeaturePatch::core`]). A library
+    /// patch holds in its core (the object's own mask) the whole column, the object standing
+    /// on its own background, which displaces the canvas there; in its ring it holds the
+    /// column minus the background it stood on, added to the canvas. A moved object keeps
+    /// exactly its trained features, whatever features the canvas has for empty space
+    /// where it lands. Patches without a core (zero) purely add.
     Add,
 }
 
@@ -188,19 +193,21 @@ impl Composition {
                     acc_d.fill(0.0);
                     acc_c.fill(0.0);
                     let p = grid.world(r, c);
-                    let mut wsum = 0.0f32;
+                    let (mut wsum, mut csum) = (0.0f32, 0.0f32);
                     for (d, tr) in &near {
                         if r < tr.r0 || r >= tr.r1 || c < tr.c0 || c >= tr.c1 {
                             continue;
                         }
                         let q = d.transform.inverse_transform_point2(p);
-                        wsum += d.patch.accumulate(q, &mut acc_d, &mut acc_c);
+                        let (w, core) = d.patch.accumulate_with_core(q, &mut acc_d, &mut acc_c);
+                        wsum += w;
+                        csum += core;
                     }
                     let k = r * cols + c;
                     let share = (1.0 - wsum).max(0.0);
                     let (od, oc) = (&mut drow[c * nd..][..nd], &mut crow[c * nc..][..nc]);
                     let (cd, cc) = (&canvas_d[k * nd..][..nd], &canvas_c[k * nc..][..nc]);
-                    let keep = if additive { 1.0 } else { share };
+                    let keep = if additive { (1.0 - csum).max(0.0) } else { share };
                     for i in 0..nd {
                         od[i] = keep * cd[i] + acc_d[i];
                     }

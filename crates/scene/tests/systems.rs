@@ -183,6 +183,44 @@ fn additive_density_keeps_the_canvas_under_objects_and_sums_overlaps() {
 }
 
 #[test]
+fn under_the_additive_rule_a_core_displaces_the_canvas_and_the_ring_adds_to_it() {
+    // the chair's inner texels are its core: there its features are the whole column
+    let (mut c, patch, dens, _) = setup();
+    let core: Vec<f32> = patch.weight.iter().map(|&w| if w == 1.0 { 1.0 } else { 0.0 }).collect();
+    let cored = Arc::new((*patch).clone().with_core(core).unwrap());
+    c.set_template("cored", "chair", cored.clone()).unwrap();
+    c.world.resource_mut::<assetfield_scene::world::ComposedPlanes>().0.density_rule =
+        assetfield_scene::DensityRule::Add;
+    // moved by whole texels to (1.0, 0.5), where the canvas holds other features
+    c.spawn("a", "cored", at(1.0, 0.5, 0.0)).unwrap();
+    c.update();
+    let comp = c.composition();
+    let grid = comp.grid;
+    let d = comp.field.params.spec("density.plane").unwrap();
+    let texel = |x: f32, y: f32| {
+        let k = (0..grid.rows * grid.cols)
+            .find(|&k| (grid.world(k / grid.cols, k % grid.cols) - Vec2::new(x, y)).length() < 1e-4)
+            .unwrap();
+        (k, &comp.field.params.data[d.offset + k * 4..][..4])
+    };
+    // the patch centre: a core texel, exactly the patch's features whatever the canvas
+    let pk = (patch.rows - 1) / 2 * patch.cols + (patch.cols - 1) / 2;
+    let (k, got) = texel(1.0, 0.5);
+    assert!((0..4).any(|i| (dens[k * 4 + i]).abs() > 1e-3), "the canvas is not empty there");
+    for i in 0..4 {
+        assert!((got[i] - cored.density[pk * 4 + i]).abs() < 1e-5, "core channel {i}");
+    }
+    // a corner of the patch: ring (weight 0.5, no core), canvas plus half the features
+    let corner = Vec2::new(1.0, 0.5) - cored.half_extent();
+    let (k, got) = texel(corner.x, corner.y);
+    assert_eq!((cored.weight[0], cored.core[0]), (0.5, 0.0));
+    for i in 0..4 {
+        let want = dens[k * 4 + i] + 0.5 * cored.density[i];
+        assert!((got[i] - want).abs() < 1e-5, "ring channel {i}: {} vs {want}", got[i]);
+    }
+}
+
+#[test]
 fn a_container_entity_is_the_canvas_and_swapping_it_redraws_everything() {
     let (mut c, _, dens, col) = setup();
     c.spawn("chair[0]", "chair", at(1.0, 1.0, 45.0)).unwrap();
