@@ -11,7 +11,8 @@
 # Output under $SUITE (default runs/suite): data/SCENE (synthesised views; another SUITE
 # reuses runs/suite/data), fields/SCENE_MODEL.safetensors, eval/SCENE_MODEL/metrics.json,
 # and table.md. Finished runs are skipped and stopped ones resume from their checkpoints, so
-# the script can be stopped and started again.
+# the script can be stopped and started again (with the same MINUTES: a resumed run keeps
+# the budget it started with unless --minutes raises it).
 # Set BIN to use another binary (default target/release/assetfield, built if missing).
 set -euo pipefail
 cd "$(dirname "$0")/.."

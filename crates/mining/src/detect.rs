@@ -122,8 +122,11 @@ fn footprint_overlap(a: &Detection, b: &Detection) -> usize {
 /// Drop every object found twice, as a piece of the ground (a colour split of its host's
 /// column) and standing on its host: a ground detection without children whose footprint
 /// and a supported detection's cover [`DUPLICATE_OVERLAP`] of each other, with tops within
-/// two levels (`dz` apart). Ids, parents and children are renumbered.
+/// two levels (`dz` apart). Ids, parents and children are renumbered (ids must equal the
+/// indices). The dropped copy's texels lie within its host's footprint, which the container
+/// fills anyway.
 pub fn drop_duplicates(detections: Vec<Detection>, dz: f32) -> Vec<Detection> {
+    debug_assert!(detections.iter().enumerate().all(|(i, d)| d.id == i));
     let duplicate = |g: &Detection, s: &Detection| {
         let overlap = footprint_overlap(g, s) as f32;
         g.parent.is_none()

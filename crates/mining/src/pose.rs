@@ -5,9 +5,10 @@
 //! refinement, sub-texel offset).
 //!
 //! Patches are cut around a detection's bounding box with a margin, padding outside the
-//! plane by repeating the edge texels, so a patch's centre is always its box's centre. A
-//! template's origin is its patch centre; an instance's position is its patch centre plus the
-//! offset of the rotated template found by the matching.
+//! plane by repeating the edge texels, so a patch's centre is always its box's centre. The
+//! matching finds where the template's patch centre lands on an instance (the instance's
+//! patch centre plus the offset of the rotated template); [`Poses::to_pivots`] then moves
+//! every position to where the template's pivot lands (see [`crate::pivot`]).
 
 use glam::Vec2;
 use rayon::prelude::*;

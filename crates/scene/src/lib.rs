@@ -8,7 +8,10 @@
 //! the canvas (the container: floor, emptied scene) keeps the share `max(0, 1 - sum w)`;
 //! density features are summed, `d = share * d_canvas + sum w_i d_i`, and colour features
 //! are the weight-averaged `c = (share * c_canvas + sum w_i c_i) / (share + sum w_i)`.
-//! Placing an object back where it was mined reproduces the original planes.
+//! Compositions from an asset library use [`DensityRule::Add`] instead: a patch's ring adds
+//! its residual features to the canvas, and only its core (the object's mask) displaces it,
+//! `d = max(0, 1 - sum core_i) d_canvas + sum w_i d_i`. Placing an object back where it was
+//! mined reproduces the original planes; moving it keeps its own features.
 
 pub mod error;
 pub mod grid;

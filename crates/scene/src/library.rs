@@ -220,8 +220,10 @@ impl AssetLibrary {
         self.index.entry(&c.template)
     }
 
-    /// An entry as a feature patch: its density features minus the background (see
-    /// [`DensityRule::Add`]), its colour features, and weight 1 on the texels it owns: its
+    /// An entry as a feature patch: on its mask (its core) its whole density column, on the
+    /// rest its density features minus the background (see [`DensityRule::Add`]), its colour
+    /// features, its centre at the entry's pivot offset (see
+    /// [`FeaturePatch::origin`]), and weight 1 on the texels it owns: its
     /// mask, plus the texels within `halo` of it that are nearer to it than to any other
     /// object of its source scene (so that neighbours' patches never cover the same texel,
     /// and every object placed back where it was mined restores its source planes exactly).
@@ -555,10 +557,13 @@ impl ScriptAssets {
                     lref.entry
                 ),
             })?;
-            let mut info = parts.asset_info(name).unwrap_or_else(|| lib.entry_info(e));
+            // the footprint from the script's `size` (around the script's pivot, or around
+            // the patch centre without one), else the entry's (around its own pivot)
+            let from_parts = parts.asset_info(name);
+            let shift_footprint = from_parts.is_some();
+            let mut info = from_parts.unwrap_or_else(|| lib.entry_info(e));
             let mut patch = lib.patch(&e.name, halo)?;
-            // the pivot: the script's, else the entry's (the parts catalog placed the
-            // footprint around the script's pivot, or around the patch centre without one)
+            // the pivot: the script's, else the entry's
             match lref.pivot {
                 Some((x, y)) if !(x.is_finite() && y.is_finite()) => {
                     return Err(SceneError::Script {
@@ -569,11 +574,12 @@ impl ScriptAssets {
                     });
                 }
                 Some((x, y)) => patch = patch.with_origin(-Vec2::new(x, y)),
-                None => {
+                None if shift_footprint => {
                     let shift = -e.pivot_offset();
                     info.footprint =
                         Rect2::new(info.footprint.min + shift, info.footprint.max + shift);
                 }
+                None => {}
             }
             let mut source = format!("{} entry {}", dir.display(), e.name);
             for (other, what) in

@@ -8,7 +8,9 @@ use assetfield_field::{Field, ModelKind, Occupancy};
 use glam::Vec2;
 use rayon::prelude::*;
 
-/// One instance to draw: where, and which patch.
+/// One instance to draw: where, and which patch. Build it with [`InstanceDraw::new`], which
+/// applies the patch's [`FeaturePatch::origin`]; a struct literal takes `transform` as the
+/// patch centre's.
 #[derive(Debug, Clone, Copy)]
 pub struct InstanceDraw<'a> {
     /// The transform of the patch centre ([`FeaturePatch::placement`] of the asset's
@@ -64,8 +66,9 @@ pub enum DensityRule {
     /// patch holds in its core (the object's own mask) the whole column, the object standing
     /// on its own background, which displaces the canvas there; in its ring it holds the
     /// column minus the background it stood on, added to the canvas. A moved object keeps
-    /// exactly its trained features, whatever features the canvas has for empty space
-    /// where it lands. Patches without a core (zero) purely add.
+    /// its trained features (exactly for whole-texel moves and quarter turns; bilinear
+    /// resampling blends core and ring at the mask's edge otherwise), whatever features the
+    /// canvas has for empty space where it lands. Patches without a core (zero) purely add.
     Add,
 }
 
