@@ -2239,6 +2239,8 @@ mod tests {
         fill(&mut v, (10, 12), (10, 12), (2, 18), 0.95);
         fill(&mut v, (9, 12), (10, 30), (17, 19), 0.95);
         fill(&mut v, (6, 15), (22, 30), (14, 19), 0.95);
+        // paint on the floor under the head: one level, not a contact
+        fill(&mut v, (7, 14), (23, 29), (3, 4), 0.95);
         // a table on four legs: turns about its centre
         for (r, c) in [(25, 10), (25, 28), (33, 10), (33, 28)] {
             fill(&mut v, (r, r + 2), (c, c + 2), (2, 9), 0.95);

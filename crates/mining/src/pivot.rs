@@ -2,7 +2,9 @@
 //! lamp about its pole and a car about the middle of its wheels, not about the centre of
 //! their bounding boxes (a lamp's arm reaches a metre to one side). The pivot of a mined
 //! object is the centre of the bounding box of its **ground contact**: the texels of its own
-//! footprint occupied in the lowest levels above the surface it stands on. For most furniture
+//! footprint occupied in most of the lowest levels above the surface it stands on
+//! (a leg or a pole runs through them; paint on the floor or the floor's blur touches only
+//! the first). For most furniture
 //! (legs at the corners, a solid base) that is the box centre. The field's lowest levels are
 //! its least certain (a thin foot merges with the floor slab, a neighbour's panel reaches
 //! into a footprint), so the pivot leaves the box centre only on clear evidence: the contact
@@ -10,6 +12,10 @@
 //! object, its box at most [`MAX_CONTACT_ASPECT`] times longer than wide), and a column
 //! rises from it through at least [`MIN_COLUMN_SHARE`] of the object's height (a pole
 //! carrying an arm); pivots within [`SNAP_TEXELS`] of the centre snap to it.
+//!
+//! With `ASSETFIELD_MINING_DEBUG` set, every decision goes to stderr; with
+//! `ASSETFIELD_PIVOT_DUMP` also set, the contact map of objects whose pivot stays centred
+//! (`#` contact, `+` touched in too few levels, `o` free, `.` not the object's).
 
 use glam::Vec2;
 
@@ -75,7 +81,8 @@ pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> V
             }
             own += 1;
             let (rr, cc) = (d.rect.r0 + r, d.rect.c0 + c);
-            if vol.column(rr, cc)[k0..k1].iter().any(|&o| o > tau) {
+            let held = vol.column(rr, cc)[k0..k1].iter().filter(|&&o| o > tau).count();
+            if 2 * held > k1 - k0 {
                 contact += 1;
                 rmin = rmin.min(rr);
                 rmax = rmax.max(rr);
@@ -85,11 +92,40 @@ pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> V
         }
     }
     if contact == 0 {
+        if crate::detect::debug() {
+            eprintln!(
+                "pivot det {} rect {:?}: no contact in levels {k0}..{k1} above tau {tau}",
+                d.id, d.rect
+            );
+        }
         return centre;
     }
     let pivot = dets.grid.to_world((cmin + cmax) as f32 * 0.5, (rmin + rmax) as f32 * 0.5);
     let texel = Vec2::new(dets.grid.texel[0], dets.grid.texel[1]);
     if ((pivot - centre) / texel).length() <= SNAP_TEXELS {
+        if crate::detect::debug() {
+            eprintln!("pivot det {}: contact centred, {contact} of {own} texels", d.id);
+            if std::env::var_os("ASSETFIELD_PIVOT_DUMP").is_some() {
+                for r in 0..d.rect.rows() {
+                    let line: String = (0..d.rect.cols())
+                        .map(|c| {
+                            let col = vol.column(d.rect.r0 + r, d.rect.c0 + c);
+                            let held = col[k0..k1].iter().filter(|&&o| o > tau).count();
+                            if !d.own.get(r, c) {
+                                '.'
+                            } else if 2 * held > k1 - k0 {
+                                '#'
+                            } else if held > 0 {
+                                '+'
+                            } else {
+                                'o'
+                            }
+                        })
+                        .collect();
+                    eprintln!("  {line}   levels {k0}..{k1} base {:.2} top {:.2}", d.base, d.top);
+                }
+            }
+        }
         return centre;
     }
     // the box centre must lie off the contact, the contact be small, and a column rise from
