@@ -101,6 +101,27 @@ pub struct FloorBand {
     pub coverage: f32,
 }
 
+/// Whether the per-level areas (`area[k]`: occupied texels of a footprint of `n` at level
+/// `k`, spacing `dz`) show an object held above the surface ending at level `hi` on a stem:
+/// a run of at least 8 cm (three levels) where at most 2% of the footprint is occupied (a
+/// stem, not a chair's back), then a level covering a tenth of it again (a lamp's shade).
+fn held_on_a_stem(area: &[usize], hi: usize, n: usize, dz: f32) -> bool {
+    let need = ((0.08 / dz.max(1e-6)).ceil() as usize).max(3);
+    let stem = (n / 50).max(3);
+    let mut run = 0usize;
+    for k in hi + 1..area.len() {
+        if area[k] <= stem {
+            run += 1;
+        } else if run >= need && area[k] * 10 >= n {
+            return true;
+        } else if area[k] * 10 >= n {
+            // a body right above the slab, not held on a stem
+            run = 0;
+        }
+    }
+    false
+}
+
 /// Share of each footprint two detections must have in common (with the same top) for the
 /// one on the ground to be the other, standing on its host, found twice.
 const DUPLICATE_OVERLAP: f32 = 0.6;
@@ -1430,7 +1451,14 @@ fn unpack(
     // of it: its free surface is a margin, too narrow to judge away from the object; the
     // rim and ring checks below still apply
     let low = (hi.saturating_sub(start)) as f32 * vol.dz < 0.25;
-    if !low && (free_n * 20 < n * free_share || flat_n * 20 < free_n * flat_share) {
+    // an object held above the surface on a stem (a table lamp: its shade covers most of a
+    // side table, leaving no free surface to judge): above the slab a run of levels that
+    // only a stem occupies, then a body again
+    let waist = held_on_a_stem(&area, hi, n, vol.dz);
+    if debug() && waist {
+        eprintln!("   an object held on a stem above the slab");
+    }
+    if !low && !waist && (free_n * 20 < n * free_share || flat_n * 20 < free_n * flat_share) {
         return (Vec::new(), Some(hi));
     }
     // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
@@ -2192,6 +2220,45 @@ mod tests {
         let mut v: Vec<PixelRect> = d.detections.iter().map(|x| x.rect).collect();
         v.sort_by_key(|r| (r.c0, r.r0));
         v
+    }
+
+    #[test]
+    fn a_lamp_on_a_side_table_is_held_on_a_stem() {
+        // areas per level: a table body to level 10, its top's blur, a stem, a shade
+        let mut area = vec![0usize; 30];
+        area[2..=10].fill(400);
+        area[11] = 60;
+        area[12..=16].fill(2);
+        area[17..=20].fill(150);
+        assert!(held_on_a_stem(&area, 10, 400, 0.024));
+        // a chair's back rises from its seat without a stem
+        let mut chair = area.clone();
+        chair[12..=20].fill(70);
+        assert!(!held_on_a_stem(&chair, 10, 400, 0.024));
+        // a stem too short to tell from the top's blur
+        let mut short = area.clone();
+        short[14..=16].fill(150);
+        assert!(!held_on_a_stem(&short, 10, 400, 0.024));
+        // nothing held above the stem (haze)
+        let mut bare = area;
+        bare[17..=20].fill(20);
+        assert!(!held_on_a_stem(&bare, 10, 400, 0.024));
+
+        // and in a volume: a side table (solid, 0.45 m) whose lamp shade covers 44% of it,
+        // leaving a rim of one or two texels, on a one-texel stem
+        let (rows, cols) = (30, 30);
+        let mut v = floor_volume(rows, cols, 40);
+        fill(&mut v, (10, 19), (10, 19), (2, 12), 0.95);
+        fill(&mut v, (14, 15), (14, 15), (12, 20), 0.95);
+        fill(&mut v, (11, 17), (11, 17), (20, 24), 0.95);
+        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+            let shade = (11..17).contains(&r) && (11..17).contains(&c);
+            if shade { [0.95, 0.9, 0.7][k] } else { [0.6, 0.45, 0.3][k] }
+        })
+        .unwrap();
+        let d = detect_small(&v, &color);
+        let lamp = only_child(&d);
+        assert_eq!(lamp.rect, PixelRect::new(11, 11, 17, 17));
     }
 
     #[test]
