@@ -32,7 +32,11 @@
 //!    around it (K-means on the distances to the surface's median colour), and the connected
 //!    result, when enclosed by free surface, becomes a detection supported by the object
 //!    (laptops on a table, a crate on a pallet, a lamp on a side table). A low support
-//!    (within 0.25 of the ground: a pallet's deck) may carry an object over most of it.
+//!    (within 0.25 of the ground: a pallet's deck) may carry an object over most of it, and
+//!    so may a support with an object held above it on a stem (a lamp whose shade covers
+//!    most of a side table: [`held_on_a_stem`]).
+//! 5. **Duplicates.** An object found both as a piece of the ground (a colour split of its
+//!    host's column) and standing on its host keeps only the second ([`drop_duplicates`]).
 //!
 //! Set the environment variable `ASSETFIELD_MINING_DEBUG` to print the intermediate
 //! decisions to stderr.
@@ -105,7 +109,7 @@ pub struct FloorBand {
 /// `k`, spacing `dz`) show an object held above the surface ending at level `hi` on a stem:
 /// a run of at least 8 cm (three levels) where at most 2% of the footprint is occupied (a
 /// stem, not a chair's back), then a level covering a tenth of it again (a lamp's shade).
-fn held_on_a_stem(area: &[usize], hi: usize, n: usize, dz: f32) -> bool {
+pub fn held_on_a_stem(area: &[usize], hi: usize, n: usize, dz: f32) -> bool {
     let need = ((0.08 / dz.max(1e-6)).ceil() as usize).max(3);
     let stem = (n / 50).max(3);
     let mut run = 0usize;
@@ -124,7 +128,7 @@ fn held_on_a_stem(area: &[usize], hi: usize, n: usize, dz: f32) -> bool {
 
 /// Share of each footprint two detections must have in common (with the same top) for the
 /// one on the ground to be the other, standing on its host, found twice.
-const DUPLICATE_OVERLAP: f32 = 0.6;
+pub const DUPLICATE_OVERLAP: f32 = 0.6;
 
 /// Texels the footprints of two detections have in common.
 fn footprint_overlap(a: &Detection, b: &Detection) -> usize {
