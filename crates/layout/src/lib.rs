@@ -8,7 +8,7 @@
 //! both ways and compared.
 //!
 //! [`load`] reads a script (following `base` and `include` references) into a
-//! [`LoadedScript`]; [`resolve`] turns it into a [`ResolvedLayout`]: every instance with its
+//! [`LoadedScript`]; [`resolve()`] turns it into a [`ResolvedLayout`]: every instance with its
 //! world transform and a stable id. Errors carry `file:line:column`.
 //!
 //! Conventions: Z up, ground = XY plane, angles in degrees counter-clockwise about +Z seen

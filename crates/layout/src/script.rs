@@ -1,5 +1,5 @@
 //! The raw script: exactly what the user wrote, as RON. Nothing here is validated beyond
-//! syntax; [`crate::resolve`] turns it into a world-space layout.
+//! syntax; [`crate::resolve()`] turns it into a world-space layout.
 //!
 //! ```ron
 //! Scene(

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 pub struct SynthArgs {
     /// The layout script to render (e.g. scenes/conference_room.ron).
     pub scene: PathBuf,
-    /// Output folder [default: runs/<scene name>]. Written atomically: it appears only when
+    /// Output folder [default: runs/SCENE_NAME]. Written atomically: it appears only when
     /// complete.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
@@ -113,7 +113,7 @@ pub struct InspectArgs {
     /// The dataset folder (holding transforms_*.json or transforms.json).
     pub dir: PathBuf,
     /// Where to write the picture of the cameras seen from above
-    /// [default: runs/inspect/<folder name>/cameras.png].
+    /// [default: runs/inspect/FOLDER_NAME/cameras.png].
     #[arg(long)]
     pub picture: Option<PathBuf>,
     /// Also decode every image (slower; checks every file fully, not just its header).
