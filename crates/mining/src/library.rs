@@ -594,6 +594,18 @@ pub(crate) mod tests {
         let again =
             index_from_ron(&a.join(INDEX_FILE), &index_to_ron(&lib.index).unwrap()).unwrap();
         assert_eq!(again, lib.index);
+        // an index written before entries had pivots reads as pivots at the box centres, and
+        // a pivot round-trips
+        assert!(!text.contains("pivot"), "{text}");
+        let e = &lib.index.entries[0];
+        assert_eq!((e.pivot, e.pivot_offset()), (None, Vec2::ZERO));
+        let mut index = lib.index.clone();
+        index.entries[0].pivot = Some((0.05, 0.1));
+        let text = index_to_ron(&index).unwrap();
+        let again = index_from_ron(&a.join(INDEX_FILE), &text).unwrap();
+        assert_eq!(again.entries[0].pivot, Some((0.05, 0.1)));
+        let offset = again.entries[0].pivot_offset() - Vec2::new(0.05 - 0.15, 0.1 - 0.1);
+        assert!(offset.length() < 1e-6, "{offset}");
         std::fs::remove_dir_all(&root).unwrap();
     }
 
