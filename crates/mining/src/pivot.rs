@@ -72,6 +72,10 @@ pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> V
         return centre;
     }
     let tau = dets.voxel_threshold;
+    // levels of the band a column holds, and whether that makes it a contact
+    let held_at =
+        |rr: usize, cc: usize| vol.column(rr, cc)[k0..k1].iter().filter(|&&o| o > tau).count();
+    let is_contact = |held: usize| 2 * held > k1 - k0;
     let (mut rmin, mut rmax, mut cmin, mut cmax) = (usize::MAX, 0, usize::MAX, 0);
     let (mut contact, mut own) = (0usize, 0usize);
     for r in 0..d.rect.rows() {
@@ -81,8 +85,7 @@ pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> V
             }
             own += 1;
             let (rr, cc) = (d.rect.r0 + r, d.rect.c0 + c);
-            let held = vol.column(rr, cc)[k0..k1].iter().filter(|&&o| o > tau).count();
-            if 2 * held > k1 - k0 {
+            if is_contact(held_at(rr, cc)) {
                 contact += 1;
                 rmin = rmin.min(rr);
                 rmax = rmax.max(rr);
@@ -109,11 +112,10 @@ pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> V
                 for r in 0..d.rect.rows() {
                     let line: String = (0..d.rect.cols())
                         .map(|c| {
-                            let col = vol.column(d.rect.r0 + r, d.rect.c0 + c);
-                            let held = col[k0..k1].iter().filter(|&&o| o > tau).count();
+                            let held = held_at(d.rect.r0 + r, d.rect.c0 + c);
                             if !d.own.get(r, c) {
                                 '.'
-                            } else if 2 * held > k1 - k0 {
+                            } else if is_contact(held) {
                                 '#'
                             } else if held > 0 {
                                 '+'
