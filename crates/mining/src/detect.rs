@@ -116,10 +116,11 @@ pub fn held_on_a_stem(area: &[usize], hi: usize, n: usize, dz: f32) -> bool {
     for k in hi + 1..area.len() {
         if area[k] <= stem {
             run += 1;
-        } else if run >= need && area[k] * 10 >= n {
-            return true;
         } else if area[k] * 10 >= n {
-            // a body right above the slab, not held on a stem
+            // a body: held on the stem below it, or right above the slab
+            if run >= need {
+                return true;
+            }
             run = 0;
         }
     }
