@@ -119,6 +119,16 @@ fn weight_at(i: u32) -> f32 {
     return pfeat[i >> 2u][i & 3u];
 }
 
+// The per-texel weights starting at `at` (f32 offset) of the four taps `idx`.
+fn weights4(at: u32, idx: vec4<u32>) -> vec4<f32> {
+    return vec4<f32>(
+        weight_at(at + idx.x),
+        weight_at(at + idx.y),
+        weight_at(at + idx.z),
+        weight_at(at + idx.w),
+    );
+}
+
 // a + w.x f(o.x) + w.y f(o.y) + w.z f(o.z) + w.w f(o.w), left to right.
 fn taps4(a: vec4<f32>, o: vec4<u32>, w: vec4<f32>) -> vec4<f32> {
     var s = a + w.x * pfeat[o.x];
@@ -228,21 +238,9 @@ fn accumulate(r: u32, c: u32, lo: u32, hi: u32, dens: bool, v0: u32, nvec: u32, 
         let ys = vec4<i32>(y0, y0, y0 + 1, y0 + 1);
         let idx = select(vec4<u32>(0u), vec4<u32>(ys * cols + xs), ok);
         let bw = vec4<f32>((1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy);
-        let ow = vec4<f32>(
-            weight_at(it.wt + idx.x),
-            weight_at(it.wt + idx.y),
-            weight_at(it.wt + idx.z),
-            weight_at(it.wt + idx.w),
-        );
-        let w = select(vec4<f32>(0.0), bw * ow, ok);
+        let w = select(vec4<f32>(0.0), bw * weights4(it.wt, idx), ok);
         s.wsum += w.x + w.y + w.z + w.w;
-        let cw = vec4<f32>(
-            weight_at(it.core + idx.x),
-            weight_at(it.core + idx.y),
-            weight_at(it.core + idx.z),
-            weight_at(it.core + idx.w),
-        );
-        let cs = select(vec4<f32>(0.0), bw * cw, ok);
+        let cs = select(vec4<f32>(0.0), bw * weights4(it.core, idx), ok);
         s.csum += cs.x + cs.y + cs.z + cs.w;
         var base = it.colr;
         if dens {

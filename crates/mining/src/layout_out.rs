@@ -217,6 +217,26 @@ mod tests {
         }
     }
 
+    /// A library index of `entries` in `categories` at `texel` metres (no tensors).
+    fn index_of(texel: f32, categories: Vec<Category>, entries: Vec<Entry>) -> LibraryIndex {
+        LibraryIndex {
+            format: crate::library::FORMAT.into(),
+            sources: vec![],
+            model: "s".into(),
+            texel_size: (texel, texel),
+            channels: (16, 48),
+            patches: "patches.safetensors".into(),
+            shared: SharedRef {
+                file: "shared.safetensors".into(),
+                hash: String::new(),
+                tensors: vec![],
+            },
+            categories,
+            entries,
+            containers: vec![],
+        }
+    }
+
     #[test]
     fn layout_round_trips_and_supported_objects_land_on_their_parent() {
         let mut laptop = entry("obj002", "cat1", EntryKind::Template, (2.3, 1.1), 0.0);
@@ -226,19 +246,9 @@ mod tests {
         let mut laptop2 = entry("obj003", "cat1", EntryKind::Instance, (2.0, 0.9), 200.0);
         laptop2.base = 0.8;
         laptop2.supported_by = Some("obj001".into());
-        let index = LibraryIndex {
-            format: crate::library::FORMAT.into(),
-            sources: vec![],
-            model: "s".into(),
-            texel_size: (0.025, 0.025),
-            channels: (16, 48),
-            patches: "patches.safetensors".into(),
-            shared: SharedRef {
-                file: "shared.safetensors".into(),
-                hash: String::new(),
-                tensors: vec![],
-            },
-            categories: vec![
+        let index = index_of(
+            0.025,
+            vec![
                 Category {
                     name: "cat0".into(),
                     template: "obj000".into(),
@@ -250,14 +260,13 @@ mod tests {
                     members: vec!["obj002".into(), "obj003".into()],
                 },
             ],
-            entries: vec![
+            vec![
                 entry("obj000", "cat0", EntryKind::Template, (-1.0, 0.0), 0.0),
                 entry("obj001", "cat0", EntryKind::Instance, (2.0, 1.0), 90.0),
                 laptop,
                 laptop2,
             ],
-            containers: vec![],
-        };
+        );
         let script =
             layout_script(&index, "mined", [-3.0, -2.0, 3.0, 2.0], ".", &BTreeMap::new(), 2.0)
                 .unwrap();
@@ -300,26 +309,15 @@ mod tests {
         b.extent = (0.3, 1.3, 4.0);
         b.source_box = [3.85, 0.85, 4.15, 2.15];
         b.pivot = Some((4.0, 1.0));
-        let index = LibraryIndex {
-            format: crate::library::FORMAT.into(),
-            sources: vec![],
-            model: "s".into(),
-            texel_size: (0.05, 0.05),
-            channels: (16, 48),
-            patches: "patches.safetensors".into(),
-            shared: SharedRef {
-                file: "shared.safetensors".into(),
-                hash: String::new(),
-                tensors: vec![],
-            },
-            categories: vec![Category {
+        let index = index_of(
+            0.05,
+            vec![Category {
                 name: "cat0".into(),
                 template: "obj000".into(),
                 members: vec!["obj000".into(), "obj001".into()],
             }],
-            entries: vec![a, b],
-            containers: vec![],
-        };
+            vec![a, b],
+        );
         let path = std::env::temp_dir().join("assetfield-mining-pivot-test.ron");
         // with the template (both placed by their poles) and with own patches: the same boxes
         for own in [f32::INFINITY, 0.0] {
