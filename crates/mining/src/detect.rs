@@ -2205,6 +2205,21 @@ mod tests {
         }
     }
 
+    /// A colour plane of `rows x cols`: `inside` over the texel rectangle `rect` (rows,
+    /// columns), `outside` elsewhere.
+    fn painted(
+        rows: usize,
+        cols: usize,
+        rect: (std::ops::Range<usize>, std::ops::Range<usize>),
+        inside: [f32; 3],
+        outside: [f32; 3],
+    ) -> PlaneImage {
+        PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+            if rect.0.contains(&r) && rect.1.contains(&c) { inside[k] } else { outside[k] }
+        })
+        .unwrap()
+    }
+
     /// Detection at 5 cm texels with a small minimum area (the unpacking tests).
     fn detect_small(v: &OpacityVolume, color: &PlaneImage) -> Detections {
         let grid =
@@ -2256,11 +2271,8 @@ mod tests {
         fill(&mut v, (10, 19), (10, 19), (2, 12), 0.95);
         fill(&mut v, (14, 15), (14, 15), (12, 20), 0.95);
         fill(&mut v, (11, 17), (11, 17), (20, 24), 0.95);
-        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
-            let shade = (11..17).contains(&r) && (11..17).contains(&c);
-            if shade { [0.95, 0.9, 0.7][k] } else { [0.6, 0.45, 0.3][k] }
-        })
-        .unwrap();
+        // the shade in one colour, the rest in another
+        let color = painted(rows, cols, (11..17, 11..17), [0.95, 0.9, 0.7], [0.6, 0.45, 0.3]);
         let d = detect_small(&v, &color);
         let lamp = only_child(&d);
         assert_eq!(lamp.rect, PixelRect::new(11, 11, 17, 17));
@@ -2358,11 +2370,8 @@ mod tests {
         // short edge
         fill(&mut v, (22, 36), (5, 13), (2, 12), 0.95);
         fill(&mut v, (22, 30), (13, 27), (2, 8), 0.95);
-        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
-            let red = (22..30).contains(&r) && (13..27).contains(&c);
-            if red { [1.0, 0.1, 0.1][k] } else { [0.1, 0.2, 0.9][k] }
-        })
-        .unwrap();
+        // the red in one colour, the rest in another
+        let color = painted(rows, cols, (22..30, 13..27), [1.0, 0.1, 0.1], [0.1, 0.2, 0.9]);
         let d = detect_small(&v, &color);
         assert_eq!(
             rects(&d),
@@ -2387,11 +2396,8 @@ mod tests {
         let mut v = floor_volume(rows, cols, 20);
         fill(&mut v, (5, 25), (5, 25), (2, 10), 0.95); // a sofa-like block
         fill(&mut v, (30, 33), (40, 44), (2, 7), 0.5); // faint low haze
-        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
-            let cushion = (8..22).contains(&r) && (8..22).contains(&c);
-            if cushion { [0.9, 0.8, 0.1][k] } else { [0.1, 0.5, 0.2][k] }
-        })
-        .unwrap();
+        // the cushion in one colour, the rest in another
+        let color = painted(rows, cols, (8..22, 8..22), [0.9, 0.8, 0.1], [0.1, 0.5, 0.2]);
         let d = detect_small(&v, &color);
         assert_eq!(rects(&d), vec![PixelRect::new(5, 5, 25, 25)], "{:?}", d.removed);
         assert!(d.removed.iter().any(|r| r.reason.starts_with("haze")), "{:?}", d.removed);
@@ -2425,11 +2431,8 @@ mod tests {
         fill(&mut v, (5, 29), (10, 50), (2, 13), 0.95);
         fill(&mut v, (12, 22), (25, 29), (13, 20), 0.95);
         fill(&mut v, (8, 9), (45, 46), (14, 16), 0.95);
-        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
-            let dark = (12..22).contains(&r) && (25..29).contains(&c);
-            if dark { [0.1, 0.1, 0.1][k] } else { [0.9, 0.9, 0.85][k] }
-        })
-        .unwrap();
+        // the dark in one colour, the rest in another
+        let color = painted(rows, cols, (12..22, 25..29), [0.1, 0.1, 0.1], [0.9, 0.9, 0.85]);
         let d = detect_small(&v, &color);
         let child = only_child(&d);
         assert_eq!(child.rect, PixelRect::new(12, 25, 22, 29));
@@ -2453,11 +2456,8 @@ mod tests {
         }
         fill(&mut v, (10, 30), (10, 34), (3, 4), 0.95);
         fill(&mut v, (12, 28), (14, 30), (4, 20), 0.95);
-        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
-            let crate_ = (12..28).contains(&r) && (14..30).contains(&c);
-            if crate_ { [0.8, 0.6, 0.3][k] } else { [0.5, 0.4, 0.3][k] }
-        })
-        .unwrap();
+        // the crate in one colour, the rest in another
+        let color = painted(rows, cols, (12..28, 14..30), [0.8, 0.6, 0.3], [0.5, 0.4, 0.3]);
         let d = detect_small(&v, &color);
         let child = only_child(&d);
         // the crate, give or take the one-texel margin its colour cluster may take along
@@ -2519,11 +2519,8 @@ mod tests {
         fill(&mut v, (10, 40), (10, 30), (2, 10), 0.95);
         fill(&mut v, (10, 40), (10, 30), (6, 7), 0.05);
         fill(&mut v, (20, 30), (13, 27), (10, 16), 0.95);
-        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
-            let cabin = (20..30).contains(&r) && (13..27).contains(&c);
-            if cabin { [0.2, 0.3, 0.4][k] } else { [0.8, 0.1, 0.1][k] }
-        })
-        .unwrap();
+        // the cabin in one colour, the rest in another
+        let color = painted(rows, cols, (20..30, 13..27), [0.2, 0.3, 0.4], [0.8, 0.1, 0.1]);
         let d = detect_small(&v, &color);
         assert_eq!(rects(&d), vec![PixelRect::new(10, 10, 40, 30)]);
     }
