@@ -9,7 +9,9 @@
 # Output under $SUITE/mining (runs/mining for the default suite): SCENE_MODEL (the library,
 # layout.ron, pictures and metrics.json) and table.md. Finished scenes are skipped (delete
 # the SCENE_MODEL folder to mine it again).
-# Set BIN to use another binary (default target/release/assetfield, built if missing).
+# Set BIN to use another binary (default target/release/assetfield, built if missing),
+# MINE_ARGS to pass more flags to every `assetfield mine` (e.g. "--group-on voxels"), and
+# MINING_OUT to write somewhere else.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MODELS=${1:-s,i}
@@ -23,6 +25,8 @@ BIN=${BIN:-target/release/assetfield}
 SUITE=${SUITE:-runs/suite}
 OUT=runs/mining
 [ "$SUITE" = runs/suite ] || OUT="$SUITE/mining"
+OUT=${MINING_OUT:-$OUT}
+read -r -a EXTRA <<< "${MINE_ARGS:-}"
 mkdir -p "$OUT/logs"
 
 for scene in "${SCENES[@]}"; do
@@ -32,7 +36,7 @@ for scene in "${SCENES[@]}"; do
     [ -f "$field" ] && [ -f "$gt" ] || continue
     lib="$OUT/${scene}_$model"
     [ -f "$lib/metrics.json" ] ||
-      "$BIN" mine "$field" --out "$lib" --gt "$gt" --force > "$OUT/logs/${scene}_$model.log" 2>&1 ||
+      "$BIN" mine "$field" --out "$lib" --gt "$gt" --force "${EXTRA[@]}" > "$OUT/logs/${scene}_$model.log" 2>&1 ||
       echo "== $scene $model: mining failed (see $OUT/logs/${scene}_$model.log)"
   done
 done

@@ -91,6 +91,28 @@ fn mine_a_small_scene_into_a_library_and_layout() {
     assert!(out.contains("10 entries"), "{out}");
     assert!(open_library(&dir.join("both")).unwrap().index.entry("lib2/obj000").is_some());
 
+    // grouping on the objects' own voxel colours instead of the colour plane
+    let out = ok(
+        &dir,
+        &[
+            "mine",
+            "f.safetensors",
+            "--out",
+            "lib3",
+            "--group-on",
+            "voxels",
+            "--gt",
+            "d/gt_layout.json",
+        ],
+    );
+    assert!(out.contains("mined 5 objects"), "{out}");
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("lib3/metrics.json")).unwrap())
+            .unwrap();
+    assert!(m["ari"].as_f64().unwrap() >= 0.6, "ARI on voxels: {m}");
+    let report = std::fs::read_to_string(dir.join("lib3/mining.json")).unwrap();
+    assert!(report.contains("\"group_on\": \"Voxels\""), "{report}");
+
     // refusals: an existing output, bad flags, a template outside its category
     fail(&dir, &["mine", "f.safetensors", "--out", "lib"], &["already exists", "--force"]);
     fail(&dir, &["mine", "f.safetensors", "--out", "x", "--k", "1"], &["--k"]);

@@ -1,9 +1,11 @@
 //! Unsupervised grouping of the detected objects into categories (paper Sec. 3.3).
 //!
-//! The feature plane (by default the colour plane; for I-AssetField the integrated RGB
-//! plane) is discretised with K-means over the object texels only, weighted by their
-//! opacity, so that empty floor does not dominate the codebook. Every detection becomes a
-//! histogram of labels over its own texels; two detections are compared with the
+//! Every detection contributes [`Samples`]: by default (the paper) the features of the
+//! colour plane (for I-AssetField the integrated RGB plane) at its own texels, weighted by
+//! their opacity; optionally ([`Samples::from_voxels`]) the colours the field decodes on its
+//! own surface voxels. The samples of all objects, and only those (empty floor must not
+//! dominate the codebook), are discretised with K-means. Every detection becomes a
+//! histogram of labels over its own samples; two detections are compared with the
 //! Jensen-Shannon divergence of their histograms **plus a shape term**, since objects with
 //! the same colours but different shapes (two table sizes, a chair and a stool of the same
 //! red) have near-identical histograms:
@@ -26,8 +28,12 @@ use crate::agglomerative::{Cut, DistanceMatrix, Linkage, Merge, linkage};
 use crate::detect::Detections;
 use crate::error::{MiningError, Result};
 use crate::histogram::jsd_matrix;
-use crate::image::{LabelImage, PlaneImage};
+use crate::image::PlaneImage;
 use crate::kmeans::{KMeansOptions, kmeans};
+use crate::planes::OpacityVolume;
+use assetfield_field::Field;
+use assetfield_field::model::ColorWork;
+use glam::Vec3;
 
 /// Where to cut the dendrogram.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
@@ -85,8 +91,6 @@ impl Default for GroupOptions {
 /// The result of [`group`].
 #[derive(Debug, Clone)]
 pub struct Grouping {
-    /// Label of every texel (meaningful on object texels only).
-    pub labels: LabelImage,
     /// Label histogram of every detection (over its own texels).
     pub histograms: Vec<Vec<f64>>,
     /// JSD between the histograms.
@@ -192,6 +196,168 @@ pub fn auto_cut(merges: &[Merge], min_separation: f64) -> usize {
     best.map_or(h.len(), |(g, _)| g)
 }
 
+/// What the label histograms are built from: feature vectors (`[len][dim]`), each with a
+/// weight and the detection it belongs to.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Samples {
+    pub dim: usize,
+    pub points: Vec<f32>,
+    pub weights: Vec<f32>,
+    /// Index of the detection of every sample.
+    pub owner: Vec<u32>,
+}
+
+impl Samples {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.owner.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.owner.is_empty()
+    }
+
+    fn push(&mut self, owner: usize, weight: f32, point: &[f32]) {
+        self.points.extend_from_slice(point);
+        self.weights.push(weight);
+        self.owner.push(owner as u32);
+    }
+
+    /// The paper's samples: every own texel of every detection, with its feature vector on
+    /// `feature` (a ground plane) and its opacity (the first-round evidence) as weight.
+    /// The feature of a texel describes its whole column, so an object standing on a
+    /// support carries the support's features too.
+    pub fn from_plane(dets: &Detections, feature: &PlaneImage) -> Result<Samples> {
+        let (rows, cols, ch) = (feature.rows, feature.cols, feature.ch);
+        if (rows, cols) != (dets.grid.rows, dets.grid.cols) {
+            return Err(MiningError::SizeMismatch {
+                what: "feature plane vs ground grid (texels)",
+                left: rows * cols,
+                right: dets.grid.rows * dets.grid.cols,
+            });
+        }
+        let mut s = Samples { dim: ch, ..Default::default() };
+        for d in &dets.detections {
+            for (r, c) in own_texels(d) {
+                let i = r * cols + c;
+                s.push(d.id, dets.evidence[i].max(1e-3), &feature.data[i * ch..(i + 1) * ch]);
+            }
+        }
+        Ok(s)
+    }
+
+    /// Samples from the object itself rather than its columns: the colour the field decodes
+    /// (seen along [`VOXEL_VIEW`]; in CIELAB, lightness at [`LIGHTNESS_WEIGHT`]) at every
+    /// surface voxel of the detection's own texels between its base and its top, weighted by
+    /// the voxel's opacity. A surface voxel is occupied and has an empty neighbour: the
+    /// inside of a solid object was never seen, so its colour means nothing.
+    ///
+    /// A crate on a pallet then has the colours of a crate on the floor, and two cars that
+    /// differ only in paint differ in most of their samples rather than in a mixed column
+    /// feature. A detection without an occupied voxel there contributes the most opaque
+    /// voxel of each of its columns instead.
+    pub fn from_voxels(field: &Field, vol: &OpacityVolume, dets: &Detections) -> Result<Samples> {
+        let [nx, ny, nz] = field.config.res;
+        if (vol.rows, vol.cols, vol.nz) != (ny, nx, nz) {
+            return Err(MiningError::SizeMismatch {
+                what: "opacity volume vs field resolution",
+                left: vol.rows * vol.cols * vol.nz,
+                right: nx * ny * nz,
+            });
+        }
+        let (a, v) = (field.config.aabb(), field.config.voxel_size());
+        let tau = dets.voxel_threshold;
+        // the positions of the samples first, then their colours in parallel
+        let mut pos: Vec<Vec3> = Vec::new();
+        let mut s = Samples { dim: 3, ..Default::default() };
+        let mut add = |s: &mut Samples, id: usize, (r, c, k): (usize, usize, usize), o: f32| {
+            pos.push(Vec3::new(a.min.x + c as f32 * v.x, a.min.y + r as f32 * v.y, vol.height(k)));
+            s.push(id, o, &[0.0; 3]);
+        };
+        for d in &dets.detections {
+            let level = |z: f32| ((z - vol.z0) / vol.dz).max(0.0);
+            let lo = (level(d.base).ceil() as usize).min(nz - 1);
+            let hi = (level(d.top).floor() as usize).min(nz - 1);
+            let start = s.len();
+            let mut strongest = Vec::new();
+            for (r, c) in own_texels(d) {
+                let col = vol.column(r, c);
+                let mut best = (0f32, lo);
+                for (k, &o) in col.iter().enumerate().take(hi + 1).skip(lo) {
+                    if o >= tau && vol.exposed(r, c, k, tau) {
+                        add(&mut s, d.id, (r, c, k), o);
+                    }
+                    if o > best.0 {
+                        best = (o, k);
+                    }
+                }
+                if best.0 > 0.0 {
+                    strongest.push(((r, c, best.1), best.0));
+                }
+            }
+            if s.len() == start {
+                for (at, o) in strongest {
+                    add(&mut s, d.id, at, o);
+                }
+            }
+        }
+        const TILE: usize = 4096;
+        s.points.par_chunks_mut(TILE * 3).zip(pos.par_chunks(TILE)).for_each_init(
+            ColorWork::default,
+            |work, (rgb, p)| {
+                work.clear();
+                work.pos.extend_from_slice(p);
+                work.dir.resize(p.len(), VOXEL_VIEW);
+                field.color_forward(work);
+                rgb.copy_from_slice(&work.rgb[..p.len() * 3]);
+            },
+        );
+        // CIELAB with the lightness at reduced weight: shading changes a colour's lightness
+        // far more than its hue, and a ball lit from above is still one colour
+        s.points.par_chunks_mut(3).for_each(|p| {
+            let [l, a, b] = srgb_to_lab([p[0], p[1], p[2]]);
+            p.copy_from_slice(&[LIGHTNESS_WEIGHT * l / 100.0, a / 100.0, b / 100.0]);
+        });
+        Ok(s)
+    }
+}
+
+/// CIELAB (D65) of an sRGB colour with components in 0..1: `[L*, a*, b*]`, L* in 0..100.
+pub fn srgb_to_lab(rgb: [f32; 3]) -> [f32; 3] {
+    let lin = |u: f32| {
+        let u = u.clamp(0.0, 1.0);
+        if u <= 0.04045 { u / 12.92 } else { ((u + 0.055) / 1.055).powf(2.4) }
+    };
+    let [r, g, b] = rgb.map(lin);
+    let x = (0.412_456_4 * r + 0.357_576_1 * g + 0.180_437_5 * b) / 0.950_47;
+    let y = 0.212_672_9 * r + 0.715_152_2 * g + 0.072_175 * b;
+    let z = (0.019_333_9 * r + 0.119_192 * g + 0.950_304_1 * b) / 1.088_83;
+    let f = |t: f32| {
+        const E: f32 = 216.0 / 24389.0;
+        const K: f32 = 24389.0 / 27.0;
+        if t > E { t.cbrt() } else { (K * t + 16.0) / 116.0 }
+    };
+    let (fx, fy, fz) = (f(x), f(y), f(z));
+    [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)]
+}
+
+/// Weight of CIELAB lightness against its two colour axes in [`Samples::from_voxels`].
+pub const LIGHTNESS_WEIGHT: f32 = 0.5;
+
+/// The direction the colours of [`Samples::from_voxels`] are decoded along: looking down at
+/// 45 degrees, as most training cameras of a ground scene do.
+pub const VOXEL_VIEW: Vec3 =
+    Vec3::new(0.0, std::f32::consts::FRAC_1_SQRT_2, -std::f32::consts::FRAC_1_SQRT_2);
+
+/// The own texels of a detection, as plane `(row, col)`.
+fn own_texels(d: &crate::detect::Detection) -> impl Iterator<Item = (usize, usize)> + '_ {
+    (0..d.rect.rows()).flat_map(move |r| {
+        (0..d.rect.cols())
+            .filter(move |&c| d.own.get(r, c))
+            .map(move |c| (d.rect.r0 + r, d.rect.c0 + c))
+    })
+}
+
 /// Discretise the feature plane over the object texels and cluster the detections (see the
 /// module docs). `feature` is the plane to discretise, `shapes` one entry per detection.
 pub fn group(
@@ -200,7 +366,18 @@ pub fn group(
     shapes: &[Shape],
     opts: &GroupOptions,
 ) -> Result<Grouping> {
-    let n = dets.detections.len();
+    group_samples(&Samples::from_plane(dets, feature)?, dets.detections.len(), shapes, opts)
+}
+
+/// Cluster `n` detections from their samples: K-means labels over the samples (fitted on at
+/// most [`GroupOptions::max_samples`] of them), a label histogram per detection, the JSD
+/// plus the shape term, average linkage and the cut.
+pub fn group_samples(
+    samples: &Samples,
+    n: usize,
+    shapes: &[Shape],
+    opts: &GroupOptions,
+) -> Result<Grouping> {
     if shapes.len() != n {
         return Err(MiningError::SizeMismatch {
             what: "shapes vs detections",
@@ -208,33 +385,11 @@ pub fn group(
             right: n,
         });
     }
-    let (rows, cols) = (feature.rows, feature.cols);
-    if (rows, cols) != (dets.grid.rows, dets.grid.cols) {
-        return Err(MiningError::SizeMismatch {
-            what: "feature plane vs ground grid (texels)",
-            left: rows * cols,
-            right: dets.grid.rows * dets.grid.cols,
-        });
-    }
     if opts.labels == 0 {
         return Err(MiningError::ZeroDimension { what: "number of labels" });
     }
-    // object texels (own texels of every detection), weighted by their opacity
-    let mut is_obj = vec![false; rows * cols];
-    for d in &dets.detections {
-        for r in 0..d.rect.rows() {
-            for c in 0..d.rect.cols() {
-                if d.own.get(r, c) {
-                    is_obj[(d.rect.r0 + r) * cols + d.rect.c0 + c] = true;
-                }
-            }
-        }
-    }
-    let texels: Vec<usize> = (0..rows * cols).filter(|&i| is_obj[i]).collect();
-    let mut labels = LabelImage { rows, cols, k: opts.labels, data: vec![0; rows * cols] };
     if n == 0 {
         return Ok(Grouping {
-            labels,
             histograms: Vec::new(),
             jsd: DistanceMatrix::new(0, Vec::new())?,
             distance: DistanceMatrix::new(0, Vec::new())?,
@@ -244,79 +399,80 @@ pub fn group(
             cut: "no detections".into(),
         });
     }
-    if opts.labels > texels.len() {
+    let ch = samples.dim;
+    if samples.points.len() != samples.len() * ch || samples.weights.len() != samples.len() {
+        return Err(MiningError::SizeMismatch {
+            what: "sample points vs weights",
+            left: samples.points.len(),
+            right: samples.weights.len() * ch,
+        });
+    }
+    if opts.labels > samples.len() {
         return Err(MiningError::InvalidParameter {
             name: "labels",
             reason: format!(
-                "{} labels requested but the detected objects cover only {} texels",
+                "{} labels requested but the detected objects give only {} samples",
                 opts.labels,
-                texels.len()
+                samples.len()
             ),
         });
     }
-    let ch = feature.ch;
-    let stride = texels.len().div_ceil(opts.max_samples.max(opts.labels)).max(1);
-    let sample: Vec<usize> = texels.iter().copied().step_by(stride).collect();
+    let stride = samples.len().div_ceil(opts.max_samples.max(opts.labels)).max(1);
+    let fit: Vec<usize> = (0..samples.len()).step_by(stride).collect();
     let pts: Vec<f32> =
-        sample.iter().flat_map(|&i| feature.data[i * ch..(i + 1) * ch].iter().copied()).collect();
-    let w: Vec<f32> = sample.iter().map(|&i| dets.evidence[i].max(1e-3)).collect();
-    let k = opts.labels.min(sample.len());
+        fit.iter().flat_map(|&i| samples.points[i * ch..(i + 1) * ch].iter().copied()).collect();
+    let w: Vec<f32> = fit.iter().map(|&i| samples.weights[i]).collect();
+    let k = opts.labels.min(fit.len());
     let km = kmeans(&pts, ch, Some(&w), &KMeansOptions { k, seed: opts.seed, max_iter: 60 })?;
-    labels.k = k;
-    // Hard labels, and soft memberships: exp(-(d_j^2 - d_min^2) / (2 s^2)) with s^2 the mean
+    // Hard labels, or soft memberships: exp(-(d_j^2 - d_min^2) / (2 s^2)) with s^2 the mean
     // squared distance of the points to their centroid, so that a colour the codebook
     // happens to split between two labels does not make identical objects look different.
     let s2 = (km.inertia / w.iter().map(|&x| f64::from(x)).sum::<f64>().max(1e-12)).max(1e-12);
     let soft = opts.soft;
-    let assigned: Vec<(usize, u32, Vec<f32>)> = texels
-        .par_iter()
-        .map(|&i| {
-            let p = &feature.data[i * ch..(i + 1) * ch];
-            let d: Vec<f32> = (0..k)
-                .map(|j| km.centroid(j).iter().zip(p).map(|(a, b)| (a - b) * (a - b)).sum())
-                .collect();
-            let (best, dmin) = d
-                .iter()
-                .enumerate()
-                .fold((0usize, f32::INFINITY), |b, (j, &v)| if v < b.1 { (j, v) } else { b });
-            let memb = if soft {
-                let e: Vec<f32> =
-                    d.iter().map(|&v| (-(f64::from(v - dmin)) / (2.0 * s2)).exp() as f32).collect();
-                let t: f32 = e.iter().sum();
-                e.iter().map(|v| v / t).collect()
-            } else {
-                (0..k).map(|j| if j == best { 1.0 } else { 0.0 }).collect()
-            };
-            (i, best as u32, memb)
-        })
-        .collect();
-    let mut membership: std::collections::HashMap<usize, Vec<f32>> =
-        std::collections::HashMap::with_capacity(assigned.len());
-    for (i, l, m) in assigned {
-        labels.data[i] = l;
-        membership.insert(i, m);
-    }
-    // histograms over each detection's own texels, weighted by opacity
-    let mut histograms = Vec::with_capacity(n);
-    for d in &dets.detections {
-        let mut hist = vec![0f64; k];
-        for r in 0..d.rect.rows() {
-            for c in 0..d.rect.cols() {
-                if d.own.get(r, c) {
-                    let i = (d.rect.r0 + r) * cols + d.rect.c0 + c;
-                    let wt = f64::from(dets.evidence[i].max(1e-3));
-                    if let Some(m) = membership.get(&i) {
-                        hist.iter_mut().zip(m).for_each(|(h, &v)| *h += wt * f64::from(v));
-                    }
+    const CHUNK: usize = 8192;
+    let mut histograms: Vec<Vec<f64>> = (0..samples.len())
+        .into_par_iter()
+        .step_by(CHUNK)
+        .map(|from| {
+            let mut hist = vec![0f64; n * k];
+            let mut d = vec![0f32; k];
+            for i in from..(from + CHUNK).min(samples.len()) {
+                let p = &samples.points[i * ch..(i + 1) * ch];
+                for (j, dj) in d.iter_mut().enumerate() {
+                    *dj = km.centroid(j).iter().zip(p).map(|(a, b)| (a - b) * (a - b)).sum();
+                }
+                let (best, dmin) = d
+                    .iter()
+                    .enumerate()
+                    .fold((0usize, f32::INFINITY), |b, (j, &v)| if v < b.1 { (j, v) } else { b });
+                let h = &mut hist[samples.owner[i] as usize * k..][..k];
+                let wt = f64::from(samples.weights[i]);
+                if soft {
+                    let e = |v: f32| (-(f64::from(v - dmin)) / (2.0 * s2)).exp();
+                    let t: f64 = d.iter().map(|&v| e(v)).sum();
+                    h.iter_mut().zip(&d).for_each(|(h, &v)| *h += wt * e(v) / t);
+                } else {
+                    h[best] += wt;
                 }
             }
-        }
+            hist
+        })
+        .reduce(
+            || vec![0f64; n * k],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                a
+            },
+        )
+        .chunks(k)
+        .map(<[f64]>::to_vec)
+        .collect();
+    for hist in &mut histograms {
         let total: f64 = hist.iter().sum();
         if total <= 0.0 {
             return Err(MiningError::ZeroWeight { what: "label histogram" });
         }
         hist.iter_mut().for_each(|h| *h /= total);
-        histograms.push(hist);
     }
     let jsd = jsd_matrix(&histograms)?;
     let distance = DistanceMatrix::from_fn(n, |i, j| {
@@ -344,7 +500,6 @@ pub fn group(
     let category = dendro.cut(cut)?;
     let n_categories = category.iter().max().map_or(0, |&m| m + 1);
     Ok(Grouping {
-        labels,
         histograms,
         jsd,
         distance,
@@ -373,6 +528,64 @@ mod tests {
         // two items far apart stay apart
         assert_eq!(auto_cut(&merges(&[0.9]), 0.12), 0);
         assert_eq!(auto_cut(&[], 0.12), 0);
+    }
+
+    #[test]
+    fn lab_of_known_colours() {
+        let close = |a: [f32; 3], b: [f32; 3]| a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 0.05);
+        assert!(close(srgb_to_lab([1.0, 1.0, 1.0]), [100.0, 0.0, 0.0]));
+        assert!(close(srgb_to_lab([0.0, 0.0, 0.0]), [0.0, 0.0, 0.0]));
+        // sRGB primaries (published CIELAB D65 values)
+        assert!(
+            close(srgb_to_lab([1.0, 0.0, 0.0]), [53.24, 80.09, 67.20]),
+            "{:?}",
+            srgb_to_lab([1.0, 0.0, 0.0])
+        );
+        assert!(close(srgb_to_lab([0.0, 0.0, 1.0]), [32.30, 79.19, -107.86]));
+        // a grey has no colour, whatever its lightness
+        let [l, a, b] = srgb_to_lab([0.5, 0.5, 0.5]);
+        assert!((l - 53.39).abs() < 0.05 && a.abs() < 0.01 && b.abs() < 0.01);
+    }
+
+    /// Samples of `n` detections: detection `i` draws its points around `centres[i]`.
+    fn samples(centres: &[[f32; 2]], per: usize) -> Samples {
+        let mut s = Samples { dim: 2, ..Default::default() };
+        for (i, c) in centres.iter().enumerate() {
+            for j in 0..per {
+                let t = j as f32 / per as f32 - 0.5;
+                s.push(i, 1.0, &[c[0] + 0.02 * t, c[1] - 0.02 * t]);
+            }
+        }
+        s
+    }
+
+    #[test]
+    fn detections_with_the_same_samples_share_a_category() {
+        // two red, one blue, one red again, one blue: two categories
+        let (red, blue) = ([1.0, 0.0], [0.0, 1.0]);
+        let s = samples(&[red, red, blue, red, blue], 50);
+        let shapes = vec![Shape { area: 1.0, height: 1.0 }; 5];
+        let opts = GroupOptions { labels: 4, ..Default::default() };
+        let g = group_samples(&s, 5, &shapes, &opts).unwrap();
+        assert_eq!(g.n_categories, 2, "{}", g.cut);
+        assert_eq!(g.category, vec![0, 0, 1, 0, 1]);
+        assert!(g.jsd.get(0, 2).unwrap() > 0.5 && g.jsd.get(0, 1).unwrap() < 1e-3);
+        // the shape term splits same-coloured objects of different sizes
+        let mut shapes = shapes;
+        shapes[3].area = 4.0;
+        let g = group_samples(&s, 5, &shapes, &opts).unwrap();
+        assert_eq!(g.category, vec![0, 0, 1, 2, 1]);
+        // more labels than samples, mismatched shapes, and a detection without samples
+        let few = samples(&[red], 3);
+        assert!(matches!(
+            group_samples(&few, 1, &shapes[..1], &opts),
+            Err(MiningError::InvalidParameter { name: "labels", .. })
+        ));
+        assert!(group_samples(&s, 5, &shapes[..4], &opts).is_err());
+        assert!(matches!(
+            group_samples(&s, 6, &[shapes.clone(), shapes[..1].to_vec()].concat(), &opts),
+            Err(MiningError::ZeroWeight { .. })
+        ));
     }
 
     #[test]

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 
 use crate::detect::{DetectOptions, Detections, FloorBand, detect};
 use crate::error::{MiningError, Result, check_interrupt};
-use crate::group::{GroupOptions, Grouping, Shape, group};
+use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples};
 use crate::image::{Mask, PlaneImage};
 use crate::layout_out::{layout_script, script_text_checked};
 use crate::library::{
@@ -38,8 +38,8 @@ use crate::pose::{PatchRect, PoseOptions, Poses, estimate_poses, mask_in_patch, 
 pub struct MineOptions {
     pub detect: DetectOptions,
     pub group: GroupOptions,
-    /// The plane whose features are discretised for grouping.
-    pub group_on: PlaneChoice,
+    /// What the grouping discretises: a plane's features or the objects' voxel colours.
+    pub group_on: GroupOn,
     /// The plane whose patches are matched for the yaw.
     pub yaw_on: PlaneChoice,
     pub pose: PoseOptions,
@@ -70,7 +70,7 @@ impl Default for MineOptions {
         MineOptions {
             detect: DetectOptions::default(),
             group: GroupOptions::default(),
-            group_on: PlaneChoice::Color,
+            group_on: GroupOn::Plane(PlaneChoice::Color),
             yaw_on: PlaneChoice::Density,
             pose: PoseOptions::default(),
             templates: Vec::new(),
@@ -81,6 +81,17 @@ impl Default for MineOptions {
             force: false,
         }
     }
+}
+
+/// What the grouping's label histograms are built from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum GroupOn {
+    /// The features of a ground plane over each object's own texels (the paper): a texel's
+    /// feature describes its whole column ([`Samples::from_plane`]).
+    Plane(PlaneChoice),
+    /// The colours the field decodes in each object's own occupied voxels, between its base
+    /// and its top ([`Samples::from_voxels`]).
+    Voxels,
 }
 
 /// Progress callbacks (the CLI draws a bar); every method has a no-op default.
@@ -305,8 +316,8 @@ pub fn mine(
     progress.step(1, STEPS, "evaluating the density volume");
     let vol = OpacityVolume::from_field(field)?;
     check_interrupt()?;
-    let needs_semantic =
-        [opts.detect.on, opts.group_on, opts.yaw_on].contains(&PlaneChoice::Semantic);
+    let needs_semantic = [opts.detect.on, opts.yaw_on].contains(&PlaneChoice::Semantic)
+        || opts.group_on == GroupOn::Plane(PlaneChoice::Semantic);
     let semantic = if needs_semantic { Some(semantic_plane(field, &vol)?) } else { None };
 
     progress.step(2, STEPS, "detecting objects");
@@ -330,8 +341,11 @@ pub fn mine(
 
     progress.step(3, STEPS, "grouping into categories");
     let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, grid.texel)).collect();
-    let grouping =
-        group(&dets, feature_plane(opts.group_on, &planes, &semantic)?, &shapes, &opts.group)?;
+    let samples = match opts.group_on {
+        GroupOn::Plane(p) => Samples::from_plane(&dets, feature_plane(p, &planes, &semantic)?)?,
+        GroupOn::Voxels => Samples::from_voxels(field, &vol, &dets)?,
+    };
+    let grouping = group_samples(&samples, dets.detections.len(), &shapes, &opts.group)?;
     check_interrupt()?;
 
     progress.step(4, STEPS, "matching templates (yaw)");

@@ -313,6 +313,24 @@ impl OpacityVolume {
         &self.data[i..i + self.nz]
     }
 
+    /// Whether voxel `(r, c, k)` has a face neighbour below opacity `tau` (the grid's
+    /// outside counts as empty): a surface voxel of the occupied set.
+    pub fn exposed(&self, r: usize, c: usize, k: usize, tau: f32) -> bool {
+        let at = |r: usize, c: usize, k: usize| self.data[(r * self.cols + c) * self.nz + k];
+        r == 0
+            || c == 0
+            || k == 0
+            || r + 1 >= self.rows
+            || c + 1 >= self.cols
+            || k + 1 >= self.nz
+            || at(r - 1, c, k) < tau
+            || at(r + 1, c, k) < tau
+            || at(r, c - 1, k) < tau
+            || at(r, c + 1, k) < tau
+            || at(r, c, k - 1) < tau
+            || at(r, c, k + 1) < tau
+    }
+
     /// World height of level `k`.
     pub fn height(&self, k: usize) -> f32 {
         self.z0 + k as f32 * self.dz
@@ -362,6 +380,36 @@ impl OpacityVolume {
 mod tests {
     use super::*;
     use assetfield_core::Aabb3;
+
+    #[test]
+    fn only_voxels_with_an_empty_neighbour_are_exposed() {
+        // a solid 3x3x3 cube in the middle of a 5x5x5 volume
+        let n = 5;
+        let inside = |i: usize| (1..4).contains(&i);
+        let mut data = vec![0f32; n * n * n];
+        for r in 0..n {
+            for c in 0..n {
+                for k in 0..n {
+                    if inside(r) && inside(c) && inside(k) {
+                        data[(r * n + c) * n + k] = 0.9;
+                    }
+                }
+            }
+        }
+        let vol = OpacityVolume { rows: n, cols: n, nz: n, z0: 0.0, dz: 0.1, data };
+        assert!(!vol.exposed(2, 2, 2, 0.5), "the centre is enclosed");
+        for (r, c, k) in
+            [(1, 2, 2), (3, 2, 2), (2, 1, 2), (2, 3, 2), (2, 2, 1), (2, 2, 3), (1, 1, 1)]
+        {
+            assert!(vol.exposed(r, c, k, 0.5), "({r}, {c}, {k}) is on the surface");
+        }
+        // at a threshold above the cube's opacity every neighbour counts as empty
+        assert!(vol.exposed(2, 2, 2, 0.95));
+        // the grid's border counts as outside
+        let full = OpacityVolume { data: vec![1.0; n * n * n], ..vol };
+        assert!(full.exposed(0, 2, 2, 0.5) && full.exposed(2, 2, 4, 0.5));
+        assert!(!full.exposed(2, 2, 2, 0.5));
+    }
 
     fn grid() -> PlaneGrid {
         let cfg = FieldConfig::new(

@@ -6,7 +6,7 @@ use anyhow::{Context, Result, bail};
 use assetfield_mining::agglomerative::Linkage;
 use assetfield_mining::group::GroupCut;
 use assetfield_mining::library::{merge_libraries, open_library};
-use assetfield_mining::pipeline::{MineOptions, Progress, mine as run_mining};
+use assetfield_mining::pipeline::{GroupOn, MineOptions, Progress, mine as run_mining};
 use assetfield_mining::planes::PlaneChoice;
 use clap::{Args, Subcommand, ValueEnum};
 use indicatif::ProgressBar;
@@ -29,6 +29,30 @@ impl PlaneArg {
             PlaneArg::Density => PlaneChoice::Density,
             PlaneArg::Color => PlaneChoice::Color,
             PlaneArg::Semantic => PlaneChoice::Semantic,
+        }
+    }
+}
+
+/// What the grouping's label histograms are built from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GroupOnArg {
+    /// The decoded colours of each object's own surface voxels.
+    Voxels,
+    /// The colour plane (I-AssetField: the integrated RGB plane).
+    Color,
+    /// The semantic features of an I-AssetField trained with feature maps.
+    Semantic,
+    /// The density plane.
+    Density,
+}
+
+impl GroupOnArg {
+    fn choice(self) -> GroupOn {
+        match self {
+            GroupOnArg::Voxels => GroupOn::Voxels,
+            GroupOnArg::Color => GroupOn::Plane(PlaneChoice::Color),
+            GroupOnArg::Semantic => GroupOn::Plane(PlaneChoice::Semantic),
+            GroupOnArg::Density => GroupOn::Plane(PlaneChoice::Density),
         }
     }
 }
@@ -75,8 +99,8 @@ pub struct MineArgs {
     /// connectivity).
     #[arg(long)]
     pub no_split: bool,
-    /// Number of labels the grouping plane is discretised into (K-means over the object
-    /// texels, weighted by opacity).
+    /// Number of labels the grouping features are discretised into (K-means over the
+    /// objects' texels or voxels, weighted by opacity).
     #[arg(long, default_value_t = 24)]
     pub labels: usize,
     /// Number of categories [default: automatic, at the largest ratio between consecutive
@@ -94,9 +118,13 @@ pub struct MineArgs {
     /// Linkage of the agglomerative clustering: average, single or complete.
     #[arg(long, value_enum, default_value = "average")]
     pub linkage: LinkageArg,
-    /// Plane whose features are discretised for grouping.
+    /// What is discretised for grouping: a plane's features over each object's own texels
+    /// (color, the paper's choice, where each texel describes its whole column; semantic;
+    /// density) or voxels (the colours the field decodes on each object's own surface
+    /// voxels from its base to its top: a crate on a pallet looks like a crate on the floor,
+    /// and colours weigh more than in the column features).
     #[arg(long, value_enum, default_value = "color")]
-    pub group_on: PlaneArg,
+    pub group_on: GroupOnArg,
     /// Plane whose patches are matched to find each instance's yaw. Density by default: the
     /// shape (a car's cabin nearer its back) tells front from back where colours may not
     /// (on the suite's 3-minute fields the worst yaw errors drop from up to 180 to at most
