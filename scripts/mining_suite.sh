@@ -11,7 +11,8 @@
 # the SCENE_MODEL folder to mine it again).
 # Set BIN to use another binary (default target/release/assetfield, built if missing),
 # MINE_ARGS to pass more flags to every `assetfield mine` (e.g. "--group-on voxels"), and
-# MINING_OUT to write somewhere else.
+# MINING_OUT to write somewhere else (give both: scenes already mined in the output folder
+# are skipped, whatever flags mined them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MODELS=${1:-s,i}
@@ -36,7 +37,7 @@ for scene in "${SCENES[@]}"; do
     [ -f "$field" ] && [ -f "$gt" ] || continue
     lib="$OUT/${scene}_$model"
     [ -f "$lib/metrics.json" ] ||
-      "$BIN" mine "$field" --out "$lib" --gt "$gt" --force "${EXTRA[@]}" > "$OUT/logs/${scene}_$model.log" 2>&1 ||
+      "$BIN" mine "$field" --out "$lib" --gt "$gt" --force ${EXTRA[@]+"${EXTRA[@]}"} > "$OUT/logs/${scene}_$model.log" 2>&1 ||
       echo "== $scene $model: mining failed (see $OUT/logs/${scene}_$model.log)"
   done
 done

@@ -50,7 +50,7 @@ pub enum GroupCut {
 /// Parameters of [`group`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GroupOptions {
-    /// Number of K-means labels the feature plane is discretised into.
+    /// Number of K-means labels the samples' features are discretised into.
     pub labels: usize,
     /// Soft label memberships in the histograms (robust to a colour split between two
     /// labels); false = hard labels as in the paper.
@@ -66,7 +66,7 @@ pub struct GroupOptions {
     pub height_tolerance: f64,
     /// Smallest merge height that can separate categories in the automatic cut.
     pub min_separation: f64,
-    /// At most this many texels fit the K-means codebook (the rest are only labelled).
+    /// At most this many samples fit the K-means codebook (the rest are only labelled).
     pub max_samples: usize,
     pub seed: u64,
 }
@@ -91,7 +91,7 @@ impl Default for GroupOptions {
 /// The result of [`group`].
 #[derive(Debug, Clone)]
 pub struct Grouping {
-    /// Label histogram of every detection (over its own texels).
+    /// Label histogram of every detection (over its own samples).
     pub histograms: Vec<Vec<f64>>,
     /// JSD between the histograms.
     pub jsd: DistanceMatrix,
@@ -247,15 +247,10 @@ impl Samples {
     }
 
     /// Samples from the object itself rather than its columns: the colour the field decodes
-    /// (seen along [`VOXEL_VIEW`]; in CIELAB, lightness at [`LIGHTNESS_WEIGHT`]) at every
-    /// surface voxel of the detection's own texels between its base and its top, weighted by
-    /// the voxel's opacity. A surface voxel is occupied and has an empty neighbour: the
-    /// inside of a solid object was never seen, so its colour means nothing.
-    ///
-    /// A crate on a pallet then has the colours of a crate on the floor, and two cars that
-    /// differ only in paint differ in most of their samples rather than in a mixed column
-    /// feature. A detection without an occupied voxel there contributes the most opaque
-    /// voxel of each of its columns instead.
+    /// (seen along [`VOXEL_VIEW`]; in CIELAB, lightness at [`LIGHTNESS_WEIGHT`]) at the
+    /// object's [`voxel_sites`], weighted by their opacity. A crate on a pallet then has the
+    /// colours of a crate on the floor, and two cars that differ only in paint differ in
+    /// most of their samples rather than in a mixed column feature.
     pub fn from_voxels(field: &Field, vol: &OpacityVolume, dets: &Detections) -> Result<Samples> {
         let [nx, ny, nz] = field.config.res;
         if (vol.rows, vol.cols, vol.nz) != (ny, nx, nz) {
@@ -266,41 +261,20 @@ impl Samples {
             });
         }
         let (a, v) = (field.config.aabb(), field.config.voxel_size());
-        let tau = dets.voxel_threshold;
-        // the positions of the samples first, then their colours in parallel
-        let mut pos: Vec<Vec3> = Vec::new();
-        let mut s = Samples { dim: 3, ..Default::default() };
-        let mut add = |s: &mut Samples, id: usize, (r, c, k): (usize, usize, usize), o: f32| {
-            pos.push(Vec3::new(a.min.x + c as f32 * v.x, a.min.y + r as f32 * v.y, vol.height(k)));
-            s.push(id, o, &[0.0; 3]);
+        let sites = voxel_sites(vol, dets)?;
+        let pos: Vec<Vec3> = sites
+            .iter()
+            .map(|x| {
+                let (r, c, k) = x.at;
+                Vec3::new(a.min.x + c as f32 * v.x, a.min.y + r as f32 * v.y, vol.height(k))
+            })
+            .collect();
+        let mut s = Samples {
+            dim: 3,
+            points: vec![0.0; 3 * sites.len()],
+            weights: sites.iter().map(|x| x.opacity.max(1e-3)).collect(),
+            owner: sites.iter().map(|x| x.owner as u32).collect(),
         };
-        for d in &dets.detections {
-            let level = |z: f32| ((z - vol.z0) / vol.dz).max(0.0);
-            let lo = (level(d.base).ceil() as usize).min(nz - 1);
-            let hi = (level(d.top).floor() as usize).min(nz - 1);
-            let start = s.len();
-            let mut strongest = Vec::new();
-            for (r, c) in own_texels(d) {
-                let col = vol.column(r, c);
-                let mut best = (0f32, lo);
-                for (k, &o) in col.iter().enumerate().take(hi + 1).skip(lo) {
-                    if o >= tau && vol.exposed(r, c, k, tau) {
-                        add(&mut s, d.id, (r, c, k), o);
-                    }
-                    if o > best.0 {
-                        best = (o, k);
-                    }
-                }
-                if best.0 > 0.0 {
-                    strongest.push(((r, c, best.1), best.0));
-                }
-            }
-            if s.len() == start {
-                for (at, o) in strongest {
-                    add(&mut s, d.id, at, o);
-                }
-            }
-        }
         const TILE: usize = 4096;
         s.points.par_chunks_mut(TILE * 3).zip(pos.par_chunks(TILE)).for_each_init(
             ColorWork::default,
@@ -320,6 +294,64 @@ impl Samples {
         });
         Ok(s)
     }
+}
+
+/// A voxel that describes a detection in [`Samples::from_voxels`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VoxelSite {
+    /// The detection.
+    pub owner: usize,
+    /// Plane row, column and volume level.
+    pub at: (usize, usize, usize),
+    pub opacity: f32,
+}
+
+/// The voxels that describe each detection: the surface voxels (above the voxel threshold,
+/// with a face neighbour below it: the inside of a solid object was never seen, so its colour
+/// means nothing) of its own texels, from the level above its base up to its shape top (haze
+/// specks above an object do not count). The base level is left out: it is the floor's or
+/// the support's top (exposed under a chair's seat), or, for an object that does not reach
+/// the ground, its own underside. A detection without such a voxel (a sheet one level thick) gets the most
+/// opaque voxel of each of its own columns, over the whole column if need be, so that every
+/// detection with own texels has samples.
+pub fn voxel_sites(vol: &OpacityVolume, dets: &Detections) -> Result<Vec<VoxelSite>> {
+    if (vol.rows, vol.cols) != (dets.grid.rows, dets.grid.cols) {
+        return Err(MiningError::SizeMismatch {
+            what: "opacity volume vs ground grid (texels)",
+            left: vol.rows * vol.cols,
+            right: dets.grid.rows * dets.grid.cols,
+        });
+    }
+    if vol.nz == 0 {
+        return Err(MiningError::ZeroDimension { what: "volume levels" });
+    }
+    let tau = dets.voxel_threshold;
+    let level = |z: f32| (((z - vol.z0) / vol.dz).round().max(0.0) as usize).min(vol.nz - 1);
+    let mut sites = Vec::new();
+    for d in &dets.detections {
+        let lo = (level(d.base) + 1).min(vol.nz - 1);
+        let hi = level(d.shape_top.max(d.base)).max(lo);
+        let start = sites.len();
+        for (r, c) in own_texels(d) {
+            for (k, &o) in vol.column(r, c).iter().enumerate().take(hi + 1).skip(lo) {
+                if o >= tau && vol.exposed(r, c, k, tau) {
+                    sites.push(VoxelSite { owner: d.id, at: (r, c, k), opacity: o });
+                }
+            }
+        }
+        if sites.len() == start {
+            for (r, c) in own_texels(d) {
+                let col = vol.column(r, c);
+                let strongest = |range: std::ops::Range<usize>| {
+                    range.max_by(|&x, &y| col[x].total_cmp(&col[y])).filter(|&k| col[k] > 0.0)
+                };
+                if let Some(k) = strongest(lo..hi + 1).or_else(|| strongest(0..vol.nz)) {
+                    sites.push(VoxelSite { owner: d.id, at: (r, c, k), opacity: col[k] });
+                }
+            }
+        }
+    }
+    Ok(sites)
 }
 
 /// CIELAB (D65) of an sRGB colour with components in 0..1: `[L*, a*, b*]`, L* in 0..100.
@@ -400,11 +432,24 @@ pub fn group_samples(
         });
     }
     let ch = samples.dim;
-    if samples.points.len() != samples.len() * ch || samples.weights.len() != samples.len() {
+    if samples.points.len() != samples.len() * ch {
         return Err(MiningError::SizeMismatch {
-            what: "sample points vs weights",
+            what: "sample points vs owners times the dimension",
             left: samples.points.len(),
-            right: samples.weights.len() * ch,
+            right: samples.len() * ch,
+        });
+    }
+    if samples.weights.len() != samples.len() {
+        return Err(MiningError::SizeMismatch {
+            what: "sample weights vs owners",
+            left: samples.weights.len(),
+            right: samples.len(),
+        });
+    }
+    if let Some(&o) = samples.owner.iter().find(|&&o| o as usize >= n) {
+        return Err(MiningError::InvalidParameter {
+            name: "samples",
+            reason: format!("a sample belongs to detection {o} but there are {n} detections"),
         });
     }
     if opts.labels > samples.len() {
@@ -457,19 +502,19 @@ pub fn group_samples(
             }
             hist
         })
-        .reduce(
-            || vec![0f64; n * k],
-            |mut a, b| {
-                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                a
-            },
-        )
+        // summed in chunk order, so that the result does not depend on the thread count
+        .collect::<Vec<_>>()
+        .into_iter()
+        .fold(vec![0f64; n * k], |mut a, b| {
+            a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+            a
+        })
         .chunks(k)
         .map(<[f64]>::to_vec)
         .collect();
     for hist in &mut histograms {
         let total: f64 = hist.iter().sum();
-        if total <= 0.0 {
+        if total.is_nan() || total <= 0.0 {
             return Err(MiningError::ZeroWeight { what: "label histogram" });
         }
         hist.iter_mut().for_each(|h| *h /= total);
@@ -542,6 +587,8 @@ mod tests {
             srgb_to_lab([1.0, 0.0, 0.0])
         );
         assert!(close(srgb_to_lab([0.0, 0.0, 1.0]), [32.30, 79.19, -107.86]));
+        // the linear segment of L* near black: L* = (24389 / 27) Y
+        assert!((srgb_to_lab([0.05; 3])[0] - 3.554).abs() < 0.01);
         // a grey has no colour, whatever its lightness
         let [l, a, b] = srgb_to_lab([0.5, 0.5, 0.5]);
         assert!((l - 53.39).abs() < 0.05 && a.abs() < 0.01 && b.abs() < 0.01);
@@ -586,6 +633,84 @@ mod tests {
             group_samples(&s, 6, &[shapes.clone(), shapes[..1].to_vec()].concat(), &opts),
             Err(MiningError::ZeroWeight { .. })
         ));
+    }
+
+    #[test]
+    fn voxel_sites_are_the_objects_own_surface() {
+        use crate::detect::{DetectOptions, detect};
+        use crate::planes::PlaneGrid;
+        // a floor slab (levels 0..=1), a box on it (levels 2..=7) and a speck of haze above it
+        let (rows, cols, nz) = (30, 30, 20);
+        let mut vol =
+            OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data: vec![0.0; rows * cols * nz] };
+        let mut fill =
+            |r: std::ops::Range<usize>, c: std::ops::Range<usize>, k: std::ops::Range<usize>| {
+                for rr in r {
+                    for cc in c.clone() {
+                        for kk in k.clone() {
+                            vol.data[(rr * cols + cc) * nz + kk] = 0.95;
+                        }
+                    }
+                }
+            };
+        fill(0..30, 0..30, 0..2);
+        fill(10..17, 10..17, 2..8);
+        fill(13..14, 13..14, 14..15);
+        let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+        let color = PlaneImage::from_fn(rows, cols, 3, |_, _, k| k as f32).unwrap();
+        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
+        let dets = detect(&grid, &vol, &color, None, &opts).unwrap();
+        assert_eq!(dets.detections.len(), 1);
+        let sites = voxel_sites(&vol, &dets).unwrap();
+        let at: std::collections::HashSet<_> = sites.iter().map(|x| x.at).collect();
+        assert!(sites.iter().all(|x| x.owner == 0 && x.opacity == 0.95));
+        // the box's base is its lowest level (2), the first level it could share with what it
+        // stands on; its shape top is level 7 (the speck at 14 is haze)
+        let d = &dets.detections[0];
+        assert_eq!(((d.base / 0.05).round(), (d.shape_top / 0.05).round()), (2.0, 7.0));
+        assert!(at.iter().all(|&(_, _, k)| (3..=7).contains(&k)), "floor or haze: {at:?}");
+        // the top and the sides, not the inside
+        assert!(
+            at.contains(&(13, 13, 7)) && at.contains(&(10, 13, 4)) && at.contains(&(16, 16, 3))
+        );
+        assert!(!at.contains(&(13, 13, 4)) && !at.contains(&(11, 11, 6)));
+        assert_eq!(sites.len(), (7 * 7 - 5 * 5) * 5 + 5 * 5);
+
+        // nothing occupied in the range (a detection above everything): the most opaque voxel
+        // of each own column instead
+        let mut lifted = dets.clone();
+        let d = &mut lifted.detections[0];
+        (d.base, d.top, d.shape_top) = (0.6, 0.6, 0.6);
+        let sites = voxel_sites(&vol, &lifted).unwrap();
+        assert_eq!(sites.len(), lifted.detections[0].own.count());
+        assert!(sites.iter().all(|x| x.opacity == 0.95));
+        // a volume that does not match the grid
+        let small =
+            OpacityVolume { rows: 3, cols: 3, nz, z0: 0.0, dz: 0.05, data: vec![0.0; 9 * nz] };
+        assert!(voxel_sites(&small, &dets).is_err());
+    }
+
+    #[test]
+    fn histograms_do_not_depend_on_the_thread_count() {
+        // more samples than one chunk of the parallel accumulation
+        let mut s = Samples { dim: 2, ..Default::default() };
+        for i in 0..30_000usize {
+            let t = (i as f32 * 0.618_034).fract();
+            s.push(i % 3, 0.5 + t, &[t, (i % 3) as f32 + 0.3 * t]);
+        }
+        let shapes = vec![Shape { area: 1.0, height: 1.0 }; 3];
+        let opts = GroupOptions { labels: 6, ..Default::default() };
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| group_samples(&s, 3, &shapes, &opts).unwrap().histograms)
+        };
+        let one = run(1);
+        assert_eq!(one, run(4));
+        assert_eq!(one, run(3));
+        // an owner out of range is refused, not a panic
+        let mut bad = s.clone();
+        bad.owner[7] = 3;
+        assert!(group_samples(&bad, 3, &shapes, &opts).is_err());
     }
 
     #[test]

@@ -70,7 +70,7 @@ impl Default for MineOptions {
         MineOptions {
             detect: DetectOptions::default(),
             group: GroupOptions::default(),
-            group_on: GroupOn::Plane(PlaneChoice::Color),
+            group_on: GroupOn::Color,
             yaw_on: PlaneChoice::Density,
             pose: PoseOptions::default(),
             templates: Vec::new(),
@@ -84,14 +84,32 @@ impl Default for MineOptions {
 }
 
 /// What the grouping's label histograms are built from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum GroupOn {
-    /// The features of a ground plane over each object's own texels (the paper): a texel's
-    /// feature describes its whole column ([`Samples::from_plane`]).
-    Plane(PlaneChoice),
-    /// The colours the field decodes in each object's own occupied voxels, between its base
-    /// and its top ([`Samples::from_voxels`]).
+    /// The colour plane's features at each object's own texels (the paper; I-AssetField:
+    /// the integrated RGB plane). A texel's feature describes its whole column
+    /// ([`Samples::from_plane`]).
+    #[default]
+    Color,
+    /// The semantic plane's features at each object's own texels.
+    Semantic,
+    /// The density plane's features at each object's own texels.
+    Density,
+    /// The colours the field decodes on each object's own surface voxels, from its base to
+    /// its top ([`Samples::from_voxels`]).
     Voxels,
+}
+
+impl GroupOn {
+    /// The plane the samples come from (`None` for voxels).
+    pub fn plane(self) -> Option<PlaneChoice> {
+        match self {
+            GroupOn::Color => Some(PlaneChoice::Color),
+            GroupOn::Semantic => Some(PlaneChoice::Semantic),
+            GroupOn::Density => Some(PlaneChoice::Density),
+            GroupOn::Voxels => None,
+        }
+    }
 }
 
 /// Progress callbacks (the CLI draws a bar); every method has a no-op default.
@@ -317,7 +335,7 @@ pub fn mine(
     let vol = OpacityVolume::from_field(field)?;
     check_interrupt()?;
     let needs_semantic = [opts.detect.on, opts.yaw_on].contains(&PlaneChoice::Semantic)
-        || opts.group_on == GroupOn::Plane(PlaneChoice::Semantic);
+        || opts.group_on == GroupOn::Semantic;
     let semantic = if needs_semantic { Some(semantic_plane(field, &vol)?) } else { None };
 
     progress.step(2, STEPS, "detecting objects");
@@ -341,9 +359,9 @@ pub fn mine(
 
     progress.step(3, STEPS, "grouping into categories");
     let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, grid.texel)).collect();
-    let samples = match opts.group_on {
-        GroupOn::Plane(p) => Samples::from_plane(&dets, feature_plane(p, &planes, &semantic)?)?,
-        GroupOn::Voxels => Samples::from_voxels(field, &vol, &dets)?,
+    let samples = match opts.group_on.plane() {
+        Some(p) => Samples::from_plane(&dets, feature_plane(p, &planes, &semantic)?)?,
+        None => Samples::from_voxels(field, &vol, &dets)?,
     };
     let grouping = group_samples(&samples, dets.detections.len(), &shapes, &opts.group)?;
     check_interrupt()?;

@@ -50,9 +50,9 @@ impl GroupOnArg {
     fn choice(self) -> GroupOn {
         match self {
             GroupOnArg::Voxels => GroupOn::Voxels,
-            GroupOnArg::Color => GroupOn::Plane(PlaneChoice::Color),
-            GroupOnArg::Semantic => GroupOn::Plane(PlaneChoice::Semantic),
-            GroupOnArg::Density => GroupOn::Plane(PlaneChoice::Density),
+            GroupOnArg::Color => GroupOn::Color,
+            GroupOnArg::Semantic => GroupOn::Semantic,
+            GroupOnArg::Density => GroupOn::Density,
         }
     }
 }
