@@ -1131,8 +1131,11 @@ fn split_by_colour(
             eprintln!("   solidity {s_all:.2} -> {s_piece:.2}");
         }
         // (85% of it: a chair's back beside a desk's top meets it at one height along a good
-        // part of a short shared outline; a desk top over its drawers runs on all along it)
-        let continuous = pairs > 0 && level * 20 >= pairs * 17;
+        // part of a short shared outline; a desk top over its drawers runs on all along it).
+        // A piece touching the rest along less than a fifth of its outline is a neighbour
+        // pushed against it, whatever their heights: an armchair's arm against a sofa's arm
+        // of the same height; a drawer block shares a whole side or more.
+        let continuous = pairs > 0 && level * 20 >= pairs * 17 && shared * 5 >= outline;
         if debug() {
             eprintln!(
                 "   top surface continuous over {level}/{pairs} of the shared outline; thin {}",
@@ -2388,6 +2391,47 @@ mod tests {
         let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
         let joined = DetectOptions { split_3d: false, min_area: 0.01, ..Default::default() };
         assert_eq!(detect(&grid, &v, &color, None, &joined).unwrap().detections.len(), 2);
+    }
+
+    #[test]
+    fn neighbours_of_one_height_separate_but_a_drawer_block_stays() {
+        let (rows, cols) = (40, 60);
+        // two blocks of one height and different colours touching along a short edge (a
+        // tenth of the smaller one's outline), as an armchair's arm against a sofa's
+        let mut v = floor_volume(rows, cols, 20);
+        fill(&mut v, (2, 26), (5, 15), (2, 10), 0.95);
+        fill(&mut v, (16, 36), (15, 35), (2, 10), 0.95);
+        let color = painted(rows, cols, (2..26, 5..15), [0.9, 0.6, 0.2], [0.35, 0.47, 0.4]);
+        let d = detect_small(&v, &color);
+        assert_eq!(
+            rects(&d),
+            vec![PixelRect::new(2, 5, 26, 15), PixelRect::new(16, 15, 36, 35)],
+            "{:?}",
+            d.removed
+        );
+        // a desk whose drawer block (one end, its own colour, under the same top) shares a
+        // whole side with the rest, and a lower chair pushed against the desk
+        let mut v = floor_volume(rows, cols, 20);
+        fill(&mut v, (5, 15), (5, 35), (2, 10), 0.95);
+        fill(&mut v, (15, 23), (20, 28), (2, 6), 0.95);
+        let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+            let rgb = if r >= 15 {
+                [0.8, 0.1, 0.1]
+            } else if c < 13 {
+                [0.2, 0.2, 0.25]
+            } else {
+                [0.7, 0.55, 0.35]
+            };
+            rgb[k]
+        })
+        .unwrap();
+        let d = detect_small(&v, &color);
+        assert_eq!(
+            rects(&d),
+            vec![PixelRect::new(5, 5, 15, 35), PixelRect::new(15, 20, 23, 28)],
+            "{:?}",
+            d.removed
+        );
     }
 
     #[test]
