@@ -47,7 +47,7 @@ pub enum GroupCut {
     Distance(f64),
 }
 
-/// Parameters of [`group`].
+/// Parameters of [`group_samples`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GroupOptions {
     /// Number of K-means labels the samples' features are discretised into.
@@ -88,7 +88,7 @@ impl Default for GroupOptions {
     }
 }
 
-/// The result of [`group`].
+/// The result of [`group_samples`].
 #[derive(Debug, Clone)]
 pub struct Grouping {
     /// Label histogram of every detection (over its own samples).
@@ -311,9 +311,9 @@ pub struct VoxelSite {
 /// means nothing) of its own texels, from the level above its base up to its shape top (haze
 /// specks above an object do not count). The base level is left out: it is the floor's or
 /// the support's top (exposed under a chair's seat), or, for an object that does not reach
-/// the ground, its own underside. A detection without such a voxel (a sheet one level thick) gets the most
-/// opaque voxel of each of its own columns, over the whole column if need be, so that every
-/// detection with own texels has samples.
+/// the ground, its own underside. A detection without such a voxel (fainter than the voxel
+/// threshold there) gets the most opaque voxel of each of its own columns, over the whole
+/// column if need be, so that every detection with own texels has samples.
 pub fn voxel_sites(vol: &OpacityVolume, dets: &Detections) -> Result<Vec<VoxelSite>> {
     if (vol.rows, vol.cols) != (dets.grid.rows, dets.grid.cols) {
         return Err(MiningError::SizeMismatch {
@@ -388,17 +388,6 @@ fn own_texels(d: &crate::detect::Detection) -> impl Iterator<Item = (usize, usiz
             .filter(move |&c| d.own.get(r, c))
             .map(move |c| (d.rect.r0 + r, d.rect.c0 + c))
     })
-}
-
-/// Discretise the feature plane over the object texels and cluster the detections (see the
-/// module docs). `feature` is the plane to discretise, `shapes` one entry per detection.
-pub fn group(
-    dets: &Detections,
-    feature: &PlaneImage,
-    shapes: &[Shape],
-    opts: &GroupOptions,
-) -> Result<Grouping> {
-    group_samples(&Samples::from_plane(dets, feature)?, dets.detections.len(), shapes, opts)
 }
 
 /// Cluster `n` detections from their samples: K-means labels over the samples (fitted on at

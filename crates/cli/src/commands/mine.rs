@@ -36,14 +36,14 @@ impl PlaneArg {
 /// What the grouping's label histograms are built from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum GroupOnArg {
-    /// The decoded colours of each object's own surface voxels.
-    Voxels,
     /// The colour plane (I-AssetField: the integrated RGB plane).
     Color,
     /// The semantic features of an I-AssetField trained with feature maps.
     Semantic,
     /// The density plane.
     Density,
+    /// The decoded colours of each object's own surface voxels.
+    Voxels,
 }
 
 impl GroupOnArg {
