@@ -131,6 +131,7 @@ impl Default for PoseOptions {
                 max_offset: 1.5,
                 align_centroids: true,
                 region: CompareRegion::Overlap,
+                starts: 3,
             },
         }
     }

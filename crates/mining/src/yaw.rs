@@ -12,11 +12,12 @@
 //! coinciding, the canvas covering the instance and (for [`CompareRegion::Union`]) padded to
 //! hold the rotated template's diagonal.
 //!
-//! Search: a coarse scan over `[0, period)` in `step_deg` steps (in parallel), golden-section
-//! refinement around the best angle, then the sub-texel offset (a 5 x 5 grid over
-//! `±max_offset`), then three rounds alternating a compass search of the offset (down to
-//! 1/32 texel) with golden-section passes on the angle over shrinking brackets. Each residual evaluation is a single pass over the canvas
-//! with flat arrays and no allocation.
+//! Search: a coarse scan over `[0, period)` in `step_deg` steps (in parallel). From each of
+//! the `starts` lowest coarse minima: golden-section refinement of the angle, then the
+//! sub-texel offset (a 5 x 5 grid over `±max_offset`), then three rounds alternating a
+//! compass search of the offset (down to 1/32 texel) with golden-section passes on the angle
+//! over shrinking brackets; the lowest refined residual wins. Each residual evaluation is a
+//! single pass over the canvas with flat arrays (one channel-sized scratch buffer).
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -59,6 +60,15 @@ pub struct YawOptions {
     pub align_centroids: bool,
     /// Which texels are compared.
     pub region: CompareRegion,
+    /// How many of the lowest coarse minima are refined (at least 1); the best refined pose
+    /// wins. More starts guard against near-symmetric shapes whose coarse ranking at zero
+    /// offset is wrong, at the cost of one refinement each.
+    #[serde(default = "default_starts")]
+    pub starts: usize,
+}
+
+fn default_starts() -> usize {
+    3
 }
 
 impl Default for YawOptions {
@@ -70,6 +80,7 @@ impl Default for YawOptions {
             max_offset: 1.0,
             align_centroids: true,
             region: CompareRegion::Overlap,
+            starts: default_starts(),
         }
     }
 }
@@ -124,11 +135,36 @@ pub fn estimate_yaw_weighted(
     if !best_r.is_finite() {
         return Err(MiningError::NoOverlap);
     }
-    // 2. Angle refinement at zero offset.
-    let mut best = Pose { theta: best_i as f64 * step, delta: (0.0, 0.0), r: best_r };
-    best = golden_theta(&p, best, step, tol * 0.5);
-    // 3. Offset refinement, then a final angle pass.
-    let m = opts.max_offset;
+    // 2-3. Refine from the best few coarse minima and keep the best result: at zero offset
+    // a half-texel misalignment can rank a near-symmetric wrong turn (a laptop seen the
+    // other way round) just below the right one, which only the offset search exposes.
+    let mut best: Option<Pose> = None;
+    for start in coarse_minima(&coarse, opts.starts.max(1)) {
+        let pose = refine(
+            &p,
+            Pose { theta: start as f64 * step, delta: (0.0, 0.0), r: coarse[start] },
+            step,
+            tol,
+            opts.max_offset,
+        );
+        if best.is_none_or(|b| pose.r < b.r) {
+            best = Some(pose);
+        }
+    }
+    let best = best.unwrap_or(Pose { theta: best_i as f64 * step, delta: (0.0, 0.0), r: best_r });
+    let offset = p.offset(best.theta, best.delta);
+    Ok(YawFit {
+        yaw_deg: best.theta.rem_euclid(period) as f32 % opts.period_deg,
+        offset,
+        residual: best.r as f32,
+    })
+}
+
+/// Golden-section refinement of the angle at zero offset, then the sub-texel offset (a 5 x 5
+/// grid over `±max_offset`), then rounds alternating a compass search of the offset with
+/// angle passes over shrinking brackets.
+fn refine(p: &Problem<'_>, start: Pose, step: f64, tol: f64, m: f32) -> Pose {
+    let mut best = golden_theta(p, start, step, tol * 0.5);
     if m > 0.0 {
         for gy in -2..=2 {
             for gx in -2..=2 {
@@ -143,17 +179,30 @@ pub fn estimate_yaw_weighted(
         // can masquerade as a small rotation at zero offset, so the first angle pass must be
         // allowed to move back by up to half a coarse step.
         for (round, half) in [0.5 * step, 1.0, 0.25].into_iter().enumerate() {
-            best = compass(&p, best, m, 0.25 * m * 0.5f32.powi(round as i32));
-            best = golden_theta(&p, best, half.max(2.0 * tol), tol * 0.5);
+            best = compass(p, best, m, 0.25 * m * 0.5f32.powi(round as i32));
+            best = golden_theta(p, best, half.max(2.0 * tol), tol * 0.5);
         }
-        best = compass(&p, best, m, 1.0 / 16.0);
+        best = compass(p, best, m, 1.0 / 16.0);
     }
-    let offset = p.offset(best.theta, best.delta);
-    Ok(YawFit {
-        yaw_deg: best.theta.rem_euclid(period) as f32 % opts.period_deg,
-        offset,
-        residual: best.r as f32,
-    })
+    best
+}
+
+/// Indices of the `k` lowest local minima of a circular scan (finite values only), lowest
+/// first; the global minimum always comes first. A flat stretch counts once (its first
+/// index).
+fn coarse_minima(r: &[f64], k: usize) -> Vec<usize> {
+    let n = r.len();
+    let v = |i: usize| if r[i].is_finite() { r[i] } else { f64::INFINITY };
+    let mut minima: Vec<usize> = (0..n)
+        .filter(|&i| v(i).is_finite() && v(i) < v((i + n - 1) % n) && v(i) <= v((i + 1) % n))
+        .collect();
+    if minima.is_empty() {
+        // constant (or single-sample) scans: the first finite sample
+        minima.extend((0..n).find(|&i| r[i].is_finite()));
+    }
+    minima.sort_by(|&a, &b| r[a].total_cmp(&r[b]).then(a.cmp(&b)));
+    minima.truncate(k);
+    minima
 }
 
 /// The residual of one pose (yaw in degrees, offset in texels, exactly as reported by
@@ -575,6 +624,72 @@ mod tests {
                 .unwrap();
         assert!(angle_err(fit.yaw_deg, 120.0) < 1.5, "{fit:?}");
         assert!((fit.offset.0 - shift.0).abs() < 0.4 && (fit.offset.1 - shift.1).abs() < 0.4);
+    }
+
+    /// Deterministic numbers in [0, 1) for the generated shapes below.
+    fn lcg(s: &mut u64) -> f32 {
+        *s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((*s >> 40) as f32) / ((1u64 << 24) as f32)
+    }
+
+    #[test]
+    fn near_symmetric_shapes_are_turned_the_right_way_round() {
+        // Three pairs of blobs, each pair point-symmetric about the centre except for an
+        // amplitude 0-15% lower on one side: turned by 180 degrees the shape almost matches
+        // itself, like a laptop whose screen edge is only slightly denser. The instance is
+        // the shape turned and shifted by up to half a texel, plus noise.
+        let (mut wrong_single, mut wrong_multi) = (0, 0);
+        for seed in 0..40u64 {
+            let mut s = seed;
+            let mut blobs: Vec<[f32; 5]> = Vec::new();
+            for _ in 0..3 {
+                let (x, y) = (lcg(&mut s) * 12.0 - 6.0, lcg(&mut s) * 8.0 - 4.0);
+                let (amp, width, mix) = (0.5 + lcg(&mut s), 0.5 + 2.0 * lcg(&mut s), lcg(&mut s));
+                let other = amp * (0.85 + 0.15 * lcg(&mut s));
+                blobs.push([x, y, amp, width, mix]);
+                blobs.push([-x, -y, other, width, mix]);
+            }
+            let shape = |x: f32, y: f32| {
+                let mut v = [0f32; 3];
+                for &[bx, by, amp, width, mix] in &blobs {
+                    let g = amp * (-((x - bx).powi(2) + (y - by).powi(2)) / width).exp();
+                    v[0] += g;
+                    v[1] += g * mix;
+                    v[2] += g * (1.0 - mix);
+                }
+                v
+            };
+            let phi = lcg(&mut s) * 360.0;
+            let d = (lcg(&mut s) - 0.5, lcg(&mut s) - 0.5);
+            let template = sample_plane(15, 19, shape);
+            let (sn, cs) = phi.to_radians().sin_cos();
+            let mut inst = sample_plane(15, 19, |x, y| {
+                let (qx, qy) = (x - d.0, y - d.1);
+                shape(cs * qx + sn * qy, -sn * qx + cs * qy)
+            });
+            for v in &mut inst.data {
+                *v += 0.08 * (lcg(&mut s) - 0.5);
+            }
+            let single = YawOptions { starts: 1, ..YawOptions::default() };
+            let fit1 = estimate_yaw(&template, &inst, &single).unwrap();
+            let fit3 = estimate_yaw(&template, &inst, &YawOptions::default()).unwrap();
+            assert!(fit3.residual <= fit1.residual, "seed {seed}: {fit3:?} vs {fit1:?}");
+            wrong_single += usize::from(angle_err(fit1.yaw_deg, phi) > 1.5);
+            wrong_multi += usize::from(angle_err(fit3.yaw_deg, phi) > 1.5);
+        }
+        // Refining only the best coarse angle turns several of them the wrong way round.
+        assert!(wrong_single >= 3, "single start wrong {wrong_single} times");
+        assert_eq!(wrong_multi, 0, "three starts wrong {wrong_multi} times");
+    }
+
+    #[test]
+    fn coarse_minima_are_circular_local_minima_lowest_first() {
+        let r = [0.5, 3.0, 1.0, 2.0, 0.2, 0.2, 4.0, f64::INFINITY, 0.9];
+        // 0.5 at index 0 has 0.9 before it (circularly): a minimum; the flat 0.2 counts once
+        assert_eq!(coarse_minima(&r, 5), vec![4, 0, 2]);
+        assert_eq!(coarse_minima(&r, 1), vec![4]);
+        assert_eq!(coarse_minima(&[1.0, 1.0, 1.0], 3), vec![0]);
+        assert_eq!(coarse_minima(&[f64::INFINITY, 2.0], 3), vec![1]);
     }
 
     #[test]
