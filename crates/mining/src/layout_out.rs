@@ -85,19 +85,25 @@ pub fn layout_script(
     }
     // where each entry is placed, and with which asset: its category's template at the
     // template-aligned pose, or, for an instance the template cannot reproduce (matching
-    // residual above `own_patch_residual` times the library's median, or unmatched), its own
-    // patch at its own centre (0: every instance; infinity: none)
-    let mut residuals: Vec<f32> = index
-        .entries
-        .iter()
-        .filter(|e| e.kind == EntryKind::Instance && e.residual >= 0.0)
-        .map(|e| e.residual)
+    // residual above `own_patch_residual` times the median of the library's residuals
+    // measured on the same kind of patch, or unmatched), its own patch at its own centre
+    // (0: every instance; infinity: none)
+    let on = |e: &Entry| e.matched_on.clone().unwrap_or_else(|| "plane".to_string());
+    let mut residuals: BTreeMap<String, Vec<f32>> = BTreeMap::new();
+    for e in index.entries.iter().filter(|e| e.kind == EntryKind::Instance && e.residual >= 0.0) {
+        residuals.entry(on(e)).or_default().push(e.residual);
+    }
+    let cuts: BTreeMap<String, f32> = residuals
+        .into_iter()
+        .map(|(kind, mut r)| {
+            r.sort_by(f32::total_cmp);
+            (kind, r[r.len() / 2] * own_patch_residual)
+        })
         .collect();
-    residuals.sort_by(f32::total_cmp);
-    let cut = residuals.get(residuals.len() / 2).map_or(f32::INFINITY, |m| m * own_patch_residual);
+    let cut = |e: &Entry| cuts.get(&on(e)).copied().unwrap_or(f32::INFINITY);
     let mut placed: BTreeMap<&str, (String, GroundTransform)> = BTreeMap::new();
     for e in &index.entries {
-        let own = e.kind == EntryKind::Instance && (e.residual < 0.0 || e.residual > cut);
+        let own = e.kind == EntryKind::Instance && (e.residual < 0.0 || e.residual > cut(e));
         let (asset, t) = if own {
             let (def, height) = library_asset(e, &e.category, library_path);
             assets.insert(e.name.clone(), def);
@@ -212,6 +218,7 @@ mod tests {
             pivot: None,
             yaw_deg: yaw,
             residual: 0.0,
+            matched_on: None,
             supported_by: None,
             source: 0,
         }
@@ -295,6 +302,45 @@ mod tests {
         // and the text is stable under a second round trip
         let again = assetfield_layout::source::parse_script(&path, &text).unwrap();
         assert_eq!(again, script);
+    }
+
+    #[test]
+    fn own_patches_compare_residuals_measured_on_the_same_patches() {
+        // plane residuals near 1, voxel residuals near 0.01: each kind has its own median
+        let mut entries = Vec::new();
+        let mut categories = Vec::new();
+        for (c, on, rs) in [(0, "plane", [1.0, 1.2, 3.0]), (1, "voxels", [0.01, 0.012, 0.03])] {
+            let cat = format!("cat{c}");
+            let names: Vec<String> = (0..4).map(|i| format!("obj{}", 4 * c + i)).collect();
+            for (i, name) in names.iter().enumerate() {
+                let kind = if i == 0 { EntryKind::Template } else { EntryKind::Instance };
+                let mut e = entry(name, &cat, kind, (i as f32, c as f32 * 2.0), 0.0);
+                e.residual = if i == 0 { 0.0 } else { rs[i - 1] };
+                e.matched_on = Some(on.to_string());
+                entries.push(e);
+            }
+            categories.push(Category { name: cat, template: names[0].clone(), members: names });
+        }
+        let own = |entries: &[Entry]| -> Vec<String> {
+            let index = index_of(0.025, categories.clone(), entries.to_vec());
+            let script =
+                layout_script(&index, "m", [-3.0, -3.0, 6.0, 6.0], ".", &BTreeMap::new(), 2.0)
+                    .unwrap();
+            let path = std::env::temp_dir().join("assetfield-own-patch-test.ron");
+            let (text, _) = script_text_checked(&script, &path).unwrap();
+            (0..8)
+                .map(|i| format!("obj{i}"))
+                .filter(|n| text.contains(&format!("asset: \"{n}\"")))
+                .collect()
+        };
+        // twice its kind's median: obj3 (3.0 > 2.4) and obj7 (0.03 > 0.024)
+        assert_eq!(own(&entries), ["obj3", "obj7"]);
+        // one library-wide median (1.0) would have missed obj7; older libraries (no
+        // `matched_on`) are all plane
+        for e in &mut entries {
+            e.matched_on = None;
+        }
+        assert_eq!(own(&entries), ["obj3"]);
     }
 
     #[test]

@@ -77,6 +77,10 @@ pub struct Entry {
     /// Template-matching residual (0 for the template, -1 when the patches could not be
     /// matched).
     pub residual: f32,
+    /// What the residual was measured on (`"plane"` or `"voxels"`): residuals are compared
+    /// only with others measured on the same; absent in older libraries (plane).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub matched_on: Option<String>,
     /// The entry this object stands on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub supported_by: Option<String>,
@@ -542,6 +546,7 @@ pub(crate) mod tests {
                 source_box: [0.0, 0.0, 0.3, 0.2],
                 position: (0.15, 0.1),
                 pivot: None,
+                matched_on: None,
                 yaw_deg: 90.0 * k as f32,
                 residual: 0.0,
                 supported_by: None,

@@ -31,7 +31,9 @@ use crate::morphology::dilate;
 use crate::picture::{BoxMark, TemplateTile, boxes_picture, categories_picture, picture_scale};
 use crate::pivot::contact_pivots;
 use crate::planes::{FieldPlanes, OpacityVolume, PlaneChoice, field_planes, semantic_plane};
-use crate::pose::{PatchRect, PoseOptions, Poses, estimate_poses, mask_in_patch, padded_crop};
+use crate::pose::{
+    PatchRect, PatchSource, PoseOptions, Poses, estimate_poses, mask_in_patch, padded_crop,
+};
 
 /// Everything [`mine`] can be told.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -40,8 +42,8 @@ pub struct MineOptions {
     pub group: GroupOptions,
     /// What the grouping discretises: a plane's features or the objects' voxel colours.
     pub group_on: GroupOn,
-    /// The plane whose patches are matched for the yaw.
-    pub yaw_on: PlaneChoice,
+    /// What is matched for the yaw: a plane's patches or the objects' own voxels.
+    pub yaw_on: YawOn,
     pub pose: PoseOptions,
     /// Template overrides `(category, detection)`: category as `catK` or `K`.
     pub templates: Vec<(String, usize)>,
@@ -71,7 +73,7 @@ impl Default for MineOptions {
             detect: DetectOptions::default(),
             group: GroupOptions::default(),
             group_on: GroupOn::Color,
-            yaw_on: PlaneChoice::Density,
+            yaw_on: YawOn::Auto,
             pose: PoseOptions::default(),
             templates: Vec::new(),
             gt: None,
@@ -271,6 +273,67 @@ pub fn category_name(k: usize) -> String {
     format!("cat{k}")
 }
 
+/// What template matching compares to find each instance's yaw.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum YawOn {
+    /// The objects' own voxels for categories with a member standing on another object (a
+    /// laptop on a table: the table's legs and crossbars, in the laptop's plane column, do
+    /// not turn with the laptop), the density plane for the rest.
+    #[default]
+    Auto,
+    /// The density plane's patches.
+    Density,
+    /// The colour plane's patches.
+    Color,
+    /// The semantic plane's patches.
+    Semantic,
+    /// The opacity of every object's own height range, one channel per level above its base.
+    Voxels,
+}
+
+impl YawOn {
+    /// The plane this choice reads, if it reads one for every category.
+    pub fn plane(self) -> Option<PlaneChoice> {
+        match self {
+            YawOn::Density => Some(PlaneChoice::Density),
+            YawOn::Color => Some(PlaneChoice::Color),
+            YawOn::Semantic => Some(PlaneChoice::Semantic),
+            YawOn::Auto | YawOn::Voxels => None,
+        }
+    }
+}
+
+/// The patches every category is matched on.
+fn yaw_sources<'a>(
+    yaw_on: YawOn,
+    dets: &Detections,
+    category: &[usize],
+    planes: &'a FieldPlanes,
+    semantic: &'a Option<PlaneImage>,
+    vol: &'a OpacityVolume,
+) -> Result<Vec<PatchSource<'a>>> {
+    let k = category.iter().max().map_or(0, |&m| m + 1);
+    let mut stacked = vec![false; k];
+    for (d, &c) in dets.detections.iter().zip(category) {
+        stacked[c] |= d.parent.is_some();
+    }
+    stacked
+        .into_iter()
+        .map(|on_other| {
+            Ok(match yaw_on {
+                YawOn::Voxels => PatchSource::Slab(vol),
+                YawOn::Auto if on_other => PatchSource::Slab(vol),
+                YawOn::Auto => PatchSource::Plane(&planes.density),
+                other => PatchSource::Plane(feature_plane(
+                    other.plane().unwrap_or_default(),
+                    planes,
+                    semantic,
+                )?),
+            })
+        })
+        .collect()
+}
+
 fn feature_plane<'a>(
     choice: PlaneChoice,
     planes: &'a FieldPlanes,
@@ -334,7 +397,8 @@ pub fn mine(
     progress.step(1, STEPS, "evaluating the density volume");
     let vol = OpacityVolume::from_field(field)?;
     check_interrupt()?;
-    let needs_semantic = [opts.detect.on, opts.yaw_on].contains(&PlaneChoice::Semantic)
+    let needs_semantic = [Some(opts.detect.on), opts.yaw_on.plane()]
+        .contains(&Some(PlaneChoice::Semantic))
         || opts.group_on == GroupOn::Semantic;
     let semantic = if needs_semantic { Some(semantic_plane(field, &vol)?) } else { None };
 
@@ -374,7 +438,7 @@ pub fn mine(
     let mut poses = estimate_poses(
         &grid,
         &dets,
-        feature_plane(opts.yaw_on, &planes, &semantic)?,
+        &yaw_sources(opts.yaw_on, &dets, &grouping.category, &planes, &semantic, &vol)?,
         &grouping.category,
         &grouping.distance,
         &pose_opts,
@@ -611,6 +675,7 @@ fn build_library(
             pivot: pivots.get(d.id).map(|p| (p.x, p.y)),
             yaw_deg: pose.yaw_deg,
             residual: pose.residual,
+            matched_on: poses.matched_on.get(cat).map(|k| k.to_string()),
             supported_by: d.parent.map(entry_name),
             source: 0,
         });

@@ -19,7 +19,7 @@ use crate::detect::{Detection, Detections};
 use crate::error::{MiningError, Result};
 use crate::image::{Mask, PixelRect, PlaneImage};
 use crate::medoid::medoid;
-use crate::planes::PlaneGrid;
+use crate::planes::{OpacityVolume, PlaneGrid};
 use crate::yaw::{CompareRegion, YawOptions, estimate_yaw_weighted};
 
 /// A rectangle that may reach outside the plane (for padded crops), rows/cols as `i64`.
@@ -92,6 +92,8 @@ pub struct Poses {
     pub templates: Vec<usize>,
     /// Pose of every detection.
     pub poses: Vec<Pose>,
+    /// What every category's residuals were measured on ([`PatchSource::kind`]).
+    pub matched_on: Vec<&'static str>,
 }
 
 impl Poses {
@@ -137,12 +139,52 @@ impl Default for PoseOptions {
     }
 }
 
-/// Choose templates (medoids unless overridden) and estimate every instance's pose on the
-/// `feature` plane.
+/// What the template and instance patches hold.
+#[derive(Debug, Clone, Copy)]
+pub enum PatchSource<'a> {
+    /// Feature patches cut from a plane (each texel describes its whole column).
+    Plane(&'a PlaneImage),
+    /// The opacity of each object's own height range, one channel per level from the level
+    /// above its base up to its shape top: what stands on a support is compared without the
+    /// support's column beneath it (a table's crossbar under a laptop).
+    Slab(&'a OpacityVolume),
+}
+
+/// Levels `[lo, hi]` of a detection's own height range in `vol`.
+fn own_levels(vol: &OpacityVolume, d: &Detection) -> (usize, usize) {
+    let top = vol.nz.saturating_sub(1);
+    let level = |z: f32| (((z - vol.z0) / vol.dz).round().max(0.0) as usize).min(top);
+    let lo = (level(d.base) + 1).min(top);
+    (lo, level(d.shape_top.max(d.base)).max(lo))
+}
+
+/// A slab patch over `p`: channel `j` is the opacity at level `lo + j` (zero above the
+/// volume), edge texels repeated outside the plane.
+fn slab_crop(vol: &OpacityVolume, p: PatchRect, lo: usize, levels: usize) -> Result<PlaneImage> {
+    let clamp = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize;
+    PlaneImage::from_fn(p.rows, p.cols, levels, |r, c, k| {
+        let (rr, cc) = (clamp(p.r0 + r as i64, vol.rows), clamp(p.c0 + c as i64, vol.cols));
+        vol.column(rr, cc).get(lo + k).copied().unwrap_or(0.0)
+    })
+}
+
+impl PatchSource<'_> {
+    /// What a residual measured on these patches is in (residuals of different sources are
+    /// not comparable): `"plane"` or `"voxels"`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            PatchSource::Plane(_) => "plane",
+            PatchSource::Slab(_) => "voxels",
+        }
+    }
+}
+
+/// Choose templates (medoids unless overridden) and estimate every instance's pose, matching
+/// the patches of `sources[category]` (one source per category).
 pub fn estimate_poses(
     grid: &PlaneGrid,
     dets: &Detections,
-    feature: &PlaneImage,
+    sources: &[PatchSource<'_>],
     category: &[usize],
     distance: &DistanceMatrix,
     opts: &PoseOptions,
@@ -156,6 +198,13 @@ pub fn estimate_poses(
         });
     }
     let k = category.iter().max().map_or(0, |&m| m + 1);
+    if sources.len() < k {
+        return Err(MiningError::SizeMismatch {
+            what: "patch sources vs categories",
+            left: sources.len(),
+            right: k,
+        });
+    }
     let mut templates = Vec::with_capacity(k);
     for c in 0..k {
         let members: Vec<usize> = (0..n).filter(|&i| category[i] == c).collect();
@@ -179,12 +228,23 @@ pub fn estimate_poses(
         }
         templates[c] = d;
     }
-    let patch = |i: usize| -> Result<(PlaneImage, Vec<f32>, PatchRect)> {
+    // the patches of a pair: for slabs, as many levels as the taller of the two holds
+    let patch = |i: usize, levels: usize| -> Result<(PlaneImage, Vec<f32>, PatchRect)> {
         let d = &dets.detections[i];
         let p = PatchRect::around(d.rect, opts.margin);
-        let img = padded_crop(feature, p)?;
+        let img = match sources[category[i]] {
+            PatchSource::Plane(plane) => padded_crop(plane, p)?,
+            PatchSource::Slab(vol) => slab_crop(vol, p, own_levels(vol, d).0, levels)?,
+        };
         let w = mask_in_patch(d, &d.own, p).to_weights();
         Ok((img, w, p))
+    };
+    let levels = |i: usize| match sources[category[i]] {
+        PatchSource::Plane(_) => 0,
+        PatchSource::Slab(vol) => {
+            let (lo, hi) = own_levels(vol, &dets.detections[i]);
+            hi - lo + 1
+        }
     };
     let centre_world = |p: PatchRect| {
         let (cx, cy) = p.centre();
@@ -194,7 +254,8 @@ pub fn estimate_poses(
         .into_par_iter()
         .map(|i| {
             let t = templates[category[i]];
-            let (ip, iw, irect) = patch(i)?;
+            let k = levels(i).max(levels(t));
+            let (ip, iw, irect) = patch(i, k)?;
             if i == t {
                 return Ok(Pose {
                     yaw_deg: 0.0,
@@ -203,7 +264,7 @@ pub fn estimate_poses(
                     position: centre_world(irect),
                 });
             }
-            let (tp, tw, _) = patch(t)?;
+            let (tp, tw, _) = patch(t, k)?;
             let c = centre_world(irect);
             // a pair that cannot be matched (no overlap at any pose) keeps the template's
             // orientation; its residual is marked -1
@@ -222,7 +283,8 @@ pub fn estimate_poses(
         })
         .collect();
     let poses = poses.into_iter().collect::<Result<Vec<_>>>()?;
-    Ok(Poses { templates, poses })
+    let matched_on = sources[..k].iter().map(PatchSource::kind).collect();
+    Ok(Poses { templates, poses, matched_on })
 }
 
 #[cfg(test)]
@@ -240,5 +302,59 @@ mod tests {
         assert_eq!(crop.get(1, 1).unwrap(), &[0.0]);
         assert_eq!(crop.get(2, 3).unwrap(), &[12.0]);
         assert_eq!(crop.get(3, 3).unwrap(), &[22.0]);
+    }
+
+    #[test]
+    fn slabs_turn_a_laptop_on_a_table_the_right_way_round() {
+        use crate::yaw::estimate_yaw;
+        // A table top (levels 8-9) over a crossbar (levels 2-7) along column 8, and two
+        // laptops on the table (base level 9: deck at 10-11, screen up to 16 along one long
+        // edge), the second turned by 180 degrees. The crossbar lies under both laptops on
+        // the same side, so column features (here: column sums, as the density plane
+        // describes a column) hold the laptop's orientation and the crossbar's.
+        let (rows, cols, nz) = (40, 24, 20);
+        let mut vol =
+            OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data: vec![0.0; rows * cols * nz] };
+        let mut fill =
+            |r: std::ops::Range<usize>, c: std::ops::Range<usize>, k: std::ops::Range<usize>| {
+                for rr in r {
+                    for cc in c.clone() {
+                        for kk in k.clone() {
+                            vol.data[(rr * cols + cc) * nz + kk] = 0.95;
+                        }
+                    }
+                }
+            };
+        fill(2..38, 2..22, 8..10);
+        fill(2..38, 7..10, 2..8);
+        fill(8..15, 6..17, 10..12);
+        fill(8..9, 6..17, 10..17); // screen at the laptop's low-row edge
+        fill(25..32, 6..17, 10..12);
+        fill(31..32, 6..17, 10..17); // turned: screen at the high-row edge
+        let template = PatchRect { r0: 5, c0: 3, rows: 13, cols: 17 };
+        let instance = PatchRect { r0: 22, c0: 3, rows: 13, cols: 17 };
+        let columns = |p: PatchRect| {
+            PlaneImage::from_fn(p.rows, p.cols, 1, |r, c, _| {
+                vol.column(p.r0 as usize + r, p.c0 as usize + c).iter().sum()
+            })
+            .unwrap()
+        };
+        let opts = YawOptions::default();
+        let fit = estimate_yaw(&columns(template), &columns(instance), &opts).unwrap();
+        let off_by = |yaw: f32, want: f32| {
+            let d = (yaw - want).rem_euclid(360.0);
+            d.min(360.0 - d)
+        };
+        assert!(off_by(fit.yaw_deg, 0.0) < 2.0, "columns: {fit:?}");
+        // the slabs from the level above the base: only the laptops
+        let slab = |p| slab_crop(&vol, p, 10, 8).unwrap();
+        let fit = estimate_yaw(&slab(template), &slab(instance), &opts).unwrap();
+        assert!(off_by(fit.yaw_deg, 180.0) < 2.0, "slabs: {fit:?}");
+        assert!(fit.residual < 1e-3, "slabs: {fit:?}");
+        // above the volume the channels are zero; outside the plane edges repeat
+        let top = slab_crop(&vol, PatchRect { r0: -2, c0: 0, rows: 3, cols: 2 }, 18, 4).unwrap();
+        assert_eq!(top.ch, 4);
+        assert_eq!(top.get(0, 0).unwrap()[2..], [0.0, 0.0]);
+        assert_eq!(top.get(0, 0).unwrap(), top.get(2, 0).unwrap());
     }
 }

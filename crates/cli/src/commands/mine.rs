@@ -6,7 +6,7 @@ use anyhow::{Context, Result, bail};
 use assetfield_mining::agglomerative::Linkage;
 use assetfield_mining::group::GroupCut;
 use assetfield_mining::library::{merge_libraries, open_library};
-use assetfield_mining::pipeline::{GroupOn, MineOptions, Progress, mine as run_mining};
+use assetfield_mining::pipeline::{GroupOn, MineOptions, Progress, YawOn, mine as run_mining};
 use assetfield_mining::planes::PlaneChoice;
 use clap::{Args, Subcommand, ValueEnum};
 use indicatif::ProgressBar;
@@ -53,6 +53,33 @@ impl GroupOnArg {
             GroupOnArg::Color => GroupOn::Color,
             GroupOnArg::Semantic => GroupOn::Semantic,
             GroupOnArg::Density => GroupOn::Density,
+        }
+    }
+}
+
+/// `--yaw-on`: what template matching compares.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum YawOnArg {
+    /// Voxels for categories with a member standing on another object, density otherwise.
+    Auto,
+    /// The density plane.
+    Density,
+    /// The colour plane.
+    Color,
+    /// The semantic plane (I-AssetField trained with feature maps).
+    Semantic,
+    /// Each object's own voxels, for every category.
+    Voxels,
+}
+
+impl YawOnArg {
+    fn choice(self) -> YawOn {
+        match self {
+            YawOnArg::Auto => YawOn::Auto,
+            YawOnArg::Density => YawOn::Density,
+            YawOnArg::Color => YawOn::Color,
+            YawOnArg::Semantic => YawOn::Semantic,
+            YawOnArg::Voxels => YawOn::Voxels,
         }
     }
 }
@@ -125,12 +152,16 @@ pub struct MineArgs {
     /// and colours weigh more than in the column features).
     #[arg(long, value_enum, default_value = "color")]
     pub group_on: GroupOnArg,
-    /// Plane whose patches are matched to find each instance's yaw. Density by default: the
-    /// shape (a car's cabin nearer its back) tells front from back where colours may not
-    /// (on the suite's 3-minute fields the worst yaw errors drop from up to 180 to at most
-    /// 16 degrees).
-    #[arg(long, value_enum, default_value = "density")]
-    pub yaw_on: PlaneArg,
+    /// What is matched to find each instance's yaw. auto (default): the density plane's
+    /// patches, whose shape (a car's cabin nearer its back) tells front from back where
+    /// colours may not (on the suite's 3-minute fields the worst yaw errors drop from up to
+    /// 180 to at most 16 degrees); but for categories with a member standing on another
+    /// object, the objects' own voxels (the opacity of each level from the base up), since
+    /// a laptop's plane column also holds the table's legs and crossbars, which do not turn
+    /// with it. density, color, semantic: that plane for every category; voxels: the own
+    /// voxels for every category.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub yaw_on: YawOnArg,
     /// Use detection INDEX (the number in boxes.png) as the template of CATEGORY (catK or
     /// K) instead of the medoid. Repeatable.
     #[arg(long, value_name = "CATEGORY=INDEX")]
