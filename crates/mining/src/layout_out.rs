@@ -22,9 +22,13 @@ use crate::library::{Entry, EntryKind, LibraryIndex};
 /// mined layout reproduces the trained scene exactly and edits of it stay faithful (the
 /// templates still define the categories and serve new compositions and category edits).
 /// A positive R gives an instance its category's template when its template-matching residual
-/// is at most R times the library's median (a compact layout, as in the paper's
-/// reconfiguration; rotating a template resamples it, which costs detail on thin parts).
+/// is at most R times the median of the residuals measured on the same kind of patch (a
+/// compact layout, as in the paper's reconfiguration; rotating a template resamples it, which
+/// costs detail on thin parts).
 pub const OWN_PATCH_RESIDUAL: f32 = 0.0;
+
+/// Residuals of one kind needed for a median that can judge an instance's fit.
+const MIN_RESIDUALS: usize = 3;
 
 fn round3(v: f32) -> f32 {
     (v * 1000.0).round() / 1000.0
@@ -87,8 +91,10 @@ pub fn layout_script(
     // template-aligned pose, or, for an instance the template cannot reproduce (matching
     // residual above `own_patch_residual` times the median of the library's residuals
     // measured on the same kind of patch, or unmatched), its own patch at its own centre
-    // (0: every instance; infinity: none)
-    let on = |e: &Entry| e.matched_on.clone().unwrap_or_else(|| "plane".to_string());
+    // (0: every instance; infinity: none). Fewer than `MIN_RESIDUALS` residuals of a kind
+    // give no median to judge by (with two, the "median" is the larger one): those
+    // instances keep their own patches unless templates are asked for everywhere.
+    let on = |e: &Entry| e.matched_on.clone().unwrap_or_else(|| "unrecorded".to_string());
     let mut residuals: BTreeMap<String, Vec<f32>> = BTreeMap::new();
     for e in index.entries.iter().filter(|e| e.kind == EntryKind::Instance && e.residual >= 0.0) {
         residuals.entry(on(e)).or_default().push(e.residual);
@@ -97,7 +103,14 @@ pub fn layout_script(
         .into_iter()
         .map(|(kind, mut r)| {
             r.sort_by(f32::total_cmp);
-            (kind, r[r.len() / 2] * own_patch_residual)
+            let cut = if own_patch_residual.is_infinite() {
+                f32::INFINITY
+            } else if r.len() < MIN_RESIDUALS {
+                f32::NEG_INFINITY
+            } else {
+                r[r.len() / 2] * own_patch_residual
+            };
+            (kind, cut)
         })
         .collect();
     let cut = |e: &Entry| cuts.get(&on(e)).copied().unwrap_or(f32::INFINITY);
@@ -274,9 +287,15 @@ mod tests {
                 laptop2,
             ],
         );
-        let script =
-            layout_script(&index, "mined", [-3.0, -2.0, 3.0, 2.0], ".", &BTreeMap::new(), 2.0)
-                .unwrap();
+        let script = layout_script(
+            &index,
+            "mined",
+            [-3.0, -2.0, 3.0, 2.0],
+            ".",
+            &BTreeMap::new(),
+            f32::INFINITY,
+        )
+        .unwrap();
         let path = std::env::temp_dir().join("assetfield-mining-layout-test.ron");
         let (text, n) = script_text_checked(&script, &path).unwrap();
         assert_eq!(n, 4, "{text}");
@@ -306,12 +325,18 @@ mod tests {
 
     #[test]
     fn own_patches_compare_residuals_measured_on_the_same_patches() {
-        // plane residuals near 1, voxel residuals near 0.01: each kind has its own median
+        // density-plane residuals near 1, voxel residuals near 0.01: each kind has its own
+        // median; the colour kind has only two residuals, too few for a median
         let mut entries = Vec::new();
         let mut categories = Vec::new();
-        for (c, on, rs) in [(0, "plane", [1.0, 1.2, 3.0]), (1, "voxels", [0.01, 0.012, 0.03])] {
+        let kinds: [(&str, &[f32]); 3] = [
+            ("density", &[1.0, 1.2, 3.0]),
+            ("voxels", &[0.01, 0.012, 0.03]),
+            ("color", &[0.5, 0.6]),
+        ];
+        for (c, (on, rs)) in kinds.into_iter().enumerate() {
             let cat = format!("cat{c}");
-            let names: Vec<String> = (0..4).map(|i| format!("obj{}", 4 * c + i)).collect();
+            let names: Vec<String> = (0..=rs.len()).map(|i| format!("obj{}", 4 * c + i)).collect();
             for (i, name) in names.iter().enumerate() {
                 let kind = if i == 0 { EntryKind::Template } else { EntryKind::Instance };
                 let mut e = entry(name, &cat, kind, (i as f32, c as f32 * 2.0), 0.0);
@@ -321,26 +346,29 @@ mod tests {
             }
             categories.push(Category { name: cat, template: names[0].clone(), members: names });
         }
-        let own = |entries: &[Entry]| -> Vec<String> {
+        let own = |entries: &[Entry], r: f32| -> Vec<String> {
             let index = index_of(0.025, categories.clone(), entries.to_vec());
             let script =
-                layout_script(&index, "m", [-3.0, -3.0, 6.0, 6.0], ".", &BTreeMap::new(), 2.0)
+                layout_script(&index, "m", [-3.0, -3.0, 9.0, 9.0], ".", &BTreeMap::new(), r)
                     .unwrap();
             let path = std::env::temp_dir().join("assetfield-own-patch-test.ron");
             let (text, _) = script_text_checked(&script, &path).unwrap();
-            (0..8)
+            (0..12)
                 .map(|i| format!("obj{i}"))
                 .filter(|n| text.contains(&format!("asset: \"{n}\"")))
                 .collect()
         };
-        // twice its kind's median: obj3 (3.0 > 2.4) and obj7 (0.03 > 0.024)
-        assert_eq!(own(&entries), ["obj3", "obj7"]);
-        // one library-wide median (1.0) would have missed obj7; older libraries (no
-        // `matched_on`) are all plane
+        // twice its kind's median: obj3 (3.0 > 2.4) and obj7 (0.03 > 0.024); the colour
+        // instances cannot be judged and keep their own patches
+        assert_eq!(own(&entries, 2.0), ["obj3", "obj7", "obj9", "obj10"]);
+        assert!(own(&entries, f32::INFINITY).is_empty());
+        assert_eq!(own(&entries, 0.0).len(), 8);
+        // older libraries (no `matched_on`) are judged together, against one median (0.6):
+        // obj7, 3 times its own kind's median, would get the template
         for e in &mut entries {
             e.matched_on = None;
         }
-        assert_eq!(own(&entries), ["obj3"]);
+        assert_eq!(own(&entries, 2.0), ["obj3"]);
     }
 
     #[test]

@@ -55,8 +55,9 @@ pub struct MineOptions {
     /// that an edit script written for the ground truth applies to the mined layout too.
     #[serde(default)]
     pub gt_names: bool,
-    /// Instances whose template-matching residual exceeds this many times the library's
-    /// median keep their own patch in layout.ron (0: every instance; infinity: none).
+    /// Instances whose template-matching residual exceeds this many times the median of the
+    /// residuals measured on the same patches keep their own patch in layout.ron (0: every
+    /// instance; infinity: none; fewer than three residuals of a kind: own patches).
     #[serde(default = "default_own_patch_residual")]
     pub own_patch_residual: f32,
     /// Replace an existing output folder.
@@ -323,12 +324,11 @@ fn yaw_sources<'a>(
             Ok(match yaw_on {
                 YawOn::Voxels => PatchSource::Slab(vol),
                 YawOn::Auto if on_other => PatchSource::Slab(vol),
-                YawOn::Auto => PatchSource::Plane(&planes.density),
-                other => PatchSource::Plane(feature_plane(
-                    other.plane().unwrap_or_default(),
-                    planes,
-                    semantic,
-                )?),
+                YawOn::Auto => PatchSource::Plane(PlaneChoice::Density, &planes.density),
+                other => {
+                    let choice = other.plane().unwrap_or_default();
+                    PatchSource::Plane(choice, feature_plane(choice, planes, semantic)?)
+                }
             })
         })
         .collect()

@@ -1,8 +1,10 @@
 //! Templates and poses (paper Sec. 3.3, template matching): one template per category (the
 //! medoid under the grouping distance, or the user's choice), and every instance's yaw and
-//! position relative to it, found by rotating the template's feature patch onto the
-//! instance's ([`crate::yaw::estimate_yaw_weighted`]: coarse scan, golden-section
-//! refinement, sub-texel offset).
+//! position relative to it, found by rotating the template's patch onto the instance's
+//! ([`crate::yaw::estimate_yaw_weighted`]: coarse scan, golden-section refinement from the
+//! lowest coarse minima, sub-texel offset). A category's patches are either cut from a
+//! feature plane or, for objects standing on others, slabs of the opacity volume over each
+//! object's own height range ([`PatchSource`]).
 //!
 //! Patches are cut around a detection's bounding box with a margin, padding outside the
 //! plane by repeating the edge texels, so a patch's centre is always its box's centre. The
@@ -19,7 +21,7 @@ use crate::detect::{Detection, Detections};
 use crate::error::{MiningError, Result};
 use crate::image::{Mask, PixelRect, PlaneImage};
 use crate::medoid::medoid;
-use crate::planes::{OpacityVolume, PlaneGrid};
+use crate::planes::{OpacityVolume, PlaneChoice, PlaneGrid};
 use crate::yaw::{CompareRegion, YawOptions, estimate_yaw_weighted};
 
 /// A rectangle that may reach outside the plane (for padded crops), rows/cols as `i64`.
@@ -143,37 +145,52 @@ impl Default for PoseOptions {
 #[derive(Debug, Clone, Copy)]
 pub enum PatchSource<'a> {
     /// Feature patches cut from a plane (each texel describes its whole column).
-    Plane(&'a PlaneImage),
+    Plane(PlaneChoice, &'a PlaneImage),
     /// The opacity of each object's own height range, one channel per level from the level
     /// above its base up to its shape top: what stands on a support is compared without the
     /// support's column beneath it (a table's crossbar under a laptop).
     Slab(&'a OpacityVolume),
 }
 
-/// Levels `[lo, hi]` of a detection's own height range in `vol`.
+/// Levels `[lo, hi]` of a detection's own height range in `vol`: from the level above its
+/// base (the top of its floor or support) to its shape top. For an object that stands on
+/// nothing the detector found (no floor, its base is its own lowest level), `lo` skips that
+/// lowest level, as [`crate::group::voxel_sites`] does.
 fn own_levels(vol: &OpacityVolume, d: &Detection) -> (usize, usize) {
-    let top = vol.nz.saturating_sub(1);
-    let level = |z: f32| (((z - vol.z0) / vol.dz).round().max(0.0) as usize).min(top);
-    let lo = (level(d.base) + 1).min(top);
-    (lo, level(d.shape_top.max(d.base)).max(lo))
+    level_range(vol, d.base, d.shape_top)
 }
 
-/// A slab patch over `p`: channel `j` is the opacity at level `lo + j` (zero above the
-/// volume), edge texels repeated outside the plane.
-fn slab_crop(vol: &OpacityVolume, p: PatchRect, lo: usize, levels: usize) -> Result<PlaneImage> {
+fn level_range(vol: &OpacityVolume, base: f32, shape_top: f32) -> (usize, usize) {
+    let top = vol.nz.saturating_sub(1);
+    let level = |z: f32| (((z - vol.z0) / vol.dz).round().max(0.0) as usize).min(top);
+    let lo = (level(base) + 1).min(top);
+    (lo, level(shape_top.max(base)).max(lo))
+}
+
+/// A slab patch over `p` with `channels` channels: channel `j` is the opacity at level
+/// `lo + j` up to the object's own `own` levels, zero above them (and above the volume), so
+/// that a shorter object is not compared by what hangs over it; edge texels are repeated
+/// outside the plane.
+fn slab_crop(
+    vol: &OpacityVolume,
+    p: PatchRect,
+    lo: usize,
+    own: usize,
+    channels: usize,
+) -> Result<PlaneImage> {
     let clamp = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize;
-    PlaneImage::from_fn(p.rows, p.cols, levels, |r, c, k| {
+    PlaneImage::from_fn(p.rows, p.cols, channels, |r, c, k| {
         let (rr, cc) = (clamp(p.r0 + r as i64, vol.rows), clamp(p.c0 + c as i64, vol.cols));
-        vol.column(rr, cc).get(lo + k).copied().unwrap_or(0.0)
+        if k < own { vol.column(rr, cc).get(lo + k).copied().unwrap_or(0.0) } else { 0.0 }
     })
 }
 
 impl PatchSource<'_> {
     /// What a residual measured on these patches is in (residuals of different sources are
-    /// not comparable): `"plane"` or `"voxels"`.
+    /// not comparable): the plane's name, or `"voxels"`.
     pub fn kind(&self) -> &'static str {
         match self {
-            PatchSource::Plane(_) => "plane",
+            PatchSource::Plane(choice, _) => choice.name(),
             PatchSource::Slab(_) => "voxels",
         }
     }
@@ -233,14 +250,17 @@ pub fn estimate_poses(
         let d = &dets.detections[i];
         let p = PatchRect::around(d.rect, opts.margin);
         let img = match sources[category[i]] {
-            PatchSource::Plane(plane) => padded_crop(plane, p)?,
-            PatchSource::Slab(vol) => slab_crop(vol, p, own_levels(vol, d).0, levels)?,
+            PatchSource::Plane(_, plane) => padded_crop(plane, p)?,
+            PatchSource::Slab(vol) => {
+                let (lo, hi) = own_levels(vol, d);
+                slab_crop(vol, p, lo, hi - lo + 1, levels)?
+            }
         };
         let w = mask_in_patch(d, &d.own, p).to_weights();
         Ok((img, w, p))
     };
     let levels = |i: usize| match sources[category[i]] {
-        PatchSource::Plane(_) => 0,
+        PatchSource::Plane(..) => 0,
         PatchSource::Slab(vol) => {
             let (lo, hi) = own_levels(vol, &dets.detections[i]);
             hi - lo + 1
@@ -347,14 +367,27 @@ mod tests {
         };
         assert!(off_by(fit.yaw_deg, 0.0) < 2.0, "columns: {fit:?}");
         // the slabs from the level above the base: only the laptops
-        let slab = |p| slab_crop(&vol, p, 10, 8).unwrap();
+        // the slabs from the level above the base (9, the table top) to the screen's top
+        let (lo, hi) = level_range(&vol, 0.45, 0.8);
+        assert_eq!((lo, hi), (10, 16));
+        let slab = |p| slab_crop(&vol, p, lo, hi - lo + 1, 9).unwrap();
         let fit = estimate_yaw(&slab(template), &slab(instance), &opts).unwrap();
         assert!(off_by(fit.yaw_deg, 180.0) < 2.0, "slabs: {fit:?}");
         assert!(fit.residual < 1e-3, "slabs: {fit:?}");
-        // above the volume the channels are zero; outside the plane edges repeat
-        let top = slab_crop(&vol, PatchRect { r0: -2, c0: 0, rows: 3, cols: 2 }, 18, 4).unwrap();
-        assert_eq!(top.ch, 4);
-        assert_eq!(top.get(0, 0).unwrap()[2..], [0.0, 0.0]);
-        assert_eq!(top.get(0, 0).unwrap(), top.get(2, 0).unwrap());
+        // level ranges stay inside the volume and never end below their start
+        assert_eq!(level_range(&vol, 0.45, 0.3), (10, 10));
+        assert_eq!(level_range(&vol, 0.45, 5.0), (10, 19));
+        assert_eq!(level_range(&vol, 2.0, 5.0), (19, 19));
+        // channels past the object's own levels are zero, and so are levels above the
+        // volume; outside the plane the edge texels repeat
+        vol.data[18] = 0.5; // row 0, column 0, level 18
+        vol.data[19] = 0.7;
+        let edge = PatchRect { r0: -2, c0: -1, rows: 3, cols: 2 };
+        let crop = slab_crop(&vol, edge, 18, 2, 4).unwrap();
+        for (r, c) in [(0, 0), (2, 0), (2, 1), (0, 1)] {
+            assert_eq!(crop.get(r, c).unwrap(), [0.5, 0.7, 0.0, 0.0], "texel {r} {c}");
+        }
+        assert_eq!(slab_crop(&vol, edge, 18, 1, 2).unwrap().get(2, 1).unwrap(), [0.5, 0.0]);
+        assert_eq!(slab_crop(&vol, edge, 19, 3, 3).unwrap().get(2, 1).unwrap(), [0.7, 0.0, 0.0]);
     }
 }

@@ -187,18 +187,28 @@ fn refine(p: &Problem<'_>, start: Pose, step: f64, tol: f64, m: f32) -> Pose {
     best
 }
 
-/// Indices of the `k` lowest local minima of a circular scan (finite values only), lowest
-/// first; the global minimum always comes first. A flat stretch counts once (its first
-/// index).
+/// Indices of the `k` lowest local minima of a circular scan (non-finite values count as
+/// infinite), lowest first; the global minimum always comes first. A flat stretch counts
+/// once (its first index), and only if the nearest different values on both sides are
+/// higher: a shoulder on the way down is not a minimum.
 fn coarse_minima(r: &[f64], k: usize) -> Vec<usize> {
     let n = r.len();
     let v = |i: usize| if r[i].is_finite() { r[i] } else { f64::INFINITY };
-    let mut minima: Vec<usize> = (0..n)
-        .filter(|&i| v(i).is_finite() && v(i) < v((i + n - 1) % n) && v(i) <= v((i + 1) % n))
-        .collect();
+    let mut minima: Vec<usize> = Vec::new();
+    for i in 0..n {
+        let x = v(i);
+        if !x.is_finite() || (n > 1 && v((i + n - 1) % n) == x) {
+            continue; // infinite, or not the first of its flat stretch
+        }
+        let next = (1..n).map(|s| v((i + s) % n)).find(|&y| y != x);
+        let prev = (1..n).map(|s| v((i + n - s) % n)).find(|&y| y != x);
+        if next.is_none_or(|y| y > x) && prev.is_none_or(|y| y > x) {
+            minima.push(i);
+        }
+    }
     if minima.is_empty() {
-        // constant (or single-sample) scans: the first finite sample
-        minima.extend((0..n).find(|&i| r[i].is_finite()));
+        // constant scans: the first finite sample
+        minima.extend((0..n).find(|&i| v(i).is_finite()));
     }
     minima.sort_by(|&a, &b| r[a].total_cmp(&r[b]).then(a.cmp(&b)));
     minima.truncate(k);
@@ -690,6 +700,11 @@ mod tests {
         assert_eq!(coarse_minima(&r, 1), vec![4]);
         assert_eq!(coarse_minima(&[1.0, 1.0, 1.0], 3), vec![0]);
         assert_eq!(coarse_minima(&[f64::INFINITY, 2.0], 3), vec![1]);
+        // a flat step on the way down is a shoulder, not a minimum
+        assert_eq!(coarse_minima(&[3.0, 1.0, 1.0, 0.0, 2.0], 3), vec![3]);
+        // a flat bottom wrapping around the end counts once, at its first index
+        assert_eq!(coarse_minima(&[0.5, 2.0, 3.0, 0.5], 3), vec![3]);
+        assert_eq!(coarse_minima(&[f64::NAN, 1.0, 2.0], 3), vec![1]);
     }
 
     #[test]

@@ -156,7 +156,7 @@ pub struct MineArgs {
     /// patches, whose shape (a car's cabin nearer its back) tells front from back where
     /// colours may not (on the suite's 3-minute fields the worst yaw errors drop from up to
     /// 180 to at most 16 degrees); but for categories with a member standing on another
-    /// object, the objects' own voxels (the opacity of each level from the base up), since
+    /// object, the objects' own voxels (the opacity of each level above the base), since
     /// a laptop's plane column also holds the table's legs and crossbars, which do not turn
     /// with it. density, color, semantic: that plane for every category; voxels: the own
     /// voxels for every category.
@@ -178,8 +178,10 @@ pub struct MineArgs {
     #[arg(long, requires = "gt")]
     pub gt_names: bool,
     /// In layout.ron, an instance whose template-matching residual exceeds this many times
-    /// the library's median keeps its own patch (its own asset, same category) instead of
-    /// its category's template. The default 0 gives every instance its own patch: the layout
+    /// the median of the residuals measured on the same patches (the same plane, or voxels;
+    /// with fewer than three of them there is no median and the instance keeps its own
+    /// patch) keeps its own patch (its own asset, same category) instead of its category's
+    /// template. The default 0 gives every instance its own patch: the layout
     /// reproduces the scene exactly and edits of it stay faithful. 2 uses the template where
     /// it fits (a compact layout; rotated templates lose some detail on thin parts), `inf`
     /// templates only (the paper's reconfiguration).
