@@ -324,14 +324,15 @@ mod tests {
     }
 
     #[test]
-    fn own_patches_compare_residuals_measured_on_the_same_patches() {
-        // density-plane residuals near 1, voxel residuals near 0.01: each kind has its own
-        // median; the colour kind has only two residuals, too few for a median
+    fn own_patches_compare_residuals_measured_on_the_same_plane() {
+        // density-plane residuals near 1, semantic-plane residuals near 0.01 (libraries
+        // mined with different --yaw-on planes, merged): each plane has its own median; the
+        // colour plane has only two residuals, too few for a median
         let mut entries = Vec::new();
         let mut categories = Vec::new();
         let kinds: [(&str, &[f32]); 3] = [
             ("density", &[1.0, 1.2, 3.0]),
-            ("voxels", &[0.01, 0.012, 0.03]),
+            ("semantic", &[0.01, 0.012, 0.03]),
             ("color", &[0.5, 0.6]),
         ];
         for (c, (on, rs)) in kinds.into_iter().enumerate() {

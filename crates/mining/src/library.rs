@@ -77,8 +77,9 @@ pub struct Entry {
     /// Template-matching residual (0 for the template, -1 when the patches could not be
     /// matched).
     pub residual: f32,
-    /// What the residual was measured on (`"plane"` or `"voxels"`): residuals are compared
-    /// only with others measured on the same; absent in older libraries (plane).
+    /// The plane the residual was measured on (`"density"`, `"color"` or `"semantic"`):
+    /// residuals are compared only with others measured on the same; absent in older
+    /// libraries.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub matched_on: Option<String>,
     /// The entry this object stands on.

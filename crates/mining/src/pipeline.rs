@@ -321,9 +321,11 @@ fn yaw_sources<'a>(
     stacked
         .into_iter()
         .map(|on_other| {
+            // slab poses are judged on the density plane, which is what a layout places
+            let slab = PatchSource::Slab { vol, judge: (PlaneChoice::Density, &planes.density) };
             Ok(match yaw_on {
-                YawOn::Voxels => PatchSource::Slab(vol),
-                YawOn::Auto if on_other => PatchSource::Slab(vol),
+                YawOn::Voxels => slab,
+                YawOn::Auto if on_other => slab,
                 YawOn::Auto => PatchSource::Plane(PlaneChoice::Density, &planes.density),
                 other => {
                     let choice = other.plane().unwrap_or_default();

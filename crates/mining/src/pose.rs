@@ -22,7 +22,7 @@ use crate::error::{MiningError, Result};
 use crate::image::{Mask, PixelRect, PlaneImage};
 use crate::medoid::medoid;
 use crate::planes::{OpacityVolume, PlaneChoice, PlaneGrid};
-use crate::yaw::{CompareRegion, YawOptions, estimate_yaw_weighted};
+use crate::yaw::{CompareRegion, YawOptions, estimate_yaw_weighted, yaw_residual_weighted};
 
 /// A rectangle that may reach outside the plane (for padded crops), rows/cols as `i64`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -148,8 +148,10 @@ pub enum PatchSource<'a> {
     Plane(PlaneChoice, &'a PlaneImage),
     /// The opacity of each object's own height range, one channel per level from the level
     /// above its base up to its shape top: what stands on a support is compared without the
-    /// support's column beneath it (a table's crossbar under a laptop).
-    Slab(&'a OpacityVolume),
+    /// support's column beneath it (a table's crossbar under a laptop). The residual is
+    /// reported on the `judge` plane's patches at the pose found: a layout places the
+    /// template's plane patch, whole column included, so that is what must fit.
+    Slab { vol: &'a OpacityVolume, judge: (PlaneChoice, &'a PlaneImage) },
 }
 
 /// Levels `[lo, hi]` of a detection's own height range in `vol`: from the level above its
@@ -186,12 +188,13 @@ fn slab_crop(
 }
 
 impl PatchSource<'_> {
-    /// What a residual measured on these patches is in (residuals of different sources are
-    /// not comparable): the plane's name, or `"voxels"`.
+    /// The plane whose patches the reported residuals compare (residuals of different
+    /// planes are not comparable).
     pub fn kind(&self) -> &'static str {
         match self {
-            PatchSource::Plane(choice, _) => choice.name(),
-            PatchSource::Slab(_) => "voxels",
+            PatchSource::Plane(choice, _) | PatchSource::Slab { judge: (choice, _), .. } => {
+                choice.name()
+            }
         }
     }
 }
@@ -251,7 +254,7 @@ pub fn estimate_poses(
         let p = PatchRect::around(d.rect, opts.margin);
         let img = match sources[category[i]] {
             PatchSource::Plane(_, plane) => padded_crop(plane, p)?,
-            PatchSource::Slab(vol) => {
+            PatchSource::Slab { vol, .. } => {
                 let (lo, hi) = own_levels(vol, d);
                 slab_crop(vol, p, lo, hi - lo + 1, levels)?
             }
@@ -261,7 +264,7 @@ pub fn estimate_poses(
     };
     let levels = |i: usize| match sources[category[i]] {
         PatchSource::Plane(..) => 0,
-        PatchSource::Slab(vol) => {
+        PatchSource::Slab { vol, .. } => {
             let (lo, hi) = own_levels(vol, &dets.detections[i]);
             hi - lo + 1
         }
@@ -284,17 +287,30 @@ pub fn estimate_poses(
                     position: centre_world(irect),
                 });
             }
-            let (tp, tw, _) = patch(t, k)?;
+            let (tp, tw, trect) = patch(t, k)?;
             let c = centre_world(irect);
             // a pair that cannot be matched (no overlap at any pose) keeps the template's
             // orientation; its residual is marked -1
             let Ok(fit) = estimate_yaw_weighted(&tp, Some(&tw), &ip, Some(&iw), &opts.yaw) else {
                 return Ok(Pose { yaw_deg: 0.0, offset: (0.0, 0.0), residual: -1.0, position: c });
             };
+            let residual = match sources[category[i]] {
+                PatchSource::Plane(..) => fit.residual,
+                PatchSource::Slab { judge: (_, plane), .. } => yaw_residual_weighted(
+                    &padded_crop(plane, trect)?,
+                    Some(&tw),
+                    &padded_crop(plane, irect)?,
+                    Some(&iw),
+                    fit.yaw_deg,
+                    fit.offset,
+                    opts.yaw.region,
+                )
+                .unwrap_or(-1.0),
+            };
             Ok(Pose {
                 yaw_deg: fit.yaw_deg,
                 offset: fit.offset,
-                residual: fit.residual,
+                residual,
                 position: Vec2::new(
                     c.x + fit.offset.0 * grid.texel[0],
                     c.y + fit.offset.1 * grid.texel[1],

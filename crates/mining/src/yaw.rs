@@ -230,6 +230,24 @@ pub fn yaw_residual(
     if r.is_finite() { Ok(r as f32) } else { Err(MiningError::NoOverlap) }
 }
 
+/// [`yaw_residual`] with per-texel weights, as [`estimate_yaw_weighted`] weighs them: the
+/// residual it reports for its fit is this function at the fit's yaw and offset. Used to
+/// judge a pose found on one kind of patch by how well it reproduces another.
+pub fn yaw_residual_weighted(
+    template: &PlaneImage,
+    template_weights: Option<&[f32]>,
+    instance: &PlaneImage,
+    instance_weights: Option<&[f32]>,
+    yaw_deg: f32,
+    offset: (f32, f32),
+    region: CompareRegion,
+) -> Result<f32> {
+    let opts = YawOptions { align_centroids: false, region, ..YawOptions::default() };
+    let p = Problem::new(template, template_weights, instance, instance_weights, &opts)?;
+    let r = p.residual(f64::from(yaw_deg), offset);
+    if r.is_finite() { Ok(r as f32) } else { Err(MiningError::NoOverlap) }
+}
+
 fn check_options(o: &YawOptions) -> Result<()> {
     let bad = |name: &'static str, v: f32| MiningError::InvalidParameter {
         name,
@@ -634,6 +652,29 @@ mod tests {
                 .unwrap();
         assert!(angle_err(fit.yaw_deg, 120.0) < 1.5, "{fit:?}");
         assert!((fit.offset.0 - shift.0).abs() < 0.4 && (fit.offset.1 - shift.1).abs() < 0.4);
+        // the reported residual is the weighted residual at the reported pose
+        let again = yaw_residual_weighted(
+            &template,
+            Some(&tw),
+            &inst,
+            Some(&iw),
+            fit.yaw_deg,
+            fit.offset,
+            CompareRegion::Overlap,
+        )
+        .unwrap();
+        assert!((again - fit.residual).abs() <= 1e-6 * fit.residual.max(1.0), "{again} {fit:?}");
+        let turned = yaw_residual_weighted(
+            &template,
+            Some(&tw),
+            &inst,
+            Some(&iw),
+            fit.yaw_deg + 90.0,
+            fit.offset,
+            CompareRegion::Overlap,
+        )
+        .unwrap();
+        assert!(turned > 10.0 * again.max(1e-6), "{turned} vs {again}");
     }
 
     /// Deterministic numbers in [0, 1) for the generated shapes below.

@@ -177,11 +177,11 @@ pub struct MineArgs {
     /// scene applies unchanged to the mined layout (`base: "LIB/layout.ron"`).
     #[arg(long, requires = "gt")]
     pub gt_names: bool,
-    /// In layout.ron, an instance whose template-matching residual exceeds this many times
-    /// the median of the residuals measured on the same patches (the same plane, or voxels;
-    /// with fewer than three of them there is no median and the instance keeps its own
-    /// patch) keeps its own patch (its own asset, same category) instead of its category's
-    /// template. The default 0 gives every instance its own patch: the layout
+    /// In layout.ron, an instance whose template-matching residual (on the plane a layout
+    /// places: density, for poses found on voxels) exceeds this many times the median of
+    /// the residuals measured on the same plane (with fewer than three of them there is no
+    /// median and the instance keeps its own patch) keeps its own patch (its own asset, same
+    /// category) instead of its category's template. The default 0 gives every instance its own patch: the layout
     /// reproduces the scene exactly and edits of it stay faithful. 2 uses the template where
     /// it fits (a compact layout; rotated templates lose some detail on thin parts), `inf`
     /// templates only (the paper's reconfiguration).
