@@ -91,7 +91,8 @@ fn mine_a_small_scene_into_a_library_and_layout() {
     assert!(out.contains("10 entries"), "{out}");
     assert!(open_library(&dir.join("both")).unwrap().index.entry("lib2/obj000").is_some());
 
-    // grouping on the objects' own voxel colours instead of the colour plane
+    // grouping on the objects' own voxel colours instead of the colour plane, and yaws
+    // matched on the objects' own voxel slabs for every category
     let out = ok(
         &dir,
         &[
@@ -100,6 +101,8 @@ fn mine_a_small_scene_into_a_library_and_layout() {
             "--out",
             "lib3",
             "--group-on",
+            "voxels",
+            "--yaw-on",
             "voxels",
             "--gt",
             "d/gt_layout.json",
@@ -112,6 +115,11 @@ fn mine_a_small_scene_into_a_library_and_layout() {
     assert!(m["ari"].as_f64().unwrap() >= 0.6, "ARI on voxels: {m}");
     let report = std::fs::read_to_string(dir.join("lib3/mining.json")).unwrap();
     assert!(report.contains("\"group_on\": \"Voxels\""), "{report}");
+    assert!(report.contains("\"yaw_on\": \"Voxels\""), "{report}");
+    assert!(m["yaw_median_deg"].as_f64().unwrap() <= 8.0, "yaw on voxels: {m}");
+    // slab poses are judged on the density plane, which is what the layout places
+    let index = std::fs::read_to_string(dir.join("lib3/index.ron")).unwrap();
+    assert!(index.contains("matched_on: \"density\""), "{index}");
 
     // refusals: an existing output, bad flags, a template outside its category
     fail(&dir, &["mine", "f.safetensors", "--out", "lib"], &["already exists", "--force"]);
