@@ -1369,58 +1369,82 @@ fn unpack(
     }
     // the top surface: the highest window of levels covering at least 60% of the densest one
     // (ghost layers under a table top can be denser than the top itself), at its densest level
+    // (candidates: the top window of every run of such windows, highest first)
     let amaxw = areaw.iter().copied().max().unwrap_or(0);
-    let kw = (start..vol.nz).rev().find(|&k| areaw[k] * 10 >= amaxw * 6).unwrap_or(start);
-    let kstar = (kw..(kw + thin).min(vol.nz))
-        .max_by_key(|&k| (area[k], std::cmp::Reverse(k)))
-        .unwrap_or(kw);
-    let mut hi = kstar;
-    // the surface with the blur above it: levels covering a quarter of it and not growing
-    // (an object standing on it does not fade upwards); and its body below: levels covering
-    // half of it
-    // (blur fades within a few levels: a box standing on a pallet's deck covers a steady
-    // half of it all the way up and is no blur)
-    while hi + 1 < vol.nz
-        && hi + 1 < kstar + thin
-        && area[hi + 1] * 4 >= area[kstar]
-        && area[hi + 1] * 10 <= area[hi] * 11
-    {
-        hi += 1;
+    let dense = |k: usize| areaw[k] * 10 >= amaxw * 6;
+    let mut tops: Vec<usize> =
+        (start..vol.nz).rev().filter(|&k| dense(k) && (k + 1 == vol.nz || !dense(k + 1))).collect();
+    if tops.is_empty() {
+        tops.push(start);
     }
-    let mut lo = kstar;
-    while lo > start && area[lo - 1] * 2 >= area[kstar] {
-        lo -= 1;
-    }
-    // a support is a thin slab (a table top, a shelf, a pallet's deck) or the top of a solid
-    // body (a desk over its drawer pedestal, a side table): then only its top levels count as
-    // the surface, and the checks below are stricter (flat interior, substantial seeds)
-    // (a body with a gap of a faint level or two is solid too: most levels below the slab
-    // cover half of it, where a table's legs and ghost layers cover less)
-    let below = lo.saturating_sub(start);
-    let dense_below = (start..lo).filter(|&k| area[k] * 2 >= area[kstar]).count();
-    let solid = hi - lo + 1 > thin || (below >= thin && dense_below * 3 >= below * 2);
-    if solid {
-        lo = hi + 1 - thin;
-    }
+    let low_level = |k: usize| (k.saturating_sub(start)) as f32 * vol.dz < 0.25;
     let raise = ((0.04 / vol.dz.max(1e-6)).ceil() as usize).max(2);
-    let above = hi + raise;
-    // surface texels and raised texels
     let (h, w) = (rect.rows(), rect.cols());
-    let mut surface = Mask { rows: h, cols: w, data: vec![false; h * w] };
-    let mut raised = surface.clone();
-    for r in 0..h {
-        for c in 0..w {
-            if !f.get(r, c) {
-                continue;
-            }
-            let col = vol.column(rect.r0 + r, rect.c0 + c);
-            surface.data[r * w + c] = (lo..=hi).any(|k| col[k] >= ts);
-            raised.data[r * w + c] = (above..vol.nz).any(|k| col[k] >= tau);
+    let mut found = None;
+    for (i, &kw) in tops.iter().enumerate() {
+        let kstar = (kw..(kw + thin).min(vol.nz))
+            .max_by_key(|&k| (area[k], std::cmp::Reverse(k)))
+            .unwrap_or(kw);
+        let mut hi = kstar;
+        // the surface with the blur above it: levels covering a quarter of it and not growing
+        // (an object standing on it does not fade upwards); and its body below: levels
+        // covering half of it
+        // (blur fades within a few levels: a box standing on a pallet's deck covers a steady
+        // half of it all the way up and is no blur)
+        while hi + 1 < vol.nz
+            && hi + 1 < kstar + thin
+            && area[hi + 1] * 4 >= area[kstar]
+            && area[hi + 1] * 10 <= area[hi] * 11
+        {
+            hi += 1;
         }
+        let mut lo = kstar;
+        while lo > start && area[lo - 1] * 2 >= area[kstar] {
+            lo -= 1;
+        }
+        // a support is a thin slab (a table top, a shelf, a pallet's deck) or the top of a
+        // solid body (a desk over its drawer pedestal, a side table): then only its top levels
+        // count as the surface, and the checks below are stricter (flat interior, substantial
+        // seeds) (a body with a gap of a faint level or two is solid too: most levels below
+        // the slab cover half of it, where a table's legs and ghost layers cover less)
+        let below = lo.saturating_sub(start);
+        let dense_below = (start..lo).filter(|&k| area[k] * 2 >= area[kstar]).count();
+        let solid = hi - lo + 1 > thin || (below >= thin && dense_below * 3 >= below * 2);
+        if solid {
+            lo = hi + 1 - thin;
+        }
+        let above = hi + raise;
+        // surface texels and raised texels
+        let mut surface = Mask { rows: h, cols: w, data: vec![false; h * w] };
+        let mut raised = surface.clone();
+        for r in 0..h {
+            for c in 0..w {
+                if !f.get(r, c) {
+                    continue;
+                }
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                surface.data[r * w + c] = (lo..=hi).any(|k| col[k] >= ts);
+                raised.data[r * w + c] = (above..vol.nz).any(|k| col[k] >= tau);
+            }
+        }
+        // nothing stands on the highest surface, but a low deck lies below it: the lid of a
+        // hollow box (a crate whose walls cover a fifth of the footprint) on a pallet
+        if raised.count() == 0 && tops.get(i + 1).is_some_and(|&k| low_level(k)) {
+            if debug() {
+                eprintln!("   nothing on the surface at level {kw}: trying the low one below");
+            }
+            continue;
+        }
+        found = Some((kstar, hi, lo, solid, surface, raised));
+        break;
     }
+    let Some((kstar, hi, lo, solid, surface, raised)) = found else {
+        return (Vec::new(), None);
+    };
     if raised.count() == 0 {
         return (Vec::new(), Some(hi));
     }
+    let above = hi + raise;
     // ... and flat: away from what rises above it, most columns end at the slab (a dome, the
     // top of a sphere, has no flat rim)
     let near_raised = crate::morphology::dilate(&raised, 3).unwrap_or_else(|_| raised.clone());
@@ -2517,6 +2541,47 @@ mod tests {
         let mut v2 = floor_volume(rows, cols, 24);
         fill(&mut v2, (10, 30), (10, 34), (2, 12), 0.95);
         fill(&mut v2, (12, 28), (14, 30), (12, 20), 0.95);
+        let d2 = detect_small(&v2, &color);
+        assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
+    }
+
+    #[test]
+    fn a_hollow_crate_on_a_slatted_pallet_unpacks() {
+        // the pallet of the test above with gaps between the deck's slats under the crate,
+        // and a crate whose walls are one texel thick under a lid: the lid (256 texels) covers
+        // more than 60% of the slatted deck, so it is the highest dense surface, with nothing
+        // on it; the deck below it is the support
+        let (rows, cols) = (50, 50);
+        let mut v = floor_volume(rows, cols, 24);
+        for r0 in [10, 19, 28] {
+            fill(&mut v, (r0, r0 + 2), (10, 34), (2, 3), 0.95);
+        }
+        fill(&mut v, (10, 30), (10, 34), (3, 4), 0.95);
+        for gap in [13, 17, 21] {
+            fill(&mut v, (gap, gap + 2), (14, 30), (3, 4), 0.0);
+        }
+        let hollow_box = |v: &mut OpacityVolume, k0: usize| {
+            fill(v, (12, 28), (14, 15), (k0, 19), 0.95);
+            fill(v, (12, 28), (29, 30), (k0, 19), 0.95);
+            fill(v, (12, 13), (14, 30), (k0, 19), 0.95);
+            fill(v, (27, 28), (14, 30), (k0, 19), 0.95);
+            fill(v, (12, 28), (14, 30), (19, 20), 0.95);
+        };
+        hollow_box(&mut v, 4);
+        let color = painted(rows, cols, (12..28, 14..30), [0.8, 0.6, 0.3], [0.5, 0.4, 0.3]);
+        let d = detect_small(&v, &color);
+        let child = only_child(&d);
+        let (r, want) = (child.rect, PixelRect::new(12, 14, 28, 30));
+        assert!(
+            r.r0.abs_diff(want.r0) <= 1
+                && r.c0.abs_diff(want.c0) <= 1
+                && r.r1.abs_diff(want.r1) <= 1
+                && r.c1.abs_diff(want.c1) <= 1,
+            "{r:?}"
+        );
+        // the same hollow box standing on the floor, nothing on its lid: one object
+        let mut v2 = floor_volume(rows, cols, 24);
+        hollow_box(&mut v2, 2);
         let d2 = detect_small(&v2, &color);
         assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
     }
