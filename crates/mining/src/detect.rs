@@ -2210,10 +2210,24 @@ mod tests {
 
     /// An empty volume with a floor slab at levels 0..=1.
     fn floor_volume(rows: usize, cols: usize, nz: usize) -> OpacityVolume {
-        let mut v =
-            OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data: vec![0.0; rows * cols * nz] };
+        let mut v = OpacityVolume::empty(rows, cols, nz, 0.05);
         fill(&mut v, (0, rows), (0, cols), (0, 2), 0.95);
         v
+    }
+
+    /// Whether two boxes agree within one texel on every side.
+    fn within_a_texel(r: PixelRect, want: PixelRect) -> bool {
+        r.r0.abs_diff(want.r0) <= 1
+            && r.c0.abs_diff(want.c0) <= 1
+            && r.r1.abs_diff(want.r1) <= 1
+            && r.c1.abs_diff(want.c1) <= 1
+    }
+
+    /// A pallet's three runners (level 2) under rows 10..30, columns 10..34.
+    fn pallet_runners(v: &mut OpacityVolume) {
+        for r0 in [10, 19, 28] {
+            fill(v, (r0, r0 + 2), (10, 34), (2, 3), 0.95);
+        }
     }
 
     fn fill(
@@ -2223,13 +2237,7 @@ mod tests {
         k: (usize, usize),
         o: f32,
     ) {
-        for rr in r.0..r.1 {
-            for cc in c.0..c.1 {
-                for kk in k.0..k.1 {
-                    v.data[(rr * v.cols + cc) * v.nz + kk] = o;
-                }
-            }
-        }
+        v.fill_box(r.0..r.1, c.0..c.1, k.0..k.1, o);
     }
 
     /// A colour plane of `rows x cols`: `inside` over the texel rectangle `rect` (rows,
@@ -2519,9 +2527,7 @@ mod tests {
         // 0.8 x 0.8 m on it (levels 4..=19) covers 53% of it, with a 0.1 m margin
         let (rows, cols) = (50, 50);
         let mut v = floor_volume(rows, cols, 24);
-        for r0 in [10, 19, 28] {
-            fill(&mut v, (r0, r0 + 2), (10, 34), (2, 3), 0.95);
-        }
+        pallet_runners(&mut v);
         fill(&mut v, (10, 30), (10, 34), (3, 4), 0.95);
         fill(&mut v, (12, 28), (14, 30), (4, 20), 0.95);
         // the crate in one colour, the rest in another
@@ -2530,13 +2536,7 @@ mod tests {
         let child = only_child(&d);
         // the crate, give or take the one-texel margin its colour cluster may take along
         let (r, want) = (child.rect, PixelRect::new(12, 14, 28, 30));
-        assert!(
-            r.r0.abs_diff(want.r0) <= 1
-                && r.c0.abs_diff(want.c0) <= 1
-                && r.r1.abs_diff(want.r1) <= 1
-                && r.c1.abs_diff(want.c1) <= 1,
-            "{r:?}"
-        );
+        assert!(within_a_texel(r, want), "{r:?}");
         // the same box standing on a tall solid body (a car's cabin on its body) stays one
         let mut v2 = floor_volume(rows, cols, 24);
         fill(&mut v2, (10, 30), (10, 34), (2, 12), 0.95);
@@ -2553,9 +2553,7 @@ mod tests {
         // on it; the deck below it is the support
         let (rows, cols) = (50, 50);
         let mut v = floor_volume(rows, cols, 24);
-        for r0 in [10, 19, 28] {
-            fill(&mut v, (r0, r0 + 2), (10, 34), (2, 3), 0.95);
-        }
+        pallet_runners(&mut v);
         fill(&mut v, (10, 30), (10, 34), (3, 4), 0.95);
         for gap in [13, 17, 21] {
             fill(&mut v, (gap, gap + 2), (14, 30), (3, 4), 0.0);
@@ -2572,13 +2570,7 @@ mod tests {
         let d = detect_small(&v, &color);
         let child = only_child(&d);
         let (r, want) = (child.rect, PixelRect::new(12, 14, 28, 30));
-        assert!(
-            r.r0.abs_diff(want.r0) <= 1
-                && r.c0.abs_diff(want.c0) <= 1
-                && r.r1.abs_diff(want.r1) <= 1
-                && r.c1.abs_diff(want.c1) <= 1,
-            "{r:?}"
-        );
+        assert!(within_a_texel(r, want), "{r:?}");
         // the same hollow box standing on the floor, nothing on its lid: one object
         let mut v2 = floor_volume(rows, cols, 24);
         hollow_box(&mut v2, 2);

@@ -630,21 +630,10 @@ mod tests {
         use crate::planes::PlaneGrid;
         // a floor slab (levels 0..=1), a box on it (levels 2..=7) and a speck of haze above it
         let (rows, cols, nz) = (30, 30, 20);
-        let mut vol =
-            OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data: vec![0.0; rows * cols * nz] };
-        let mut fill =
-            |r: std::ops::Range<usize>, c: std::ops::Range<usize>, k: std::ops::Range<usize>| {
-                for rr in r {
-                    for cc in c.clone() {
-                        for kk in k.clone() {
-                            vol.data[(rr * cols + cc) * nz + kk] = 0.95;
-                        }
-                    }
-                }
-            };
-        fill(0..30, 0..30, 0..2);
-        fill(10..17, 10..17, 2..8);
-        fill(13..14, 13..14, 14..15);
+        let mut vol = OpacityVolume::empty(rows, cols, nz, 0.05);
+        vol.fill_box(0..30, 0..30, 0..2, 0.95);
+        vol.fill_box(10..17, 10..17, 2..8, 0.95);
+        vol.fill_box(13..14, 13..14, 14..15, 0.95);
         let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
         let color = PlaneImage::from_fn(rows, cols, 3, |_, _, k| k as f32).unwrap();
         let opts = DetectOptions { min_area: 0.01, ..Default::default() };

@@ -376,6 +376,31 @@ impl OpacityVolume {
     }
 }
 
+/// Test volumes: empty, then boxes of one opacity.
+#[cfg(test)]
+impl OpacityVolume {
+    pub(crate) fn empty(rows: usize, cols: usize, nz: usize, dz: f32) -> Self {
+        OpacityVolume { rows, cols, nz, z0: 0.0, dz, data: vec![0.0; rows * cols * nz] }
+    }
+
+    /// Set rows `r`, columns `c`, levels `k` to opacity `o`.
+    pub(crate) fn fill_box(
+        &mut self,
+        r: std::ops::Range<usize>,
+        c: std::ops::Range<usize>,
+        k: std::ops::Range<usize>,
+        o: f32,
+    ) {
+        for rr in r {
+            for cc in c.clone() {
+                for kk in k.clone() {
+                    self.data[(rr * self.cols + cc) * self.nz + kk] = o;
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

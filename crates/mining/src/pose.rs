@@ -349,24 +349,13 @@ mod tests {
         // the same side, so column features (here: column sums, as the density plane
         // describes a column) hold the laptop's orientation and the crossbar's.
         let (rows, cols, nz) = (40, 24, 20);
-        let mut vol =
-            OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data: vec![0.0; rows * cols * nz] };
-        let mut fill =
-            |r: std::ops::Range<usize>, c: std::ops::Range<usize>, k: std::ops::Range<usize>| {
-                for rr in r {
-                    for cc in c.clone() {
-                        for kk in k.clone() {
-                            vol.data[(rr * cols + cc) * nz + kk] = 0.95;
-                        }
-                    }
-                }
-            };
-        fill(2..38, 2..22, 8..10);
-        fill(2..38, 7..10, 2..8);
-        fill(8..15, 6..17, 10..12);
-        fill(8..9, 6..17, 10..17); // screen at the laptop's low-row edge
-        fill(25..32, 6..17, 10..12);
-        fill(31..32, 6..17, 10..17); // turned: screen at the high-row edge
+        let mut vol = OpacityVolume::empty(rows, cols, nz, 0.05);
+        vol.fill_box(2..38, 2..22, 8..10, 0.95);
+        vol.fill_box(2..38, 7..10, 2..8, 0.95);
+        vol.fill_box(8..15, 6..17, 10..12, 0.95);
+        vol.fill_box(8..9, 6..17, 10..17, 0.95); // screen at the laptop's low-row edge
+        vol.fill_box(25..32, 6..17, 10..12, 0.95);
+        vol.fill_box(31..32, 6..17, 10..17, 0.95); // turned: screen at the high-row edge
         let template = PatchRect { r0: 5, c0: 3, rows: 13, cols: 17 };
         let instance = PatchRect { r0: 22, c0: 3, rows: 13, cols: 17 };
         let columns = |p: PatchRect| {

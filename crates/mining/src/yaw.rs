@@ -224,10 +224,7 @@ pub fn yaw_residual(
     offset: (f32, f32),
     region: CompareRegion,
 ) -> Result<f32> {
-    let opts = YawOptions { align_centroids: false, region, ..YawOptions::default() };
-    let p = Problem::new(template, None, instance, None, &opts)?;
-    let r = p.residual(f64::from(yaw_deg), offset);
-    if r.is_finite() { Ok(r as f32) } else { Err(MiningError::NoOverlap) }
+    yaw_residual_weighted(template, None, instance, None, yaw_deg, offset, region)
 }
 
 /// [`yaw_residual`] with per-texel weights, as [`estimate_yaw_weighted`] weighs them: the
