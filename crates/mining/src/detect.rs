@@ -2223,11 +2223,27 @@ mod tests {
             && r.c1.abs_diff(want.c1) <= 1
     }
 
-    /// A pallet's three runners (level 2) under rows 10..30, columns 10..34.
-    fn pallet_runners(v: &mut OpacityVolume) {
+    /// A pallet over rows 10..30, columns 10..34: three runners (level 2) under a deck
+    /// (level 3), 1.0 x 1.2 m.
+    fn pallet(v: &mut OpacityVolume) {
         for r0 in [10, 19, 28] {
             fill(v, (r0, r0 + 2), (10, 34), (2, 3), 0.95);
         }
+        fill(v, (10, 30), (10, 34), (3, 4), 0.95);
+    }
+
+    /// The crate of the pallet tests (rows 12..28, columns 14..30) in one colour, the rest
+    /// in another.
+    fn crate_colour() -> PlaneImage {
+        painted(50, 50, (12..28, 14..30), [0.8, 0.6, 0.3], [0.5, 0.4, 0.3])
+    }
+
+    /// The crate is found standing on the pallet, give or take the one-texel margin its
+    /// colour cluster may take along.
+    fn assert_the_crate_unpacks(v: &OpacityVolume) {
+        let d = detect_small(v, &crate_colour());
+        let r = only_child(&d).rect;
+        assert!(within_a_texel(r, PixelRect::new(12, 14, 28, 30)), "{r:?}");
     }
 
     fn fill(
@@ -2525,23 +2541,15 @@ mod tests {
     fn a_crate_covering_most_of_a_low_pallet_unpacks() {
         // a pallet: runners (levels 2..=3) under a deck (level 3), 1.0 x 1.2 m; a crate of
         // 0.8 x 0.8 m on it (levels 4..=19) covers 53% of it, with a 0.1 m margin
-        let (rows, cols) = (50, 50);
-        let mut v = floor_volume(rows, cols, 24);
-        pallet_runners(&mut v);
-        fill(&mut v, (10, 30), (10, 34), (3, 4), 0.95);
+        let mut v = floor_volume(50, 50, 24);
+        pallet(&mut v);
         fill(&mut v, (12, 28), (14, 30), (4, 20), 0.95);
-        // the crate in one colour, the rest in another
-        let color = painted(rows, cols, (12..28, 14..30), [0.8, 0.6, 0.3], [0.5, 0.4, 0.3]);
-        let d = detect_small(&v, &color);
-        let child = only_child(&d);
-        // the crate, give or take the one-texel margin its colour cluster may take along
-        let (r, want) = (child.rect, PixelRect::new(12, 14, 28, 30));
-        assert!(within_a_texel(r, want), "{r:?}");
+        assert_the_crate_unpacks(&v);
         // the same box standing on a tall solid body (a car's cabin on its body) stays one
-        let mut v2 = floor_volume(rows, cols, 24);
+        let mut v2 = floor_volume(50, 50, 24);
         fill(&mut v2, (10, 30), (10, 34), (2, 12), 0.95);
         fill(&mut v2, (12, 28), (14, 30), (12, 20), 0.95);
-        let d2 = detect_small(&v2, &color);
+        let d2 = detect_small(&v2, &crate_colour());
         assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
     }
 
@@ -2551,10 +2559,8 @@ mod tests {
         // and a crate whose walls are one texel thick under a lid: the lid (256 texels) covers
         // more than 60% of the slatted deck, so it is the highest dense surface, with nothing
         // on it; the deck below it is the support
-        let (rows, cols) = (50, 50);
-        let mut v = floor_volume(rows, cols, 24);
-        pallet_runners(&mut v);
-        fill(&mut v, (10, 30), (10, 34), (3, 4), 0.95);
+        let mut v = floor_volume(50, 50, 24);
+        pallet(&mut v);
         for gap in [13, 17, 21] {
             fill(&mut v, (gap, gap + 2), (14, 30), (3, 4), 0.0);
         }
@@ -2566,15 +2572,11 @@ mod tests {
             fill(v, (12, 28), (14, 30), (19, 20), 0.95);
         };
         hollow_box(&mut v, 4);
-        let color = painted(rows, cols, (12..28, 14..30), [0.8, 0.6, 0.3], [0.5, 0.4, 0.3]);
-        let d = detect_small(&v, &color);
-        let child = only_child(&d);
-        let (r, want) = (child.rect, PixelRect::new(12, 14, 28, 30));
-        assert!(within_a_texel(r, want), "{r:?}");
+        assert_the_crate_unpacks(&v);
         // the same hollow box standing on the floor, nothing on its lid: one object
-        let mut v2 = floor_volume(rows, cols, 24);
+        let mut v2 = floor_volume(50, 50, 24);
         hollow_box(&mut v2, 2);
-        let d2 = detect_small(&v2, &color);
+        let d2 = detect_small(&v2, &crate_colour());
         assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
     }
 

@@ -94,12 +94,14 @@ pub fn layout_script(
     // (0: every instance; infinity: none). Fewer than `MIN_RESIDUALS` residuals of a kind
     // give no median to judge by (with two, the "median" is the larger one): those
     // instances keep their own patches unless templates are asked for everywhere.
-    let on = |e: &Entry| e.matched_on.clone().unwrap_or_else(|| "unrecorded".to_string());
-    let mut residuals: BTreeMap<String, Vec<f32>> = BTreeMap::new();
+    fn on(e: &Entry) -> &str {
+        e.matched_on.as_deref().unwrap_or("unrecorded")
+    }
+    let mut residuals: BTreeMap<&str, Vec<f32>> = BTreeMap::new();
     for e in index.entries.iter().filter(|e| e.kind == EntryKind::Instance && e.residual >= 0.0) {
         residuals.entry(on(e)).or_default().push(e.residual);
     }
-    let cuts: BTreeMap<String, f32> = residuals
+    let cuts: BTreeMap<&str, f32> = residuals
         .into_iter()
         .map(|(kind, mut r)| {
             r.sort_by(f32::total_cmp);
@@ -113,7 +115,7 @@ pub fn layout_script(
             (kind, cut)
         })
         .collect();
-    let cut = |e: &Entry| cuts.get(&on(e)).copied().unwrap_or(f32::INFINITY);
+    let cut = |e: &Entry| cuts.get(on(e)).copied().unwrap_or(f32::INFINITY);
     let mut placed: BTreeMap<&str, (String, GroundTransform)> = BTreeMap::new();
     for e in &index.entries {
         let own = e.kind == EntryKind::Instance && (e.residual < 0.0 || e.residual > cut(e));

@@ -179,12 +179,13 @@ pub struct MineArgs {
     pub gt_names: bool,
     /// In layout.ron, an instance whose template-matching residual (on the plane a layout
     /// places: density, for poses found on voxels) exceeds this many times the median of
-    /// the residuals measured on the same plane (with fewer than three of them there is no
-    /// median and the instance keeps its own patch) keeps its own patch (its own asset, same
-    /// category) instead of its category's template. The default 0 gives every instance its own patch: the layout
-    /// reproduces the scene exactly and edits of it stay faithful. 2 uses the template where
-    /// it fits (a compact layout; rotated templates lose some detail on thin parts), `inf`
-    /// templates only (the paper's reconfiguration).
+    /// the residuals measured on the same plane keeps its own patch (its own asset, same
+    /// category) instead of its category's template; with fewer than three residuals on a
+    /// plane there is no median, and those instances keep their own patches. The default 0
+    /// gives every instance its own patch: the layout reproduces the scene exactly and edits
+    /// of it stay faithful. 2 uses the template where it fits (a compact layout; rotated
+    /// templates lose some detail on thin parts), `inf` templates only (the paper's
+    /// reconfiguration).
     #[arg(long, default_value_t = assetfield_mining::layout_out::OWN_PATCH_RESIDUAL, value_name = "R")]
     pub own_patch_residual: f32,
     /// Seed of the K-means runs.
