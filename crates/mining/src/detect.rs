@@ -203,7 +203,8 @@ pub struct Detection {
     pub world: Rect2,
     /// World footprint area.
     pub area: f32,
-    /// World height of the object's base (the floor, or the surface it stands on).
+    /// World height of the object's base: the top of the floor or of the surface it stands
+    /// on; with neither found, the height of the level below its lowest level.
     pub base: f32,
     /// World height of its top.
     pub top: f32,
@@ -2039,10 +2040,13 @@ pub fn detect(
                 vol.height(robust_top_level(vol, p.rect, &p.footprint, p.kmin, p.kmax, tau)),
             ),
         };
+        // with no floor found, the ground (or a floating object) stands on the level below
         let base = if p.kmin <= ground + ground_tol {
-            floor.map_or(vol.height(ground), |f| vol.height(f.hi).max(vol.height(ground) - vol.dz))
+            floor.map_or(vol.height_below(ground), |f| {
+                vol.height(f.hi).max(vol.height_below(ground))
+            })
         } else {
-            vol.height(p.kmin)
+            vol.height_below(p.kmin)
         };
         detections.push(Detection {
             id,
@@ -2169,6 +2173,12 @@ mod tests {
         assert_eq!(table.rect, PixelRect::new(20, 10, 34, 40));
         assert!((on_table.base - 0.45).abs() < 1e-4, "{}", on_table.base);
         assert!((table.top - 0.45).abs() < 1e-4);
+        // a box on the floor has its own levels from the ground level (one level of margin
+        // above the floor's top, against haze on the floor) up
+        assert_eq!(d.ground_level, 3);
+        let boxd = d.detections.iter().find(|x| x.rect == PixelRect::new(5, 5, 12, 12)).unwrap();
+        assert!((boxd.base - vol.height(2)).abs() < 1e-6, "{}", boxd.base);
+        assert_eq!(vol.levels_between(boxd.base, boxd.shape_top), (3, 7));
         assert!(table.own.count() < table.footprint.count());
     }
 
@@ -2204,6 +2214,13 @@ mod tests {
         let boxd = d.detections.iter().find(|x| x.rect.c0 == 20).unwrap();
         assert!(!table.own.get(15 - 5, 22 - 5) && table.own.get(15 - 5, 10 - 5));
         assert!(boxd.own.get(15 - 10, 22 - 20));
+        // with no floor, both stand on the level below the ground, so their own levels
+        // start at their lowest one
+        assert!(d.floor.is_none());
+        for x in [table, boxd] {
+            assert!((x.base - vol.height_below(0)).abs() < 1e-6, "{}", x.base);
+        }
+        assert_eq!(vol.levels_between(boxd.base, boxd.shape_top), (0, 7));
         let unsplit = DetectOptions { split_3d: false, ..opts };
         assert_eq!(detect(&grid, &vol, &color, None, &unsplit).unwrap().detections.len(), 1);
     }

@@ -326,11 +326,9 @@ pub fn voxel_sites(vol: &OpacityVolume, dets: &Detections) -> Result<Vec<VoxelSi
         return Err(MiningError::ZeroDimension { what: "volume levels" });
     }
     let tau = dets.voxel_threshold;
-    let level = |z: f32| (((z - vol.z0) / vol.dz).round().max(0.0) as usize).min(vol.nz - 1);
     let mut sites = Vec::new();
     for d in &dets.detections {
-        let lo = (level(d.base) + 1).min(vol.nz - 1);
-        let hi = level(d.shape_top.max(d.base)).max(lo);
+        let (lo, hi) = vol.levels_between(d.base, d.shape_top);
         let start = sites.len();
         for (r, c) in own_texels(d) {
             for (k, &o) in vol.column(r, c).iter().enumerate().take(hi + 1).skip(lo) {

@@ -336,6 +336,26 @@ impl OpacityVolume {
         self.z0 + k as f32 * self.dz
     }
 
+    /// World height of the level just below `k`: the surface an object whose lowest level
+    /// is `k` stands on when nothing was found under it (below the volume for `k = 0`).
+    pub fn height_below(&self, k: usize) -> f32 {
+        self.z0 + (k as f32 - 1.0) * self.dz
+    }
+
+    /// The levels `lo..=hi` of an object standing on `base` and reaching up to `top`: from
+    /// the first level above `base` (level 0 when `base` is below the volume) to the level
+    /// of `top`, at least one level, clamped to the volume.
+    pub fn levels_between(&self, base: f32, top: f32) -> (usize, usize) {
+        let last = self.nz.saturating_sub(1) as i64;
+        let level = |z: f32| {
+            let k = ((z - self.z0) / self.dz).round();
+            if k.is_finite() { (k as i64).clamp(-1, last) } else { -1 }
+        };
+        let lo = (level(base) + 1).clamp(0, last);
+        let hi = level(top.max(base)).max(lo);
+        (lo as usize, hi as usize)
+    }
+
     /// Per texel, the opacity of the column over levels `from..` seen from above:
     /// `1 - prod(1 - o_k)`.
     pub fn accumulated_above(&self, from: usize) -> Vec<f32> {

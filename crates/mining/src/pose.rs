@@ -155,18 +155,10 @@ pub enum PatchSource<'a> {
 }
 
 /// Levels `[lo, hi]` of a detection's own height range in `vol`: from the level above its
-/// base (the top of its floor or support) to its shape top. For an object that stands on
-/// nothing the detector found (no floor, its base is its own lowest level), `lo` skips that
-/// lowest level, as [`crate::group::voxel_sites`] does.
+/// base (the top of its floor or support, or the level below its lowest one when it stands
+/// on nothing the detector found) to its shape top, as [`crate::group::voxel_sites`] takes.
 fn own_levels(vol: &OpacityVolume, d: &Detection) -> (usize, usize) {
-    level_range(vol, d.base, d.shape_top)
-}
-
-fn level_range(vol: &OpacityVolume, base: f32, shape_top: f32) -> (usize, usize) {
-    let top = vol.nz.saturating_sub(1);
-    let level = |z: f32| (((z - vol.z0) / vol.dz).round().max(0.0) as usize).min(top);
-    let lo = (level(base) + 1).min(top);
-    (lo, level(shape_top.max(base)).max(lo))
+    vol.levels_between(d.base, d.shape_top)
 }
 
 /// A slab patch over `p` with `channels` channels: channel `j` is the opacity at level
@@ -371,18 +363,22 @@ mod tests {
             d.min(360.0 - d)
         };
         assert!(off_by(fit.yaw_deg, 0.0) < 2.0, "columns: {fit:?}");
-        // the slabs from the level above the base: only the laptops
         // the slabs from the level above the base (9, the table top) to the screen's top
-        let (lo, hi) = level_range(&vol, 0.45, 0.8);
+        let (lo, hi) = vol.levels_between(0.45, 0.8);
         assert_eq!((lo, hi), (10, 16));
         let slab = |p| slab_crop(&vol, p, lo, hi - lo + 1, 9).unwrap();
         let fit = estimate_yaw(&slab(template), &slab(instance), &opts).unwrap();
         assert!(off_by(fit.yaw_deg, 180.0) < 2.0, "slabs: {fit:?}");
         assert!(fit.residual < 1e-3, "slabs: {fit:?}");
         // level ranges stay inside the volume and never end below their start
-        assert_eq!(level_range(&vol, 0.45, 0.3), (10, 10));
-        assert_eq!(level_range(&vol, 0.45, 5.0), (10, 19));
-        assert_eq!(level_range(&vol, 2.0, 5.0), (19, 19));
+        assert_eq!(vol.levels_between(0.45, 0.3), (10, 10));
+        assert_eq!(vol.levels_between(0.45, 5.0), (10, 19));
+        assert_eq!(vol.levels_between(2.0, 5.0), (19, 19));
+        // an object standing on nothing found has its base one level below its lowest
+        // level, so a lowest level at the bottom of the volume is kept
+        assert_eq!(vol.levels_between(vol.height_below(0), 0.3), (0, 6));
+        assert_eq!(vol.levels_between(vol.height_below(4), 0.3), (4, 6));
+        assert_eq!(vol.levels_between(f32::NAN, 0.3), (0, 6));
         // channels past the object's own levels are zero, and so are levels above the
         // volume; outside the plane the edge texels repeat
         vol.data[18] = 0.5; // row 0, column 0, level 18
