@@ -1928,6 +1928,20 @@ pub fn detect(
                 });
                 continue;
             }
+            // floating specks: a small blob hanging low in mid-air, reaching neither the
+            // ground nor anything found under it, is a floater the field left (what stands on
+            // a table is inside the table's region and found in the second round; a lamp
+            // head whose pole the field lost hangs high)
+            let lift = vol.height(p.kmin) - vol.height(ground);
+            if p.kmin > ground + ground_tol && height < 1.0 && count < 4 * min_texels {
+                removed.push(Removed {
+                    world,
+                    reason: format!(
+                        "haze: small and floating ({lift:.2} above the ground, top at {height:.2})"
+                    ),
+                });
+                continue;
+            }
             parts.push(p);
         }
     }
@@ -2668,6 +2682,36 @@ mod tests {
             d.removed
         );
         assert!(d.removed.iter().any(|r| r.reason.contains("ragged")), "{:?}", d.removed);
+    }
+
+    #[test]
+    fn small_floaters_low_in_the_air_go_but_high_heads_and_standing_objects_stay() {
+        let (rows, cols) = (60, 80);
+        let mut v = floor_volume(rows, cols, 80);
+        // a dense speck of 3 x 3 texels hanging at levels 8..11, nothing under it
+        fill(&mut v, (10, 13), (10, 13), (8, 12), 0.97);
+        // the same speck standing on the ground (a small post) stays
+        fill(&mut v, (10, 13), (30, 33), (2, 12), 0.97);
+        // a lamp head of the same size high up (its pole lost) stays: it is no floater
+        fill(&mut v, (30, 33), (60, 63), (60, 64), 0.97);
+        // a large slab floating low stays (the rule is for specks)
+        fill(&mut v, (40, 50), (10, 20), (8, 12), 0.97);
+        // and a tall box, so that K-means has a background and objects
+        fill(&mut v, (40, 50), (40, 50), (2, 40), 0.97);
+        let color = PlaneImage::zeros(rows, cols, 3).unwrap();
+        let d = detect_small(&v, &color);
+        assert_eq!(
+            rects(&d),
+            vec![
+                PixelRect::new(40, 10, 50, 20),
+                PixelRect::new(10, 30, 13, 33),
+                PixelRect::new(40, 40, 50, 50),
+                PixelRect::new(30, 60, 33, 63),
+            ],
+            "{:?}",
+            d.removed
+        );
+        assert!(d.removed.iter().any(|r| r.reason.contains("floating")), "{:?}", d.removed);
     }
 
     fn part(
