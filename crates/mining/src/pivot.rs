@@ -62,8 +62,7 @@ pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> V
         return centre;
     }
     // first level above the supporting surface
-    let k_base = ((d.base - vol.z0) / vol.dz).round();
-    let k_base = if k_base.is_finite() && k_base >= 0.0 { k_base as usize + 1 } else { 0 };
+    let (k_base, _) = vol.levels_between(d.base, d.top);
     let k0 = if d.parent.is_some() { k_base } else { k_base.max(dets.start_level) };
     let band =
         (((d.top - d.base).max(0.0) * CONTACT_BAND / vol.dz).ceil() as usize).max(MIN_BAND_LEVELS);
