@@ -131,6 +131,10 @@ pub fn held_on_a_stem(area: &[usize], hi: usize, n: usize, dz: f32) -> bool {
 /// one on the ground to be the other, standing on its host, found twice.
 pub const DUPLICATE_OVERLAP: f32 = 0.6;
 
+/// Share of a faint part's footprint that must lie inside another part's for it to be that
+/// part's translucent inside rather than an object.
+const INSIDE_FRACTION: f32 = 0.9;
+
 /// Texels the footprints of two detections have in common.
 fn footprint_overlap(a: &Detection, b: &Detection) -> usize {
     let (ra, rb) = (a.rect, b.rect);
@@ -1803,6 +1807,8 @@ pub fn detect(
     let regions = components(&mask)?;
     let pcs = principal_components(color, &mask, 3);
     let mut parts: Vec<Part> = Vec::new();
+    // per part: no solid core (the 90th percentile of its evidence below 0.9)
+    let mut faint: Vec<bool> = Vec::new();
     let wall = |m: &Mask, world: Rect2| -> Option<String> {
         if opts.wall_thickness <= 0.0 {
             return None;
@@ -1942,8 +1948,42 @@ pub fn detect(
                 });
                 continue;
             }
+            faint.push(q90 < 0.9);
             parts.push(p);
         }
+    }
+    // a faint island lying inside another part's footprint (the glass roof of a van whose
+    // body the field kept, the water of a basin) is that part's translucent inside: it is
+    // no object of its own (a solid one there, a tree in a round bench, stays)
+    let covered_by = |i: usize, j: usize| {
+        let (a, b) = (&parts[i], &parts[j]);
+        let mut inside = 0;
+        for r in 0..a.rect.rows() {
+            for c in 0..a.rect.cols() {
+                let (rr, cc) = (a.rect.r0 + r, a.rect.c0 + c);
+                if a.footprint.get(r, c)
+                    && b.rect.contains(rr, cc)
+                    && b.footprint.get(rr - b.rect.r0, cc - b.rect.c0)
+                {
+                    inside += 1;
+                }
+            }
+        }
+        inside as f32 / a.footprint.count().max(1) as f32
+    };
+    let islands: Vec<usize> = (0..parts.len())
+        .filter(|&i| {
+            faint[i]
+                && (0..parts.len())
+                    .any(|j| j != i && !faint[j] && covered_by(i, j) >= INSIDE_FRACTION)
+        })
+        .collect();
+    for &i in islands.iter().rev() {
+        let p = parts.remove(i);
+        removed.push(Removed {
+            world: grid.rect_to_world(p.rect),
+            reason: "haze: a faint island inside another object's footprint".into(),
+        });
     }
     if debug() {
         for (i, p) in parts.iter().enumerate() {
@@ -2682,6 +2722,34 @@ mod tests {
             d.removed
         );
         assert!(d.removed.iter().any(|r| r.reason.contains("ragged")), "{:?}", d.removed);
+    }
+
+    #[test]
+    fn a_faint_island_inside_a_ring_goes_but_a_solid_one_stays() {
+        let (rows, cols) = (60, 90);
+        let mut v = floor_volume(rows, cols, 30);
+        // two rings (a van's body around its glass roof, a round bench around a tree), walls
+        // five texels thick
+        for c0 in [10, 50] {
+            fill(&mut v, (10, 40), (c0, c0 + 30), (2, 20), 0.97);
+            fill(&mut v, (15, 35), (c0 + 5, c0 + 25), (2, 20), 0.0);
+        }
+        // in the first, a faint island (no solid core); in the second, a solid one
+        fill(&mut v, (20, 28), (20, 28), (2, 14), 0.5);
+        fill(&mut v, (20, 28), (60, 68), (2, 14), 0.97);
+        let color = PlaneImage::zeros(rows, cols, 3).unwrap();
+        let d = detect_small(&v, &color);
+        assert_eq!(
+            rects(&d),
+            vec![
+                PixelRect::new(10, 10, 40, 40),
+                PixelRect::new(10, 50, 40, 80),
+                PixelRect::new(20, 60, 28, 68),
+            ],
+            "{:?}",
+            d.removed
+        );
+        assert!(d.removed.iter().any(|r| r.reason.contains("island")), "{:?}", d.removed);
     }
 
     #[test]
