@@ -135,6 +135,10 @@ pub const DUPLICATE_OVERLAP: f32 = 0.6;
 /// part's translucent inside rather than an object.
 const INSIDE_FRACTION: f32 = 0.9;
 
+/// Share of a footprint's outline that a level of a closed shell covers (a table's legs
+/// cover at most about a third of it, a car's body all of it).
+const WALLED_OUTLINE: f32 = 0.95;
+
 /// Texels the footprints of two detections have in common.
 fn footprint_overlap(a: &Detection, b: &Detection) -> usize {
     let (ra, rb) = (a.rect, b.rect);
@@ -383,6 +387,36 @@ fn border_ring(mask: &Mask) -> Mask {
         }
         false
     })
+}
+
+/// Whether `levels` of footprint `f` (over `rect`) form a closed shell: at two thirds of
+/// them or more, at least [`WALLED_OUTLINE`] of the outline has a texel of opacity `ts` or
+/// more within one texel (a car's body, a basin's wall; a table's legs, a desk's panels on
+/// three sides leave gaps).
+fn closed_shell(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    f: &Mask,
+    levels: std::ops::Range<usize>,
+    ts: f32,
+) -> bool {
+    let ring = border_ring(f);
+    let need = WALLED_OUTLINE * ring.count() as f32;
+    let walled = levels
+        .clone()
+        .filter(|&k| {
+            let at = Mask::from_fn(f.rows, f.cols, |r, c| {
+                f.get(r, c) && vol.column(rect.r0 + r, rect.c0 + c)[k] >= ts
+            });
+            let near = crate::morphology::dilate(&at, 1).unwrap_or(at);
+            let n = ring.data.iter().zip(&near.data).filter(|(a, b)| **a && **b).count();
+            n as f32 >= need
+        })
+        .count();
+    if debug() {
+        eprintln!("   the outline walled in at {walled} of {} levels", levels.len());
+    }
+    !levels.is_empty() && walled * 3 >= levels.len() * 2
 }
 
 /// How many radius-1 erosions it takes to remove a mask entirely (half its thickness in
@@ -1414,7 +1448,12 @@ fn unpack(
         // the slab cover half of it, where a table's legs and ghost layers cover less)
         let below = lo.saturating_sub(start);
         let dense_below = (start..lo).filter(|&k| area[k] * 2 >= area[kstar]).count();
-        let solid = hi - lo + 1 > thin || (below >= thin && dense_below * 3 >= below * 2);
+        // (a closed shell is a solid body too: a car's body under its cabin, a basin's wall
+        // walls in the whole outline at most levels below the top, where a table's legs
+        // leave most of it open)
+        let solid = hi - lo + 1 > thin
+            || below >= thin
+                && (dense_below * 3 >= below * 2 || closed_shell(vol, rect, f, start..lo, ts));
         if solid {
             lo = hi + 1 - thin;
         }
@@ -2622,6 +2661,38 @@ mod tests {
         fill(&mut v2, (12, 28), (14, 30), (12, 20), 0.95);
         let d2 = detect_small(&v2, &crate_colour());
         assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
+    }
+
+    #[test]
+    fn closed_shells_are_told_from_legs_and_open_sides() {
+        // 1.0 x 2.0 m tops over levels 2..=10 of: a car's body (walls one texel thick all
+        // round), a table's four legs, a desk's panels on three sides
+        let (rect, f) = (PixelRect::new(10, 10, 30, 50), Mask::from_fn(20, 40, |_, _| true));
+        let walls = |v: &mut OpacityVolume| {
+            fill(v, (10, 30), (10, 50), (2, 11), 0.95);
+            fill(v, (11, 29), (11, 49), (2, 11), 0.0);
+        };
+        let mut car = floor_volume(60, 80, 30);
+        walls(&mut car);
+        assert!(closed_shell(&car, rect, &f, 2..11, 0.25));
+        // a wall missing at a few levels (a gap above the wheels) still closes most of them
+        fill(&mut car, (10, 11), (20, 40), (5, 8), 0.0);
+        assert!(closed_shell(&car, rect, &f, 2..11, 0.25));
+        // but not one open all the way down one side
+        fill(&mut car, (10, 11), (20, 40), (2, 11), 0.0);
+        assert!(!closed_shell(&car, rect, &f, 2..11, 0.25));
+        let mut table = floor_volume(60, 80, 30);
+        for (r, c) in [(10, 10), (10, 48), (28, 10), (28, 48)] {
+            fill(&mut table, (r, r + 2), (c, c + 2), (2, 11), 0.95);
+        }
+        assert!(!closed_shell(&table, rect, &f, 2..11, 0.25));
+        let mut desk = floor_volume(60, 80, 30);
+        walls(&mut desk);
+        fill(&mut desk, (29, 30), (11, 49), (2, 11), 0.0);
+        assert!(!closed_shell(&desk, rect, &f, 2..11, 0.25));
+        // faint walls are no walls, and no levels make no shell
+        assert!(!closed_shell(&car, rect, &f, 2..11, 0.99));
+        assert!(!closed_shell(&car, rect, &f, 2..2, 0.25));
     }
 
     #[test]
