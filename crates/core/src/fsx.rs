@@ -17,7 +17,11 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CoreError> {
         std::fs::create_dir_all(parent).map_err(|e| CoreError::io(parent, e))?;
     }
     let tmp = sibling(path, "tmp");
-    std::fs::write(&tmp, bytes).map_err(|e| CoreError::io(&tmp, e))?;
+    if let Err(e) = std::fs::write(&tmp, bytes) {
+        // a disk that fills up part way leaves no half-written temporary behind
+        let _ = std::fs::remove_file(&tmp);
+        return Err(CoreError::io(&tmp, e));
+    }
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         CoreError::io(path, e)
