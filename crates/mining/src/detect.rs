@@ -2389,6 +2389,14 @@ mod tests {
         detect(&grid, v, color, None, &opts).unwrap()
     }
 
+    /// Detection on a plain colour plane keeps exactly the boxes `kept` (in the order of
+    /// [`rects`]), and removes something for a reason that mentions `reason`.
+    fn assert_kept_and_removed(v: &OpacityVolume, kept: &[PixelRect], reason: &str) {
+        let d = detect_small(v, &PlaneImage::zeros(v.rows, v.cols, 3).unwrap());
+        assert_eq!(rects(&d), kept, "{:?}", d.removed);
+        assert!(d.removed.iter().any(|r| r.reason.contains(reason)), "{:?}", d.removed);
+    }
+
     /// The one object standing on another, of exactly two detections.
     fn only_child(d: &Detections) -> &Detection {
         let boxes: Vec<(PixelRect, Option<usize>)> =
@@ -2784,15 +2792,11 @@ mod tests {
         fill(&mut v, (40, 46), (50, 56), (2, 7), 0.97);
         // and a tall one, so that K-means has a background and objects
         fill(&mut v, (40, 50), (10, 20), (2, 20), 0.97);
-        let color = PlaneImage::zeros(rows, cols, 3).unwrap();
-        let d = detect_small(&v, &color);
-        assert_eq!(
-            rects(&d),
-            vec![PixelRect::new(40, 10, 50, 20), PixelRect::new(40, 50, 46, 56)],
-            "{:?}",
-            d.removed
+        assert_kept_and_removed(
+            &v,
+            &[PixelRect::new(40, 10, 50, 20), PixelRect::new(40, 50, 46, 56)],
+            "ragged",
         );
-        assert!(d.removed.iter().any(|r| r.reason.contains("ragged")), "{:?}", d.removed);
     }
 
     #[test]
@@ -2808,19 +2812,12 @@ mod tests {
         // in the first, a faint island (no solid core); in the second, a solid one
         fill(&mut v, (20, 28), (20, 28), (2, 14), 0.5);
         fill(&mut v, (20, 28), (60, 68), (2, 14), 0.97);
-        let color = PlaneImage::zeros(rows, cols, 3).unwrap();
-        let d = detect_small(&v, &color);
-        assert_eq!(
-            rects(&d),
-            vec![
-                PixelRect::new(10, 10, 40, 40),
-                PixelRect::new(10, 50, 40, 80),
-                PixelRect::new(20, 60, 28, 68),
-            ],
-            "{:?}",
-            d.removed
-        );
-        assert!(d.removed.iter().any(|r| r.reason.contains("island")), "{:?}", d.removed);
+        let kept = [
+            PixelRect::new(10, 10, 40, 40),
+            PixelRect::new(10, 50, 40, 80),
+            PixelRect::new(20, 60, 28, 68),
+        ];
+        assert_kept_and_removed(&v, &kept, "island");
     }
 
     #[test]
@@ -2837,20 +2834,13 @@ mod tests {
         fill(&mut v, (40, 50), (10, 20), (8, 12), 0.97);
         // and a tall box, so that K-means has a background and objects
         fill(&mut v, (40, 50), (40, 50), (2, 40), 0.97);
-        let color = PlaneImage::zeros(rows, cols, 3).unwrap();
-        let d = detect_small(&v, &color);
-        assert_eq!(
-            rects(&d),
-            vec![
-                PixelRect::new(40, 10, 50, 20),
-                PixelRect::new(10, 30, 13, 33),
-                PixelRect::new(40, 40, 50, 50),
-                PixelRect::new(30, 60, 33, 63),
-            ],
-            "{:?}",
-            d.removed
-        );
-        assert!(d.removed.iter().any(|r| r.reason.contains("floating")), "{:?}", d.removed);
+        let kept = [
+            PixelRect::new(40, 10, 50, 20),
+            PixelRect::new(10, 30, 13, 33),
+            PixelRect::new(40, 40, 50, 50),
+            PixelRect::new(30, 60, 33, 63),
+        ];
+        assert_kept_and_removed(&v, &kept, "floating");
     }
 
     fn part(
