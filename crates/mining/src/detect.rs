@@ -389,18 +389,18 @@ fn border_ring(mask: &Mask) -> Mask {
     })
 }
 
-/// Whether `levels` of footprint `f` (over `rect`) form a closed shell: at two thirds of
-/// them or more, at least [`WALLED_OUTLINE`] of the outline has a texel of opacity `ts` or
-/// more within one texel (a car's body, a basin's wall; a table's legs, a desk's panels on
-/// three sides leave gaps).
+/// Whether `levels` of footprint `f` (over `rect`, outline `ring`) form a closed shell: at
+/// two thirds of them or more, at least [`WALLED_OUTLINE`] of the outline has a texel of
+/// opacity `ts` or more within one texel (a car's body, a basin's wall; a table's legs, a
+/// desk's panels on three sides leave gaps).
 fn closed_shell(
     vol: &OpacityVolume,
     rect: PixelRect,
     f: &Mask,
+    ring: &Mask,
     levels: std::ops::Range<usize>,
     ts: f32,
 ) -> bool {
-    let ring = border_ring(f);
     let need = WALLED_OUTLINE * ring.count() as f32;
     let walled = levels
         .clone()
@@ -1419,6 +1419,8 @@ fn unpack(
     let low_level = |k: usize| (k.saturating_sub(start)) as f32 * vol.dz < 0.25;
     let raise = ((0.04 / vol.dz.max(1e-6)).ceil() as usize).max(2);
     let (h, w) = (rect.rows(), rect.cols());
+    // the footprint's outline: closed shells wall it in, seeds on it are a table's rim
+    let ring = border_ring(f);
     let mut found = None;
     for (i, &kw) in tops.iter().enumerate() {
         let kstar = (kw..(kw + thin).min(vol.nz))
@@ -1453,7 +1455,8 @@ fn unpack(
         // leave most of it open)
         let solid = hi - lo + 1 > thin
             || below >= thin
-                && (dense_below * 3 >= below * 2 || closed_shell(vol, rect, f, start..lo, ts));
+                && (dense_below * 3 >= below * 2
+                    || closed_shell(vol, rect, f, &ring, start..lo, ts));
         if solid {
             lo = hi + 1 - thin;
         }
@@ -1540,7 +1543,6 @@ fn unpack(
     // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
     // features of a window around it: the cluster holding the blob is the object, the other
     // one the surface it stands on (the paper's second round with the table as background).
-    let ring = border_ring(f);
     let seeds = match components(&raised) {
         Ok(r) => r,
         Err(_) => return (Vec::new(), Some(hi)),
@@ -2676,31 +2678,32 @@ mod tests {
         // 1.0 x 2.0 m tops over levels 2..=10 of: a car's body (walls one texel thick all
         // round), a table's four legs, a desk's panels on three sides
         let (rect, f) = (PixelRect::new(10, 10, 30, 50), Mask::from_fn(20, 40, |_, _| true));
+        let ring = border_ring(&f);
         let walls = |v: &mut OpacityVolume| {
             fill(v, (10, 30), (10, 50), (2, 11), 0.95);
             fill(v, (11, 29), (11, 49), (2, 11), 0.0);
         };
         let mut car = floor_volume(60, 80, 30);
         walls(&mut car);
-        assert!(closed_shell(&car, rect, &f, 2..11, 0.25));
+        assert!(closed_shell(&car, rect, &f, &ring, 2..11, 0.25));
         // a wall missing at a few levels (a gap above the wheels) still closes most of them
         fill(&mut car, (10, 11), (20, 40), (5, 8), 0.0);
-        assert!(closed_shell(&car, rect, &f, 2..11, 0.25));
+        assert!(closed_shell(&car, rect, &f, &ring, 2..11, 0.25));
         // but not one open all the way down one side
         fill(&mut car, (10, 11), (20, 40), (2, 11), 0.0);
-        assert!(!closed_shell(&car, rect, &f, 2..11, 0.25));
+        assert!(!closed_shell(&car, rect, &f, &ring, 2..11, 0.25));
         let mut table = floor_volume(60, 80, 30);
         for (r, c) in [(10, 10), (10, 48), (28, 10), (28, 48)] {
             fill(&mut table, (r, r + 2), (c, c + 2), (2, 11), 0.95);
         }
-        assert!(!closed_shell(&table, rect, &f, 2..11, 0.25));
+        assert!(!closed_shell(&table, rect, &f, &ring, 2..11, 0.25));
         let mut desk = floor_volume(60, 80, 30);
         walls(&mut desk);
         fill(&mut desk, (29, 30), (11, 49), (2, 11), 0.0);
-        assert!(!closed_shell(&desk, rect, &f, 2..11, 0.25));
+        assert!(!closed_shell(&desk, rect, &f, &ring, 2..11, 0.25));
         // faint walls are no walls, and no levels make no shell
-        assert!(!closed_shell(&car, rect, &f, 2..11, 0.99));
-        assert!(!closed_shell(&car, rect, &f, 2..2, 0.25));
+        assert!(!closed_shell(&car, rect, &f, &ring, 2..11, 0.99));
+        assert!(!closed_shell(&car, rect, &f, &ring, 2..2, 0.25));
     }
 
     #[test]
