@@ -121,9 +121,35 @@ fn mine_a_small_scene_into_a_library_and_layout() {
     let index = std::fs::read_to_string(dir.join("lib3/index.ron")).unwrap();
     assert!(index.contains("matched_on: \"density\""), "{index}");
 
+    // the paper's steps alone, and a filter switched off: both mine, and say so
+    let out = ok(
+        &dir,
+        &[
+            "mine",
+            "f.safetensors",
+            "--out",
+            "paper",
+            "--preset",
+            "paper",
+            "--gt",
+            "d/gt_layout.json",
+        ],
+    );
+    assert!(out.contains("F1"), "{out}");
+    let report = std::fs::read_to_string(dir.join("paper/mining.json")).unwrap();
+    assert!(report.contains("\"detect_preset\": \"paper\""), "{report}");
+    assert!(report.contains("\"yaw_on\": \"Density\""), "{report}");
+    ok(&dir, &["mine", "f.safetensors", "--out", "nofilter", "--no-filter", "faint-haze"]);
+    let report = std::fs::read_to_string(dir.join("nofilter/mining.json")).unwrap();
+    assert!(report.contains("\"faint_haze\": false"), "{report}");
+    assert!(!report.contains("filter faint-haze"), "{report}");
+
     // refusals: an existing output, bad flags, a template outside its category
     fail(&dir, &["mine", "f.safetensors", "--out", "lib"], &["already exists", "--force"]);
     fail(&dir, &["mine", "f.safetensors", "--out", "x", "--k", "1"], &["--k"]);
+    let (code, _, err) =
+        run_cli(&dir, &["mine", "f.safetensors", "--out", "x", "--no-filter", "lamps"]);
+    assert!(code == 2 && err.contains("lamps") && err.contains("faint-haze"), "{err}");
     fail(&dir, &["mine", "f.safetensors", "--out", "x", "--k", "100000"], &["clusters"]);
     fail(&dir, &["mine", "f.safetensors", "--out", "x", "--template", "cat9=0"], &["cat9"]);
     fail(&dir, &["mine", "nope.safetensors", "--out", "x"], &["nope.safetensors"]);
@@ -154,6 +180,9 @@ fn mine_help_explains_the_flags() {
         "--out",
         "--gt",
         "--detect-on",
+        "--preset",
+        "--no-filter",
+        "--min-area",
         "--k",
         "--labels",
         "--categories",

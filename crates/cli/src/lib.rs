@@ -144,6 +144,7 @@ pub fn main_with_args(args: impl IntoIterator<Item = impl Into<OsString> + Clone
         }
     };
     install_ctrlc();
+    install_logging();
     match run(cli) {
         Ok(()) => 0,
         Err(e) => {
@@ -160,6 +161,29 @@ pub fn main_with_args(args: impl IntoIterator<Item = impl Into<OsString> + Clone
             if interrupted { 130 } else { 1 }
         }
     }
+}
+
+/// Diagnostics of the library crates (`tracing`) go to stderr when the environment variable
+/// `ASSETFIELD_LOG` asks for them, in `tracing_subscriber`'s filter syntax: e.g.
+/// `ASSETFIELD_LOG=assetfield_mining=debug assetfield mine ...` prints the detector's
+/// decisions. Unset: nothing is printed.
+fn install_logging() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let Some(spec) = std::env::var_os("ASSETFIELD_LOG") else { return };
+        let filter = match tracing_subscriber::EnvFilter::try_new(spec.to_string_lossy()) {
+            Ok(f) => f,
+            Err(e) => {
+                eprintln!("warning: ASSETFIELD_LOG is not a valid filter ({e}); no diagnostics");
+                return;
+            }
+        };
+        let _ = tracing_subscriber::fmt()
+            .with_env_filter(filter)
+            .with_writer(std::io::stderr)
+            .with_target(false)
+            .try_init();
+    });
 }
 
 fn install_ctrlc() {

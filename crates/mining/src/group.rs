@@ -624,7 +624,7 @@ mod tests {
 
     #[test]
     fn voxel_sites_are_the_objects_own_surface() {
-        use crate::detect::{DetectOptions, detect};
+        use crate::detect::{DetectParams, detect};
         use crate::planes::PlaneGrid;
         // a floor slab (levels 0..=1), a box on it (levels 2..=7) and a speck of haze above it
         let (rows, cols, nz) = (30, 30, 20);
@@ -634,7 +634,7 @@ mod tests {
         vol.fill_box(13..14, 13..14, 14..15, 0.95);
         let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
         let color = PlaneImage::from_fn(rows, cols, 3, |_, _, k| k as f32).unwrap();
-        let opts = DetectOptions { min_area: 0.01, ..Default::default() };
+        let opts = DetectParams { min_area_texels: 4, ..Default::default() };
         let dets = detect(&grid, &vol, &color, None, &opts).unwrap();
         assert_eq!(dets.detections.len(), 1);
         let sites = voxel_sites(&vol, &dets).unwrap();

@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 
-use crate::detect::{DetectOptions, Detections, FloorBand, detect};
+use crate::detect::{DetectParams, Detections, FloorBand, detect};
 use crate::error::{MiningError, Result, check_interrupt};
 use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples};
 use crate::image::{Mask, PlaneImage};
@@ -38,7 +38,7 @@ use crate::pose::{
 /// Everything [`mine`] can be told.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MineOptions {
-    pub detect: DetectOptions,
+    pub detect: DetectParams,
     pub group: GroupOptions,
     /// What the grouping discretises: a plane's features or the objects' voxel colours.
     pub group_on: GroupOn,
@@ -71,7 +71,7 @@ fn default_own_patch_residual() -> f32 {
 impl Default for MineOptions {
     fn default() -> Self {
         MineOptions {
-            detect: DetectOptions::default(),
+            detect: DetectParams::default(),
             group: GroupOptions::default(),
             group_on: GroupOn::Color,
             yaw_on: YawOn::Auto,
@@ -405,9 +405,10 @@ pub fn mine(
     let semantic = if needs_semantic { Some(semantic_plane(field, &vol)?) } else { None };
 
     progress.step(2, STEPS, "detecting objects");
-    let det_feature = match opts.detect.on {
-        PlaneChoice::Density => None,
-        other => Some(feature_plane(other, &planes, &semantic)?),
+    let det_feature = if opts.detect.needs_feature_plane() {
+        Some(feature_plane(opts.detect.on, &planes, &semantic)?)
+    } else {
+        None
     };
     let dets = detect(&grid, &vol, &planes.color, det_feature, &opts.detect)?;
     if dets.detections.is_empty() {
@@ -567,7 +568,15 @@ pub fn mine(
         .iter()
         .map(|r| {
             let b = r.world.to_array();
-            format!("[{:.2}, {:.2}, {:.2}, {:.2}]: {}", b[0], b[1], b[2], b[3], r.reason)
+            format!(
+                "[{:.2}, {:.2}, {:.2}, {:.2}]: {} (filter {})",
+                b[0],
+                b[1],
+                b[2],
+                b[3],
+                r.reason,
+                r.reason.filter()
+            )
         })
         .collect();
     let report = serde_json::json!({
@@ -580,6 +589,8 @@ pub fn mine(
         "voxel_threshold": dets.voxel_threshold,
         "detections": dets.detections.len(),
         "removed_as_background": removed,
+        "removed": dets.removed,
+        "detect_preset": opts.detect.preset.name(),
         "categories": grouping.n_categories,
         "cut": grouping.cut,
         "merge_heights": grouping.merges.iter().map(|m| m.distance).collect::<Vec<_>>(),

@@ -13,9 +13,9 @@
 //! rises from it through at least [`MIN_COLUMN_SHARE`] of the object's height (a pole
 //! carrying an arm); pivots within [`SNAP_TEXELS`] of the centre snap to it.
 //!
-//! With `ASSETFIELD_MINING_DEBUG` set, every decision goes to stderr; with
-//! `ASSETFIELD_PIVOT_DUMP` also set, the contact map of objects whose pivot stays centred
-//! (`#` contact, `+` touched in too few levels, `o` free, `.` not the object's).
+//! Every decision is logged with `tracing` at debug level; at trace level also the contact
+//! map of objects whose pivot stays centred (`#` contact, `+` touched in too few levels, `o`
+//! free, `.` not the object's): `ASSETFIELD_LOG=assetfield_mining::pivot=trace`.
 
 use glam::Vec2;
 
@@ -94,39 +94,32 @@ pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> V
         }
     }
     if contact == 0 {
-        if crate::detect::debug() {
-            eprintln!(
-                "pivot det {} rect {:?}: no contact in levels {k0}..{k1} above tau {tau}",
-                d.id, d.rect
-            );
-        }
+        tracing::debug!(id = d.id, rect = ?d.rect, k0, k1, tau, "pivot: no contact");
         return centre;
     }
     let pivot = dets.grid.to_world((cmin + cmax) as f32 * 0.5, (rmin + rmax) as f32 * 0.5);
     let texel = Vec2::new(dets.grid.texel[0], dets.grid.texel[1]);
     if ((pivot - centre) / texel).length() <= SNAP_TEXELS {
-        if crate::detect::debug() {
-            eprintln!("pivot det {}: contact centred, {contact} of {own} texels", d.id);
-            if std::env::var_os("ASSETFIELD_PIVOT_DUMP").is_some() {
-                for r in 0..d.rect.rows() {
-                    let line: String = (0..d.rect.cols())
-                        .map(|c| {
-                            let held = held_at(d.rect.r0 + r, d.rect.c0 + c);
-                            if !d.own.get(r, c) {
-                                '.'
-                            } else if is_contact(held) {
-                                '#'
-                            } else if held > 0 {
-                                '+'
-                            } else {
-                                'o'
-                            }
-                        })
-                        .collect();
-                    eprintln!("  {line}   levels {k0}..{k1} base {:.2} top {:.2}", d.base, d.top);
-                }
+        if tracing::enabled!(tracing::Level::TRACE) {
+            let mut map = String::new();
+            for r in 0..d.rect.rows() {
+                map.extend((0..d.rect.cols()).map(|c| {
+                    let held = held_at(d.rect.r0 + r, d.rect.c0 + c);
+                    if !d.own.get(r, c) {
+                        '.'
+                    } else if is_contact(held) {
+                        '#'
+                    } else if held > 0 {
+                        '+'
+                    } else {
+                        'o'
+                    }
+                }));
+                map.push('\n');
             }
+            tracing::trace!(id = d.id, k0, k1, base = d.base, top = d.top, "contact map:\n{map}");
         }
+        tracing::debug!(id = d.id, contact, own, "pivot: contact centred");
         return centre;
     }
     // the box centre must lie off the contact, the contact be small, and a column rise from
@@ -155,11 +148,23 @@ pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> V
     } else {
         false
     };
-    if crate::detect::debug() {
-        eprintln!(
-            "pivot det {} rect {:?} levels {k0}..{k1} contact rows {rmin}..={rmax} cols {cmin}..={cmax} ({contact} of {own} texels) -> {pivot} (box centre {centre}): off {off} small {small} carried {carried}",
-            d.id, d.rect
-        );
-    }
+    tracing::debug!(
+        id = d.id,
+        rect = ?d.rect,
+        k0,
+        k1,
+        rmin,
+        rmax,
+        cmin,
+        cmax,
+        contact,
+        own,
+        %pivot,
+        %centre,
+        off,
+        small,
+        carried,
+        "pivot"
+    );
     if off && small && carried { pivot } else { centre }
 }

@@ -4,6 +4,7 @@
 use super::util::progress_bar;
 use anyhow::{Context, Result, bail};
 use assetfield_mining::agglomerative::Linkage;
+use assetfield_mining::detect::{DetectParams, Filters, Preset};
 use assetfield_mining::group::GroupCut;
 use assetfield_mining::library::{merge_libraries, open_library};
 use assetfield_mining::pipeline::{GroupOn, MineOptions, Progress, YawOn, mine as run_mining};
@@ -99,31 +100,46 @@ pub struct MineArgs {
     /// yaw_max_deg, position_median, per category and per instance) and prints a summary.
     #[arg(long, value_name = "GT_LAYOUT")]
     pub gt: Option<PathBuf>,
+    /// Start from a preset: default (every stage of the detector) or paper (only the
+    /// paper's steps: K-means on the density feature plane with the largest cluster as
+    /// background, contours, and a second K-means inside each box with its dominant
+    /// surface as background; grouping on the colour plane, yaw on the density plane). The
+    /// flags below change the preset's values.
+    #[arg(long, value_enum, default_value = "default")]
+    pub preset: PresetArg,
     /// Which plane the first K-means runs on: density (per texel, the opacity of the
-    /// densest 8 cm of the column above the floor), color or semantic (K-means on the plane
-    /// features, the largest cluster is background).
-    #[arg(long, value_enum, default_value = "density")]
-    pub detect_on: PlaneArg,
+    /// densest few levels of the column above the floor; the paper preset: the density
+    /// plane's features), color or semantic (K-means on the plane features, the largest
+    /// cluster is background).
+    #[arg(long, value_enum)]
+    pub detect_on: Option<PlaneArg>,
     /// Clusters of the first K-means (2 as in the paper; more keeps fainter objects, the
     /// lowest cluster is always background).
     #[arg(long, default_value_t = 2)]
     pub k: usize,
-    /// Smallest object footprint in square world units (smaller specks are dropped).
-    #[arg(long, default_value_t = 0.02, value_name = "AREA")]
-    pub min_area: f32,
+    /// Smallest object footprint in plane texels (smaller specks are dropped; at the
+    /// default 300-texel plane, 25 texels is 0.02 m^2 in an 8 m room). Texels, not world
+    /// units: captures come in any unit.
+    #[arg(long, value_name = "TEXELS")]
+    pub min_area: Option<usize>,
     /// Do not look for a floor slab (measure the evidence over the whole column).
     #[arg(long)]
     pub no_floor: bool,
-    /// Drop thin, long structures (walls of a room shell) thinner than this, in world
-    /// units (0 keeps them).
-    #[arg(long, default_value_t = 0.2, value_name = "WIDTH")]
-    pub wall_thickness: f32,
+    /// Half the thickness of the thickest wall of a room shell, in plane texels: thin,
+    /// long structures up to twice this are dropped as walls (0 keeps them).
+    #[arg(long, value_name = "TEXELS")]
+    pub wall_half_thickness: Option<f32>,
+    /// Switch off one of the detector's filters (repeatable; `mining.json` names the
+    /// filter that removed each region): walls, flat-background, faint-haze, ragged-haze,
+    /// floating-specks, faint-islands, duplicates.
+    #[arg(long, value_name = "FILTER", value_parser = clap::builder::PossibleValuesParser::new(assetfield_mining::detect::Filters::NAMES))]
+    pub no_filter: Vec<String>,
     /// Skip the second round inside every object (objects standing on tables are then not
     /// separated from them).
     #[arg(long)]
     pub no_unpack: bool,
     /// Do not separate objects that touch in the bird's-eye view (thin bridges, 3D
-    /// connectivity).
+    /// connectivity, colours).
     #[arg(long)]
     pub no_split: bool,
     /// Number of labels the grouping features are discretised into (K-means over the
@@ -159,9 +175,9 @@ pub struct MineArgs {
     /// object, the objects' own voxels (the opacity of each level above the base), since
     /// a laptop's plane column also holds the table's legs and crossbars, which do not turn
     /// with it. density, color, semantic: that plane for every category; voxels: the own
-    /// voxels for every category.
-    #[arg(long, value_enum, default_value = "auto")]
-    pub yaw_on: YawOnArg,
+    /// voxels for every category. [default: auto; density with --preset paper]
+    #[arg(long, value_enum)]
+    pub yaw_on: Option<YawOnArg>,
     /// Use detection INDEX (the number in boxes.png) as the template of CATEGORY (catK or
     /// K) instead of the medoid. Repeatable.
     #[arg(long, value_name = "CATEGORY=INDEX")]
@@ -194,6 +210,15 @@ pub struct MineArgs {
     /// Replace the library folder if it exists.
     #[arg(long)]
     pub force: bool,
+}
+
+/// `--preset`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PresetArg {
+    /// Every stage of the detector.
+    Default,
+    /// Only the paper's steps (the baseline).
+    Paper,
 }
 
 /// Agglomerative linkage.
@@ -273,14 +298,42 @@ pub fn mine(a: MineArgs) -> Result<()> {
     if a.out.exists() && !a.force {
         bail!("{} already exists (pass --force to replace it)", a.out.display());
     }
-    let mut o = MineOptions::default();
-    o.detect.on = a.detect_on.choice();
+    let preset = match a.preset {
+        PresetArg::Default => Preset::Default,
+        PresetArg::Paper => Preset::Paper,
+    };
+    let mut o = MineOptions { detect: DetectParams::preset(preset), ..MineOptions::default() };
+    if a.preset == PresetArg::Paper {
+        o.yaw_on = YawOn::Density;
+    }
+    if let Some(on) = a.detect_on {
+        o.detect.on = on.choice();
+    }
     o.detect.k = a.k;
-    o.detect.min_area = a.min_area;
-    o.detect.remove_floor = !a.no_floor;
-    o.detect.wall_thickness = a.wall_thickness;
-    o.detect.hierarchical = !a.no_unpack;
-    o.detect.split_3d = !a.no_split;
+    if let Some(m) = a.min_area {
+        o.detect.min_area_texels = m;
+    }
+    if let Some(w) = a.wall_half_thickness {
+        if !(w.is_finite() && w >= 0.0) {
+            bail!("--wall-half-thickness must be 0 or more texels, got {w}");
+        }
+        o.detect.wall_half_thickness_texels = w;
+    }
+    if a.no_floor {
+        o.detect.stages.floor = false;
+    }
+    if a.no_unpack {
+        o.detect.stages.unpack = false;
+    }
+    if a.no_split {
+        let s = &mut o.detect.stages;
+        (s.split_bridges, s.split_3d, s.split_colour) = (false, false, false);
+    }
+    for f in &a.no_filter {
+        if !o.detect.filters.set(f, false) {
+            bail!("--no-filter {f}: unknown filter (one of {})", Filters::NAMES.join(", "));
+        }
+    }
     o.group.labels = a.labels;
     o.group.shape_weight = a.shape_weight;
     o.group.linkage = match a.linkage {
@@ -294,7 +347,9 @@ pub fn mine(a: MineArgs) -> Result<()> {
         (None, None) => GroupCut::Auto,
     };
     o.group_on = a.group_on.choice();
-    o.yaw_on = a.yaw_on.choice();
+    if let Some(y) = a.yaw_on {
+        o.yaw_on = y.choice();
+    }
     o.pose.margin = a.margin;
     o.templates = a.template.iter().map(|t| parse_template(t)).collect::<Result<_>>()?;
     o.gt = a.gt.clone();

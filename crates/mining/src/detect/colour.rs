@@ -1,0 +1,284 @@
+//! Stage 3c: separating touching objects of different colour: pieces of a K-means (k = 3)
+//! on the colour plane's principal components that stand on the ground, differ clearly in
+//! colour, share at most half their outline with the rest, and come from a concave region
+//! (a sofa against an armchair, stools against a bar) become objects.
+
+use super::context::Ctx;
+use super::shape::{Part, fill_holes, is_thin, or_into};
+use super::split::{geodesic_assign, lowest_level};
+use crate::image::{Mask, PlaneImage};
+use crate::kmeans::{KMeansOptions, kmeans};
+
+/// The first `k` principal components of a feature plane, per texel, each scaled to unit
+/// variance over the texels set in `over` (all texels if none is set).
+pub(super) fn principal_components(plane: &PlaneImage, over: &Mask, k: usize) -> Vec<Vec<f32>> {
+    let (n, ch) = (plane.texels(), plane.ch);
+    let mut idx: Vec<usize> =
+        (0..n).filter(|&i| over.data.get(i).copied().unwrap_or(false)).collect();
+    if idx.is_empty() {
+        idx = (0..n).collect();
+    }
+    let stride = idx.len().div_ceil(20_000).max(1);
+    let sample: Vec<usize> = idx.iter().copied().step_by(stride).collect();
+    let m = sample.len().max(1) as f64;
+    let mut mean = vec![0f64; ch];
+    for &i in &sample {
+        for (a, &v) in mean.iter_mut().zip(&plane.data[i * ch..(i + 1) * ch]) {
+            *a += f64::from(v) / m;
+        }
+    }
+    let mut cov = vec![0f64; ch * ch];
+    for &i in &sample {
+        let x = &plane.data[i * ch..(i + 1) * ch];
+        for a in 0..ch {
+            let da = f64::from(x[a]) - mean[a];
+            for b in a..ch {
+                cov[a * ch + b] += da * (f64::from(x[b]) - mean[b]) / m;
+            }
+        }
+    }
+    for a in 0..ch {
+        for b in 0..a {
+            cov[a * ch + b] = cov[b * ch + a];
+        }
+    }
+    // power iteration with deflation
+    let mut axes: Vec<Vec<f64>> = Vec::new();
+    for j in 0..k.min(ch) {
+        let mut v: Vec<f64> = (0..ch).map(|t| if t == j { 1.0 } else { 0.1 }).collect();
+        let mut lambda = 0.0;
+        for _ in 0..100 {
+            let mut w: Vec<f64> =
+                (0..ch).map(|a| (0..ch).map(|b| cov[a * ch + b] * v[b]).sum()).collect();
+            for u in &axes {
+                let d: f64 = w.iter().zip(u).map(|(x, y)| x * y).sum();
+                w.iter_mut().zip(u).for_each(|(x, y)| *x -= d * y);
+            }
+            let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if norm < 1e-12 {
+                break;
+            }
+            lambda = norm;
+            v = w.iter().map(|x| x / norm).collect();
+        }
+        if lambda < 1e-12 {
+            break;
+        }
+        axes.push(v);
+    }
+    let sd: Vec<f64> = axes
+        .iter()
+        .map(|u| {
+            let var: f64 = sample
+                .iter()
+                .map(|&i| {
+                    let p: f64 =
+                        (0..ch).map(|a| (f64::from(plane.data[i * ch + a]) - mean[a]) * u[a]).sum();
+                    p * p
+                })
+                .sum::<f64>()
+                / m;
+            var.sqrt().max(1e-9)
+        })
+        .collect();
+    (0..n)
+        .map(|i| {
+            axes.iter()
+                .zip(&sd)
+                .map(|(u, s)| {
+                    let p: f64 =
+                        (0..ch).map(|a| (f64::from(plane.data[i * ch + a]) - mean[a]) * u[a]).sum();
+                    (p / s) as f32
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Separate objects that touch but differ in colour (a sofa against an armchair, chairs
+/// pushed against a table): a K-means (k = 3) on the colour principal components of the
+/// part gives connected pieces; a piece becomes an object of its own when it stands on the
+/// ground, is large, differs clearly in colour from what surrounds it, and touches the rest
+/// only along a short part of its outline (a cushion framed by a sofa's arms and back, or
+/// books inside a shelf, share most of their outline and stay). Applied recursively.
+pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usize) -> Vec<Part> {
+    let (vol, start, tau, min_texels) = (cx.vol, cx.start, cx.tau, cx.min_texels);
+    let thin = cx.p.thin_radius_texels.max(1);
+    let (rect, f) = (part.rect, &part.footprint);
+    let (h, w) = (f.rows, f.cols);
+    let n = f.count();
+    if depth == 0 || n < 8 * min_texels.max(1) {
+        return vec![part];
+    }
+    let idx: Vec<usize> = (0..h * w).filter(|&i| f.data[i]).collect();
+    let gi = |i: usize| (rect.r0 + i / w) * vol.cols + rect.c0 + i % w;
+    let dim = pcs.first().map_or(0, Vec::len);
+    if dim == 0 {
+        return vec![part];
+    }
+    let pts: Vec<f32> = idx.iter().flat_map(|&i| pcs[gi(i)].iter().copied()).collect();
+    let Ok(km) = kmeans(&pts, dim, None, &KMeansOptions { k: 3, ..Default::default() }) else {
+        return vec![part];
+    };
+    let mut label = vec![u32::MAX; h * w];
+    for (t, &i) in idx.iter().enumerate() {
+        label[i] = km.labels[t];
+    }
+    // connected pieces of each label; small ones go to their geodesic neighbours
+    let min_piece = (n / 40).max(2 * min_texels);
+    let mut seeds: Vec<Mask> = Vec::new();
+    for l in 0..km.k as u32 {
+        // cut thin strips of one colour joining separate objects (an opening, padded so the
+        // box edge does not protect texels)
+        let m = Mask::from_fn(h + 4, w + 4, |r, c| {
+            r >= 2
+                && c >= 2
+                && label.get((r - 2) * w + c - 2).is_some_and(|&x| x == l)
+                && r < h + 2
+                && c < w + 2
+        });
+        let m = crate::morphology::open(&m, 2).unwrap_or(m);
+        let m = Mask::from_fn(h, w, |r, c| m.get(r + 2, c + 2));
+        if let Ok((lab, sizes)) = crate::contours::label_components(&m) {
+            for (c, &sz) in sizes.iter().enumerate() {
+                if sz >= min_piece {
+                    seeds.push(Mask {
+                        rows: h,
+                        cols: w,
+                        data: lab.iter().map(|&x| x == c as u32).collect(),
+                    });
+                }
+            }
+        }
+    }
+    if seeds.len() < 2 {
+        return vec![part];
+    }
+    let owner = geodesic_assign(f, &seeds);
+    let pieces: Vec<Mask> = (0..seeds.len())
+        .map(|s| Mask { rows: h, cols: w, data: owner.iter().map(|&o| o == Some(s)).collect() })
+        .collect();
+    let main = (0..pieces.len()).max_by_key(|&p| pieces[p].count()).unwrap_or(0);
+    let mut accepted: Vec<usize> = Vec::new();
+    for (p, piece) in pieces.iter().enumerate() {
+        if p == main {
+            continue;
+        }
+        if !cx.on_ground(lowest_level(vol, rect, piece, start, tau)) {
+            continue;
+        }
+        // outline shared with the rest of the part vs outline; and whether the top surface
+        // runs on across the shared outline (one object's surface with two colours below it,
+        // as a desk top over a drawer block, is no boundary between objects)
+        let top = |i: usize| {
+            let col = vol.column(rect.r0 + i / w, rect.c0 + i % w);
+            (start..vol.nz).rev().find(|&k| col[k] >= tau)
+        };
+        let (mut pairs, mut level) = (0usize, 0usize);
+        let (mut outline, mut shared) = (0usize, 0usize);
+        let mut near: Vec<usize> = Vec::new();
+        for r in 0..h {
+            for c in 0..w {
+                if !piece.get(r, c) {
+                    continue;
+                }
+                let mut edge = false;
+                let mut touches = false;
+                for (dr, dc) in [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)] {
+                    let (nr, nc) = (r as isize + dr, c as isize + dc);
+                    let inside = nr >= 0 && nc >= 0 && nr < h as isize && nc < w as isize;
+                    if !inside || !piece.get(nr as usize, nc as usize) {
+                        edge = true;
+                        if inside && f.get(nr as usize, nc as usize) {
+                            touches = true;
+                            let q = nr as usize * w + nc as usize;
+                            near.push(q);
+                            pairs += 1;
+                            if let (Some(a), Some(b)) = (top(r * w + c), top(q)) {
+                                level += usize::from(a.abs_diff(b) <= 1);
+                            }
+                        }
+                    }
+                }
+                outline += usize::from(edge);
+                shared += usize::from(touches);
+            }
+        }
+        // colour contrast with the texels it touches (and their neighbours)
+        let ring = crate::morphology::dilate(
+            &Mask { rows: h, cols: w, data: (0..h * w).map(|i| near.contains(&i)).collect() },
+            2,
+        )
+        .unwrap_or_else(|_| piece.clone());
+        let stats = |sel: &dyn Fn(usize) -> bool| -> (Vec<f32>, f32, usize) {
+            let ids: Vec<usize> = idx.iter().copied().filter(|&i| sel(i)).collect();
+            let mut mean = vec![0f32; dim];
+            for &i in &ids {
+                mean.iter_mut().zip(&pcs[gi(i)]).for_each(|(a, b)| *a += b);
+            }
+            mean.iter_mut().for_each(|a| *a /= ids.len().max(1) as f32);
+            let var = ids
+                .iter()
+                .map(|&i| pcs[gi(i)].iter().zip(&mean).map(|(a, b)| (a - b) * (a - b)).sum::<f32>())
+                .sum::<f32>()
+                / ids.len().max(1) as f32;
+            (mean, var, ids.len())
+        };
+        let (ma, va, na) = stats(&|i| piece.data[i]);
+        let (mb, vb, nb) = stats(&|i| ring.data[i] && !piece.data[i]);
+        let d2: f32 = ma.iter().zip(&mb).map(|(a, b)| (a - b) * (a - b)).sum();
+        let contrast = d2 / (0.5 * (va + vb)).max(1e-6);
+        // touching objects make a concave outline that the split straightens
+        let solid = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
+        let (s_all, s_piece) = (solid(f), solid(piece));
+        // (85% of it: a chair's back beside a desk's top meets it at one height along a good
+        // part of a short shared outline; a desk top over its drawers runs on all along it).
+        // A piece touching the rest along less than a fifth of its outline is a neighbour
+        // pushed against it, whatever their heights: an armchair's arm against a sofa's arm
+        // of the same height; a drawer block shares a whole side or more.
+        let continuous = pairs > 0 && level * 20 >= pairs * 17 && shared * 5 >= outline;
+        tracing::debug!(
+            ?rect,
+            piece = piece.count(),
+            n,
+            shared,
+            outline,
+            contrast,
+            na,
+            nb,
+            s_all,
+            s_piece,
+            level,
+            pairs,
+            "colour split candidate"
+        );
+        if nb == 0
+            || shared * 2 > outline
+            || contrast < cx.p.colour_contrast
+            || s_all > 0.9
+            || s_piece < 0.6
+            || continuous
+            || is_thin(piece, thin)
+        {
+            continue;
+        }
+        accepted.push(p);
+    }
+    if accepted.is_empty() {
+        return vec![part];
+    }
+    let mut rest = Mask { rows: h, cols: w, data: vec![false; h * w] };
+    for (p, piece) in pieces.iter().enumerate() {
+        if !accepted.contains(&p) {
+            or_into(&mut rest, piece);
+        }
+    }
+    let mut out = Vec::new();
+    for m in accepted.iter().map(|&p| pieces[p].clone()).chain(std::iter::once(rest)) {
+        let sub = Part { rect, footprint: fill_holes(&m), kmin: part.kmin, kmax: part.kmax };
+        if let Some(t) = sub.tighten() {
+            out.extend(split_by_colour(cx, pcs, t, depth - 1));
+        }
+    }
+    out
+}

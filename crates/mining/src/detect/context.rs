@@ -1,0 +1,130 @@
+//! The context every stage shares: the inputs, the parameters, and what the first stages
+//! found (floor, ground, thresholds, evidence), so that stage functions take `&Ctx` instead
+//! of ten positional arguments.
+
+use super::floor::{FloorBand, floor_band, ground_level};
+use super::params::DetectParams;
+use crate::error::{MiningError, Result};
+use crate::image::PlaneImage;
+use crate::planes::{OpacityVolume, PlaneGrid};
+
+/// Inputs, parameters and the scene-wide measurements of one detection run.
+#[derive(Debug)]
+pub(super) struct Ctx<'a> {
+    pub grid: &'a PlaneGrid,
+    pub vol: &'a OpacityVolume,
+    /// The colour plane (colour splits, the second round).
+    pub color: &'a PlaneImage,
+    pub p: &'a DetectParams,
+    /// The floor slab, when one was found (and looked for).
+    pub floor: Option<FloorBand>,
+    /// First volume level counted as object evidence (two above the floor's top).
+    pub start: usize,
+    /// Level of the ground objects stand on.
+    pub ground: usize,
+    /// Levels above `ground` that still count as standing on it.
+    pub ground_tol: usize,
+    /// The first-round evidence per texel (`rows * cols`).
+    pub evidence: Vec<f32>,
+    /// Per texel, whether the first K-means put its evidence above the background cluster.
+    pub above: Vec<bool>,
+    /// Column evidence separating object from background (first K-means).
+    pub tau_e: f32,
+    /// Voxel opacity above which a voxel is occupied.
+    pub tau: f32,
+    /// Smallest object footprint, texels.
+    pub min_texels: usize,
+}
+
+impl<'a> Ctx<'a> {
+    /// Check the inputs, find the floor and the evidence, and split it with the first-round
+    /// K-means (its threshold; the mask comes from [`super::evidence::binarise`]).
+    pub fn new(
+        grid: &'a PlaneGrid,
+        vol: &'a OpacityVolume,
+        color: &'a PlaneImage,
+        p: &'a DetectParams,
+    ) -> Result<Ctx<'a>> {
+        let (rows, cols) = (grid.rows, grid.cols);
+        if (vol.rows, vol.cols) != (rows, cols) || (color.rows, color.cols) != (rows, cols) {
+            return Err(MiningError::SizeMismatch {
+                what: "opacity volume / colour plane vs ground grid (texels)",
+                left: vol.rows * vol.cols,
+                right: rows * cols,
+            });
+        }
+        p.validate().map_err(|(name, reason)| MiningError::InvalidParameter { name, reason })?;
+        let floor = if p.stages.floor { floor_band(vol, p) } else { None };
+        let start = floor.map_or(0, |f| (f.hi + 2).min(vol.nz.saturating_sub(1)));
+        let evidence = vol.window_max_above(start, p.evidence_window_levels.max(2));
+        if evidence.iter().all(|&e| e < EMPTY_EVIDENCE) {
+            return Err(MiningError::InvalidParameter {
+                name: "field",
+                reason:
+                    "the density field is empty above the ground (no texel reaches 1% opacity): \
+                         did its training fail? (check its PSNR with `assetfield eval`)"
+                        .into(),
+            });
+        }
+        let distinct = {
+            let mut v: Vec<u32> = evidence.iter().map(|x| x.to_bits()).collect();
+            v.sort_unstable();
+            v.dedup();
+            v.len()
+        };
+        if p.k > distinct {
+            return Err(MiningError::InvalidParameter {
+                name: "k",
+                reason: format!(
+                    "{} clusters requested but the evidence plane has only {distinct} distinct values ({rows}x{cols} texels)",
+                    p.k
+                ),
+            });
+        }
+        let (tau_e, above) = super::evidence::kmeans_threshold(&evidence, p.k, p.seed)?;
+        // voxels: the same threshold (the voxel opacities are per level spacing)
+        let (lo, hi) = p.voxel_threshold_range;
+        let tau = tau_e.clamp(lo, hi);
+        let ground = ground_level(vol, floor, start, tau, p);
+        Ok(Ctx {
+            grid,
+            vol,
+            color,
+            p,
+            floor,
+            start,
+            ground,
+            ground_tol: p.ground_tolerance_levels,
+            evidence,
+            above,
+            tau_e,
+            tau,
+            min_texels: p.min_area_texels.max(4),
+        })
+    }
+
+    /// Whether a part whose lowest occupied level is `kmin` stands on the ground.
+    pub fn on_ground(&self, kmin: usize) -> bool {
+        kmin <= self.ground + self.ground_tol
+    }
+
+    /// The evidence of the texels set in `footprint` (over `rect`), sorted.
+    pub fn sorted_evidence(
+        &self,
+        rect: crate::image::PixelRect,
+        footprint: &crate::image::Mask,
+    ) -> Vec<f32> {
+        let cols = self.grid.cols;
+        let mut ev: Vec<f32> = (0..rect.rows())
+            .flat_map(|r| (0..rect.cols()).map(move |c| (r, c)))
+            .filter(|&(r, c)| footprint.get(r, c))
+            .map(|(r, c)| self.evidence[(rect.r0 + r) * cols + rect.c0 + c])
+            .collect();
+        ev.sort_by(f32::total_cmp);
+        ev
+    }
+}
+
+/// No texel of a field with any object in it stays below this evidence (opacity): a field
+/// below it everywhere failed to train. Not tuned: a sanity bound.
+const EMPTY_EVIDENCE: f32 = 0.01;

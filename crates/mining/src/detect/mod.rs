@@ -1,0 +1,284 @@
+//! Object detection on the ground planes (paper Sec. 3.2 and Fig. 4), as a pipeline of
+//! stages that share one context ([`context::Ctx`]: volume, grid, floor, ground, thresholds,
+//! parameters):
+//!
+//! 1. **Floor** ([`floor`]). A floor (or any ground container: carpet, asphalt, sidewalks)
+//!    shows up in the density field as a horizontal slab: a few height levels at the bottom
+//!    that are opaque over a large part of the plane. Object evidence is measured above it,
+//!    and objects stand on the level above it (with no floor: the lowest level occupied
+//!    somewhere).
+//! 2. **Evidence and binarisation** ([`evidence`], [`walls`]). Per column, the largest
+//!    opacity of any few-level window above the floor, split with K-means (`k = 2`); the
+//!    lowest cluster is background (the paper preset clusters the density plane's features
+//!    instead, the largest cluster being background). Specks smaller than the smallest
+//!    object go, walls (thin and long) are cut out, and the regions are the connected
+//!    components (objects nested in another's hole are regions of their own).
+//! 3. **Splitting** ([`split`], [`colour`]). Reconstruction blur joins neighbours, so each
+//!    region is cut at thin bridges, then by 3D connectivity (every component standing on
+//!    the ground starts an object), then by colour (pieces of clearly different colour that
+//!    stand on the ground and straighten a concave outline).
+//! 4. **Filters** ([`filters`]). Walls, large flat background, haze (faint and low, ragged,
+//!    floating specks) and faint islands inside a solid object are dropped, each with a
+//!    typed [`RemovalReason`].
+//! 5. **Merging** ([`merge`]). Fragments that the colour split cut out of one object merge.
+//! 6. **Hierarchical unpacking** ([`unpack`], [`assemble`]). Inside every object, its top
+//!    surface is the background of a second round; what stands on it becomes a detection
+//!    supported by it (laptops on a table, a crate on a pallet).
+//! 7. **Duplicates and nesting** ([`merge`]). An object found both as a piece of the ground
+//!    and standing on its host keeps only the second; a nested object leaves its host's own
+//!    texels.
+//!
+//! Every constant is a field of [`DetectParams`], in texels, levels or fractions (no world
+//! lengths: captures come in any unit). `--preset paper` ([`Preset::Paper`]) runs only the
+//! paper's steps ([`paper`]). Intermediate decisions are logged with `tracing` at debug and
+//! trace level (`ASSETFIELD_LOG=assetfield_mining=debug`).
+
+mod assemble;
+mod colour;
+mod context;
+mod evidence;
+mod filters;
+mod floor;
+mod merge;
+mod paper;
+pub mod params;
+mod shape;
+mod split;
+mod unpack;
+mod walls;
+
+#[cfg(test)]
+mod tests;
+
+use assetfield_core::Rect2;
+use serde::{Deserialize, Serialize};
+
+use crate::contours::components;
+use crate::error::{Result, check_interrupt};
+use crate::image::{Mask, PixelRect, PlaneImage};
+use crate::planes::{OpacityVolume, PlaneGrid};
+use context::Ctx;
+use shape::Part;
+
+pub use filters::RemovalReason;
+pub use floor::{FloorBand, floor_band};
+pub use merge::drop_duplicates;
+pub use params::{DetectParams, Evidence, Filters, Preset, Stages};
+pub use shape::{fill_holes, robust_top_level};
+pub use unpack::held_on_a_stem;
+
+/// One detected object.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Detection {
+    /// Index in [`Detections::detections`].
+    pub id: usize,
+    /// Bounding box of the footprint in plane texels.
+    pub rect: PixelRect,
+    /// Footprint (holes filled) over `rect`.
+    pub footprint: Mask,
+    /// The texels that describe this object itself, over `rect`: the footprint without the
+    /// objects standing on it or nested in it.
+    pub own: Mask,
+    /// World bird's-eye-view box.
+    pub world: Rect2,
+    /// World footprint area.
+    pub area: f32,
+    /// World height of the object's base: the top of the floor or of the surface it stands
+    /// on; with neither found, the height of the level below its lowest level.
+    pub base: f32,
+    /// World height of its top.
+    pub top: f32,
+    /// World height of its top for comparing shapes ([`crate::group::Shape`]): the highest
+    /// level occupied in at least [`DetectParams::shape_top_share`] of the footprint's
+    /// columns, so that specks of haze floating over an object do not make it look taller
+    /// (equal to `top` for a support whose top is its surface).
+    #[serde(default)]
+    pub shape_top: f32,
+    /// The detection this one stands on.
+    pub parent: Option<usize>,
+    /// Detections standing on this one.
+    pub children: Vec<usize>,
+}
+
+/// A region dropped as background, with the reason.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Removed {
+    pub world: Rect2,
+    pub reason: RemovalReason,
+}
+
+/// Everything [`detect`] found.
+#[derive(Debug, Clone)]
+pub struct Detections {
+    pub grid: PlaneGrid,
+    pub floor: Option<FloorBand>,
+    /// First volume level counted as object evidence.
+    pub start_level: usize,
+    /// Level of the ground objects stand on.
+    pub ground_level: usize,
+    /// Column opacity separating object from background (from the first K-means).
+    pub threshold: f32,
+    /// Voxel opacity above which a voxel is occupied (3D separation, second round).
+    pub voxel_threshold: f32,
+    /// The first-round evidence map (`rows * cols`).
+    pub evidence: Vec<f32>,
+    /// The cleaned first-round object mask.
+    pub mask: Mask,
+    pub detections: Vec<Detection>,
+    pub removed: Vec<Removed>,
+}
+
+/// Run the detection (see the module docs). `feature` is the plane the first round clusters
+/// when [`DetectParams::needs_feature_plane`] (the density plane's features for the paper
+/// preset, the colour or semantic plane for `--detect-on`); `color` is the colour plane used
+/// by the colour split and the second round.
+pub fn detect(
+    grid: &PlaneGrid,
+    vol: &OpacityVolume,
+    color: &PlaneImage,
+    feature: Option<&PlaneImage>,
+    params: &DetectParams,
+) -> Result<Detections> {
+    let cx = Ctx::new(grid, vol, color, params)?;
+    let mask = evidence::binarise(&cx, feature)?;
+    check_interrupt()?;
+    let mut removed = Vec::new();
+    let detections = if params.preset == Preset::Paper {
+        paper::detections(&cx, &mask)?
+    } else {
+        let mask = walls::remove_walls(&cx, mask, &mut removed)?;
+        let (mut parts, mut kept) = parts_of_regions(&cx, &mask, &mut removed)?;
+        for (p, reason) in filters::faint_islands(&cx, &mut parts, &mut kept) {
+            removed.push(Removed { world: grid.rect_to_world(p.rect), reason });
+        }
+        if params.stages.merge_fragments {
+            merge::merge_fragments(&cx, &mut parts);
+        }
+        let detections = assemble::assemble(&cx, &parts, unpack::unpack)?;
+        let mut detections = if params.filters.duplicates {
+            drop_duplicates(detections, vol.dz, params.duplicate_overlap)
+        } else {
+            detections
+        };
+        if params.stages.nested_own {
+            merge::leave_nested_out(&mut detections);
+        }
+        return Ok(finish(cx, mask, detections, removed));
+    };
+    Ok(finish(cx, mask, detections, removed))
+}
+
+fn finish(cx: Ctx, mask: Mask, detections: Vec<Detection>, removed: Vec<Removed>) -> Detections {
+    for d in &detections {
+        tracing::debug!(
+            id = d.id,
+            world = ?d.world.to_array(),
+            base = d.base,
+            top = d.top,
+            shape_top = d.shape_top,
+            parent = ?d.parent,
+            "final"
+        );
+    }
+    Detections {
+        grid: *cx.grid,
+        floor: cx.floor,
+        start_level: cx.start,
+        ground_level: cx.ground,
+        threshold: cx.tau_e,
+        voxel_threshold: cx.tau,
+        evidence: cx.evidence,
+        mask,
+        detections,
+        removed,
+    }
+}
+
+/// Stages 3 and 4 over every first-round region: split it, smooth and judge the pieces.
+fn parts_of_regions(
+    cx: &Ctx,
+    mask: &Mask,
+    removed: &mut Vec<Removed>,
+) -> Result<(Vec<Part>, Vec<filters::Kept>)> {
+    let (grid, p) = (cx.grid, cx.p);
+    let regions = components(mask)?;
+    let pcs = if p.stages.split_colour {
+        colour::principal_components(cx.color, mask, 3)
+    } else {
+        Vec::new()
+    };
+    let (mut parts, mut kept) = (Vec::new(), Vec::new());
+    for (ri, reg) in regions.iter().enumerate() {
+        check_interrupt()?;
+        // columns of this region: its filled footprint without regions nested in its holes
+        let mut cols_mask = reg.footprint.clone();
+        for (j, other) in regions.iter().enumerate() {
+            if other.parent == Some(ri) && j != ri {
+                let ob = other.bbox;
+                for r in ob.r0..ob.r1 {
+                    for c in ob.c0..ob.c1 {
+                        if other.footprint.get(r - ob.r0, c - ob.c0) {
+                            cols_mask.set(r - reg.bbox.r0, c - reg.bbox.c0, false);
+                        }
+                    }
+                }
+            }
+        }
+        // a wall ring around the room: judge its own pixels, not the filled footprint
+        if let Some(reason) = filters::wall(cx, &reg.pixels, reg.bbox) {
+            removed.push(Removed { world: grid.rect_to_world(reg.bbox), reason });
+            continue;
+        }
+        // thin bridges (haze, blur between neighbours) first, then overlaps in 3D, then
+        // colours
+        let pieces = if p.stages.split_bridges {
+            split::split_bridges(cx, reg.bbox, &cols_mask)
+        } else {
+            vec![cols_mask]
+        };
+        let mut split = Vec::new();
+        for piece in &pieces {
+            split.extend(split::split_region(cx, reg.bbox, piece));
+        }
+        let split = if p.stages.split_colour {
+            split.into_iter().flat_map(|part| colour::split_by_colour(cx, &pcs, part, 3)).collect()
+        } else {
+            split
+        };
+        for part in split
+            .into_iter()
+            .map(|part| if p.stages.smooth { shape::smooth(part, cx.min_texels) } else { part })
+            .filter_map(Part::tighten)
+        {
+            if part.footprint.count() < cx.min_texels {
+                continue;
+            }
+            match filters::judge(cx, &part) {
+                Ok(k) => {
+                    parts.push(part);
+                    kept.push(k);
+                }
+                Err(reason) => {
+                    removed.push(Removed { world: grid.rect_to_world(part.rect), reason })
+                }
+            }
+        }
+    }
+    if tracing::enabled!(tracing::Level::DEBUG) {
+        for (i, part) in parts.iter().enumerate() {
+            let ev = cx.sorted_evidence(part.rect, &part.footprint);
+            let q = |t: f32| ev[((ev.len() - 1) as f32 * t) as usize];
+            tracing::debug!(
+                i,
+                world = ?grid.rect_to_world(part.rect).to_array(),
+                n = ev.len(),
+                q50 = q(0.5),
+                q90 = q(0.9),
+                kmin = part.kmin,
+                kmax = part.kmax,
+                "part"
+            );
+        }
+    }
+    Ok((parts, kept))
+}

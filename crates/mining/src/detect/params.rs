@@ -1,0 +1,455 @@
+//! Every constant of detection, in one documented struct with presets.
+//!
+//! **No length is in world units.** A capture comes in whatever unit its cameras were
+//! solved in (COLMAP units, centimetres, metres), so a rule that says "8 cm" breaks on the
+//! first scene that is not in metres. Every length here is counted in the field's own grid:
+//! *texels* of the ground plane (horizontal) and *levels* of the opacity volume (vertical;
+//! the grid's voxels are cubic, so one level is one texel high), or it is a fraction of
+//! something the detector measured (a footprint, the plane, the floor). Since the plane
+//! resolution is fixed by `train --res` (300 texels along the box's longer side), a length
+//! in texels is also a fixed fraction of the scene box, and scaling a scene by any factor
+//! (moving its cameras by a similarity) leaves every decision unchanged.
+//!
+//! The values were first chosen in metres on the suite's indoor rooms, whose voxels are
+//! 2.4-3.5 cm (`train --res 300` over 7-10 m boxes); each is converted here at 2.8 cm a
+//! texel and says so ("3 levels: 8 cm in the suite's rooms"). Streets and plazas (boxes of
+//! 14-23 m, voxels of 4.6-7.7 cm) are judged with the same texel counts, which is a coarser
+//! metric scale there: what the field resolves, not what a tape measure says.
+//!
+//! [`DetectParams::count_tuned`] counts the values that were tuned (the switches, the seed
+//! and the number of clusters are choices, not tuned values).
+
+use serde::{Deserialize, Serialize};
+
+use crate::planes::PlaneChoice;
+
+/// Which preset a [`DetectParams`] started from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Preset {
+    /// Every stage of this detector (floor, walls, splitting, filters, unpacking, merging).
+    #[default]
+    Default,
+    /// Only the paper's steps (Sec. 3.2, Fig. 4): K-means (k = 2) on the density feature
+    /// plane with the largest cluster as background, contours (Suzuki-Abe) for the boxes,
+    /// and inside each box a second K-means (k = 2) on the colour features with the dominant
+    /// cluster (the surface) as background. The baseline every table shows beside the default.
+    Paper,
+}
+
+impl Preset {
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Default => "default",
+            Preset::Paper => "paper",
+        }
+    }
+}
+
+/// What the first-round K-means clusters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Evidence {
+    /// Per column above the floor, the largest opacity accumulated over
+    /// [`DetectParams::evidence_window_levels`] consecutive levels (a scalar per texel):
+    /// the thin, soft surfaces of a briefly trained field reach full opacity over a few
+    /// levels while no single level is opaque, and faint fog under tables does not add up.
+    #[default]
+    OpacityWindow,
+    /// The features of the plane named by [`DetectParams::on`] (density, colour or
+    /// semantic), as the paper clusters `M_sigma`; the largest cluster is background.
+    PlaneFeatures,
+}
+
+/// The stages that can be switched off (each is on in the default preset).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Stages {
+    /// Find a floor slab and measure object evidence above it.
+    pub floor: bool,
+    /// Cut first-round regions at thin bridges (morphological opening + geodesic seeds).
+    pub split_bridges: bool,
+    /// Separate objects that touch in the bird's-eye view by 3D connectivity.
+    pub split_3d: bool,
+    /// Split touching objects of clearly different colour.
+    pub split_colour: bool,
+    /// One-texel smoothing of each part's footprint.
+    pub smooth: bool,
+    /// Merge fragments that a colour split cut out of one object.
+    pub merge_fragments: bool,
+    /// The second round inside every object (objects standing on tables).
+    pub unpack: bool,
+    /// An object nested in or partly under a larger one is left out of the larger one's own
+    /// texels (the paper sets a nested chair to background in the table's patch).
+    pub nested_own: bool,
+}
+
+impl Stages {
+    pub const ALL: Stages = Stages {
+        floor: true,
+        split_bridges: true,
+        split_3d: true,
+        split_colour: true,
+        smooth: true,
+        merge_fragments: true,
+        unpack: true,
+        nested_own: true,
+    };
+    pub const NONE: Stages = Stages {
+        floor: false,
+        split_bridges: false,
+        split_3d: false,
+        split_colour: false,
+        smooth: false,
+        merge_fragments: false,
+        unpack: false,
+        nested_own: false,
+    };
+}
+
+/// The filters that drop a region as background; each reports a
+/// [`super::RemovalReason`] of its own kind and can be switched off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Filters {
+    /// Thin, long structures (the walls of a room shell).
+    pub walls: bool,
+    /// Large flat areas at ground level (a rug, a floor the floor search missed).
+    pub flat_background: bool,
+    /// No solid core, and low or small (floaters near the floor).
+    pub faint_haze: bool,
+    /// Ragged (low solidity), low and small (floaters streaking along camera rays).
+    pub ragged_haze: bool,
+    /// Small and floating low in mid-air with nothing found under it.
+    pub floating_specks: bool,
+    /// A faint island inside another object's footprint (its translucent inside).
+    pub faint_islands: bool,
+    /// An object found twice: as a piece of the ground and standing on its host.
+    pub duplicates: bool,
+}
+
+impl Filters {
+    pub const ALL: Filters = Filters {
+        walls: true,
+        flat_background: true,
+        faint_haze: true,
+        ragged_haze: true,
+        floating_specks: true,
+        faint_islands: true,
+        duplicates: true,
+    };
+    pub const NONE: Filters = Filters {
+        walls: false,
+        flat_background: false,
+        faint_haze: false,
+        ragged_haze: false,
+        floating_specks: false,
+        faint_islands: false,
+        duplicates: false,
+    };
+
+    /// The filter names as the CLI spells them, in the order of the fields.
+    pub const NAMES: [&'static str; 7] = [
+        "walls",
+        "flat-background",
+        "faint-haze",
+        "ragged-haze",
+        "floating-specks",
+        "faint-islands",
+        "duplicates",
+    ];
+
+    /// Switch one filter by its CLI name; `false` for an unknown name.
+    pub fn set(&mut self, name: &str, on: bool) -> bool {
+        let slot = match name {
+            "walls" => &mut self.walls,
+            "flat-background" => &mut self.flat_background,
+            "faint-haze" => &mut self.faint_haze,
+            "ragged-haze" => &mut self.ragged_haze,
+            "floating-specks" => &mut self.floating_specks,
+            "faint-islands" => &mut self.faint_islands,
+            "duplicates" => &mut self.duplicates,
+            _ => return false,
+        };
+        *slot = on;
+        true
+    }
+}
+
+/// Parameters of [`super::detect`]: the stages, the filters and every tuned value, each
+/// with its unit (texels, levels, a fraction, an opacity) and the reason for its value.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectParams {
+    /// The preset these parameters started from (recorded in `mining.json`).
+    pub preset: Preset,
+    /// Which plane the first-round K-means runs on.
+    pub on: PlaneChoice,
+    /// What the first-round K-means clusters.
+    pub evidence: Evidence,
+    /// K-means clusters of the first round (2 in the paper; more keeps fainter objects; the
+    /// lowest cluster is background).
+    pub k: usize,
+    /// Seed of the K-means runs.
+    pub seed: u64,
+    pub stages: Stages,
+    pub filters: Filters,
+
+    // --- evidence and binarisation ---
+    /// Levels over which opacity accumulates into the evidence (3: 8 cm in the suite's
+    /// rooms, the thickness a soft table top spreads over in a 3-minute field).
+    pub evidence_window_levels: usize,
+    /// Smallest object footprint, texels (25: 0.02 m^2 in the suite's rooms, a small vase;
+    /// never below 4).
+    pub min_area_texels: usize,
+    /// The voxel threshold is the first K-means' column threshold clamped to this range
+    /// (opacity): a voxel is occupied above it (3D connectivity, levels, surfaces).
+    pub voxel_threshold_range: (f32, f32),
+
+    // --- floor ---
+    /// A level is floor where this share of the plane has opacity >= 0.5 (0.3: a floor
+    /// covering under a third of the box is indistinguishable from a large object).
+    pub floor_coverage: f32,
+    /// The slab goes on upwards while a level still covers this share of the densest floor
+    /// level (0.4: sidewalks and steps cover less than the road, objects much less).
+    pub floor_step_share: f32,
+    /// ... and its blurred top while coverage stays above this share of the plane and falls
+    /// level by level (0.15).
+    pub floor_blur_coverage: f32,
+
+    // --- walls ---
+    /// Half the thickness of the thickest wall, texels (3.5: 20 cm walls in the suite's
+    /// rooms; furniture is thicker than a wall but shorter).
+    pub wall_half_thickness_texels: f32,
+    /// A wall runs at least this share of the plane's longer side (0.25).
+    pub wall_min_length: f32,
+
+    // --- ground ---
+    /// Levels above the ground (or the floor's top) within which an object counts as
+    /// standing on it (3: 8 cm in the suite's rooms; blur and the floor's haze).
+    pub ground_tolerance_levels: usize,
+    /// With no floor, the ground is the lowest level occupied in at least this share of the
+    /// plane's texels (and at least 20 texels): 1/2000.
+    pub ground_min_share: f32,
+
+    // --- splitting ---
+    /// Opening radius that cuts thin bridges between neighbours, texels (2: 5 cm in the
+    /// suite's rooms; blur joins neighbours a few texels apart).
+    pub bridge_radius_texels: usize,
+    /// A colour piece thinner than `2 r + 1` texels everywhere (r = this) is a strip of its
+    /// object, not an object (3: 0.2 m in the suite's rooms, the back of a chair).
+    pub thin_radius_texels: usize,
+    /// A colour piece becomes an object only if its colour differs from what surrounds it
+    /// by this many pooled standard deviations (1.5).
+    pub colour_contrast: f32,
+
+    // --- filters ---
+    /// Height (levels above the ground) at or below which a large part is flat background
+    /// (4: 12 cm in the suite's rooms, a rug).
+    pub flat_height_levels: usize,
+    /// ... when it covers at least this share of the plane (0.1).
+    pub flat_area_share: f32,
+    /// A part has a solid core when the 90th percentile of its evidence reaches this
+    /// opacity (0.9: real objects reach ~1 over a good part of their footprint).
+    pub solid_core_evidence: f32,
+    /// A part is small below this many times `min_area_texels` (4).
+    pub small_factor: usize,
+    /// A faint part lower than this many levels is haze (11: 0.3 m in the suite's rooms).
+    pub haze_low_levels: usize,
+    /// A ragged part (solidity below 0.7) lower than this many levels and small is haze
+    /// (18: 0.5 m in the suite's rooms).
+    pub ragged_low_levels: usize,
+    /// A small part floating off the ground with its top lower than this many levels is a
+    /// speck of haze (36: 1 m in the suite's rooms; a lamp head whose pole the field lost
+    /// hangs higher).
+    pub floating_top_levels: usize,
+    /// A faint part with at least this share of its footprint inside a solid part's is that
+    /// part's translucent inside (0.9).
+    pub island_inside_share: f32,
+
+    // --- merging ---
+    /// Two parts on the ground whose tops are within this many levels may be fragments of
+    /// one object (2: 5 cm in the suite's rooms).
+    pub fragment_top_levels: usize,
+
+    // --- unpacking ---
+    /// Levels of a surface slab window (3: 8 cm in the suite's rooms, a table top in a
+    /// briefly trained field).
+    pub surface_window_levels: usize,
+    /// Levels above a surface's top from which a texel counts as raised above it (2: 4 cm
+    /// in the suite's rooms).
+    pub raise_levels: usize,
+    /// A surface within this many levels of the ground is a low support (a pallet's deck)
+    /// that may carry an object over most of it (9: 0.25 m in the suite's rooms).
+    pub low_support_levels: usize,
+    /// Radius of the window around a raised seed for the second K-means, texels (9: 0.25 m
+    /// in the suite's rooms, the reach of a laptop from its screen).
+    pub seed_window_texels: usize,
+    /// Share of a footprint's outline that every level of a closed shell walls in (0.95: a
+    /// car's body all of it, a table's legs at most a third).
+    pub walled_outline_share: f32,
+
+    // --- duplicates, shape ---
+    /// Share of each footprint two detections must have in common (with tops within two
+    /// levels) for the one on the ground to be the other found twice (0.6).
+    pub duplicate_overlap: f32,
+    /// Share of an object's footprint columns occupied at a level for it to count as its
+    /// top for shape comparison (0.02: specks of haze above an object do not count).
+    pub shape_top_share: f32,
+}
+
+impl Default for DetectParams {
+    fn default() -> Self {
+        DetectParams {
+            preset: Preset::Default,
+            on: PlaneChoice::Density,
+            evidence: Evidence::OpacityWindow,
+            k: 2,
+            seed: crate::kmeans::DEFAULT_SEED,
+            stages: Stages::ALL,
+            filters: Filters::ALL,
+            evidence_window_levels: 3,
+            min_area_texels: 25,
+            voxel_threshold_range: (0.1, 0.9),
+            floor_coverage: 0.3,
+            floor_step_share: 0.4,
+            floor_blur_coverage: 0.15,
+            wall_half_thickness_texels: 3.5,
+            wall_min_length: 0.25,
+            ground_tolerance_levels: 3,
+            ground_min_share: 1.0 / 2000.0,
+            bridge_radius_texels: 2,
+            thin_radius_texels: 3,
+            colour_contrast: 1.5,
+            flat_height_levels: 4,
+            flat_area_share: 0.1,
+            solid_core_evidence: 0.9,
+            small_factor: 4,
+            haze_low_levels: 11,
+            ragged_low_levels: 18,
+            floating_top_levels: 36,
+            island_inside_share: 0.9,
+            fragment_top_levels: 2,
+            surface_window_levels: 3,
+            raise_levels: 2,
+            low_support_levels: 9,
+            seed_window_texels: 9,
+            walled_outline_share: 0.95,
+            duplicate_overlap: 0.6,
+            shape_top_share: 0.02,
+        }
+    }
+}
+
+impl DetectParams {
+    /// The parameters of a preset.
+    pub fn preset(p: Preset) -> Self {
+        match p {
+            Preset::Default => DetectParams::default(),
+            Preset::Paper => DetectParams::paper(),
+        }
+    }
+
+    /// Only the paper's steps ([`Preset::Paper`]): no floor search, no walls, no splitting,
+    /// no filters, the second round as a plain K-means inside each box.
+    pub fn paper() -> Self {
+        DetectParams {
+            preset: Preset::Paper,
+            evidence: Evidence::PlaneFeatures,
+            stages: Stages { unpack: true, nested_own: true, ..Stages::NONE },
+            filters: Filters::NONE,
+            ..DetectParams::default()
+        }
+    }
+
+    /// Whether the first round clusters plane features (the pipeline must hand `detect`
+    /// the plane named by [`DetectParams::on`]).
+    pub fn needs_feature_plane(&self) -> bool {
+        self.evidence == Evidence::PlaneFeatures || self.on != PlaneChoice::Density
+    }
+
+    /// The number of tuned values in these parameters (every numeric field but `k` and
+    /// `seed`; the range counts twice), for the record of how many remain.
+    pub const fn count_tuned() -> usize {
+        // evidence 4 (window, min area, range x2), floor 3, walls 2, ground 2, split 3,
+        // filters 9, merging 1, unpacking 5, duplicates and shape 2
+        4 + 3 + 2 + 2 + 3 + 9 + 1 + 5 + 2
+    }
+
+    /// Refuse values that cannot work, naming the field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        let share = |name: &'static str, v: f32| {
+            if v.is_finite() && (0.0..=1.0).contains(&v) {
+                Ok(())
+            } else {
+                Err((name, format!("must be a share in [0, 1], got {v}")))
+            }
+        };
+        if self.k < 2 {
+            return Err((
+                "k",
+                format!("K-means needs at least 2 clusters to separate objects, got {}", self.k),
+            ));
+        }
+        if self.evidence_window_levels == 0 {
+            return Err(("evidence_window_levels", "must be at least 1".into()));
+        }
+        let (lo, hi) = self.voxel_threshold_range;
+        if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi && hi < 1.0) {
+            return Err((
+                "voxel_threshold_range",
+                format!("must satisfy 0 < lo <= hi < 1, got ({lo}, {hi})"),
+            ));
+        }
+        if !(self.wall_half_thickness_texels.is_finite() && self.wall_half_thickness_texels >= 0.0)
+        {
+            return Err((
+                "wall_half_thickness_texels",
+                format!("must be finite and >= 0, got {}", self.wall_half_thickness_texels),
+            ));
+        }
+        if !(self.colour_contrast.is_finite() && self.colour_contrast >= 0.0) {
+            return Err((
+                "colour_contrast",
+                format!("must be finite and >= 0, got {}", self.colour_contrast),
+            ));
+        }
+        share("floor_coverage", self.floor_coverage)?;
+        share("floor_step_share", self.floor_step_share)?;
+        share("floor_blur_coverage", self.floor_blur_coverage)?;
+        share("wall_min_length", self.wall_min_length)?;
+        share("ground_min_share", self.ground_min_share)?;
+        share("flat_area_share", self.flat_area_share)?;
+        share("solid_core_evidence", self.solid_core_evidence)?;
+        share("island_inside_share", self.island_inside_share)?;
+        share("walled_outline_share", self.walled_outline_share)?;
+        share("duplicate_overlap", self.duplicate_overlap)?;
+        share("shape_top_share", self.shape_top_share)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_validate_and_the_paper_runs_only_its_steps() {
+        assert!(DetectParams::default().validate().is_ok());
+        let p = DetectParams::paper();
+        assert!(p.validate().is_ok());
+        assert_eq!(p.filters, Filters::NONE);
+        assert!(p.stages.unpack && !p.stages.floor && !p.stages.split_3d);
+        assert!(p.needs_feature_plane());
+        assert!(!DetectParams::default().needs_feature_plane());
+        let bad = DetectParams { voxel_threshold_range: (0.5, 0.2), ..Default::default() };
+        assert_eq!(bad.validate().unwrap_err().0, "voxel_threshold_range");
+        let bad = DetectParams { duplicate_overlap: f32::NAN, ..Default::default() };
+        assert_eq!(bad.validate().unwrap_err().0, "duplicate_overlap");
+    }
+
+    #[test]
+    fn filters_switch_by_name() {
+        let mut f = Filters::ALL;
+        for name in Filters::NAMES {
+            assert!(f.set(name, false), "{name}");
+        }
+        assert_eq!(f, Filters::NONE);
+        assert!(!f.set("lamps", false));
+    }
+}

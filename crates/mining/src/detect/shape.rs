@@ -1,0 +1,200 @@
+//! Masks and parts: the footprint operations every stage uses, and an object's robust top.
+
+use std::collections::VecDeque;
+
+use crate::image::{Mask, PixelRect};
+use crate::morphology::{erode, remove_small};
+use crate::planes::OpacityVolume;
+
+/// An object being assembled: a footprint over its region's box and its height range.
+#[derive(Debug, Clone)]
+pub(super) struct Part {
+    pub rect: PixelRect,
+    pub footprint: Mask,
+    pub kmin: usize,
+    pub kmax: usize,
+}
+
+impl Part {
+    /// Shrink to the bounding box of the footprint.
+    pub(super) fn tighten(self) -> Option<Part> {
+        let bb = self.footprint.bbox()?;
+        let footprint = self.footprint.crop(bb).ok()?;
+        let rect = PixelRect::new(
+            self.rect.r0 + bb.r0,
+            self.rect.c0 + bb.c0,
+            self.rect.r0 + bb.r1,
+            self.rect.c0 + bb.c1,
+        );
+        Some(Part { rect, footprint, ..self })
+    }
+}
+
+/// Fill the holes of a mask: background not 4-connected to the image border.
+pub fn fill_holes(mask: &Mask) -> Mask {
+    let (rows, cols) = (mask.rows, mask.cols);
+    let mut outside = vec![false; rows * cols];
+    let mut queue = VecDeque::new();
+    for r in 0..rows {
+        for c in 0..cols {
+            if (r == 0 || c == 0 || r + 1 == rows || c + 1 == cols) && !mask.data[r * cols + c] {
+                outside[r * cols + c] = true;
+                queue.push_back((r, c));
+            }
+        }
+    }
+    while let Some((r, c)) = queue.pop_front() {
+        for (dr, dc) in [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)] {
+            let (nr, nc) = (r.wrapping_add_signed(dr), c.wrapping_add_signed(dc));
+            if nr < rows && nc < cols && !mask.data[nr * cols + nc] && !outside[nr * cols + nc] {
+                outside[nr * cols + nc] = true;
+                queue.push_back((nr, nc));
+            }
+        }
+    }
+    Mask { rows, cols, data: outside.iter().map(|&o| !o).collect() }
+}
+
+/// Pixels of `mask` with an 8-neighbour outside it (or on the image edge).
+pub(super) fn border_ring(mask: &Mask) -> Mask {
+    let (rows, cols) = (mask.rows, mask.cols);
+    Mask::from_fn(rows, cols, |r, c| {
+        if !mask.get(r, c) {
+            return false;
+        }
+        for dr in -1isize..=1 {
+            for dc in -1isize..=1 {
+                let (nr, nc) = (r as isize + dr, c as isize + dc);
+                if nr < 0 || nc < 0 || nr >= rows as isize || nc >= cols as isize {
+                    return true;
+                }
+                if !mask.get(nr as usize, nc as usize) {
+                    return true;
+                }
+            }
+        }
+        false
+    })
+}
+
+/// How many radius-1 erosions it takes to remove a mask entirely (half its thickness in
+/// texels), counting the image edge as background; capped at `cap`.
+pub(super) fn erosions_to_vanish(mask: &Mask, cap: usize) -> usize {
+    // pad by one so that the image edge erodes too
+    let mut m = Mask::from_fn(mask.rows + 2, mask.cols + 2, |r, c| {
+        r > 0 && c > 0 && mask.get(r - 1, c - 1)
+    });
+    let mut steps = 0;
+    while m.count() > 0 && steps < cap {
+        m = match erode(&m, 1) {
+            Ok(e) => e,
+            Err(_) => break,
+        };
+        steps += 1;
+    }
+    steps
+}
+pub(super) fn overlap(a: &Mask, b: &Mask) -> usize {
+    a.data.iter().zip(&b.data).filter(|(x, y)| **x && **y).count()
+}
+
+pub(super) fn or_into(dst: &mut Mask, src: &Mask) {
+    for (d, s) in dst.data.iter_mut().zip(&src.data) {
+        *d |= *s;
+    }
+}
+
+/// Squared distance from the centroid of `a` to the nearest set pixel of `b`.
+pub(super) fn centroid_distance2(a: &Mask, b: &Mask) -> f32 {
+    let (mut sr, mut sc, mut n) = (0f32, 0f32, 0f32);
+    for r in 0..a.rows {
+        for c in 0..a.cols {
+            if a.get(r, c) {
+                sr += r as f32;
+                sc += c as f32;
+                n += 1.0;
+            }
+        }
+    }
+    if n == 0.0 {
+        return f32::INFINITY;
+    }
+    let (cr, cc) = (sr / n, sc / n);
+    let mut best = f32::INFINITY;
+    for r in 0..b.rows {
+        for c in 0..b.cols {
+            if b.get(r, c) {
+                best = best.min((r as f32 - cr).powi(2) + (c as f32 - cc).powi(2));
+            }
+        }
+    }
+    best
+}
+
+/// Whether a mask, holes filled, vanishes under an erosion of the given radius (a strip
+/// narrower than `2 * radius + 1` texels everywhere). A thin strip of another colour along an object (the
+/// back of a chair, whose colour a briefly trained field gets wrong) is part of it, not an
+/// object of its own.
+pub(super) fn is_thin(mask: &Mask, radius: usize) -> bool {
+    let (h, w) = (mask.rows, mask.cols);
+    let filled = fill_holes(mask);
+    let pad = radius + 1;
+    let padded = Mask::from_fn(h + 2 * pad, w + 2 * pad, |r, c| {
+        r >= pad && c >= pad && r < h + pad && c < w + pad && filled.get(r - pad, c - pad)
+    });
+    erode(&padded, radius).is_ok_and(|e| e.count() == 0)
+}
+
+/// Remove one-texel protrusions and speckle chains from a part's footprint (an opening of
+/// radius 1), unless that takes away more than a third of it (thin objects keep their
+/// shape).
+pub(super) fn smooth(p: Part, min_texels: usize) -> Part {
+    let (h, w) = (p.footprint.rows, p.footprint.cols);
+    let padded =
+        Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && p.footprint.get(r - 1, c - 1));
+    let Ok(opened) = crate::morphology::open(&padded, 1) else { return p };
+    let opened = Mask::from_fn(h, w, |r, c| opened.get(r + 1, c + 1));
+    // keep the pieces of the opened footprint that are big enough
+    let Ok(kept) = remove_small(&opened, min_texels.max(1)) else { return p };
+    let n = kept.count();
+    if n * 3 < p.footprint.count() * 2 {
+        return p;
+    }
+    Part { footprint: fill_holes(&kept), ..p }
+}
+
+/// The highest level in `lo..=hi` at which at least `share` of the footprint's
+/// columns (and at least two) hold a voxel above `tau`; `hi` when no level qualifies or the
+/// footprint is tiny. Isolated specks of haze above an object are thus ignored, while a
+/// chair's back (a good part of its footprint) still counts.
+pub fn robust_top_level(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    footprint: &Mask,
+    lo: usize,
+    hi: usize,
+    tau: f32,
+    share: f32,
+) -> usize {
+    let hi = hi.min(vol.nz.saturating_sub(1));
+    let n = footprint.count();
+    let need = ((n as f32 * share).ceil() as usize).max(2);
+    if n < 2 * need || lo >= hi {
+        return hi;
+    }
+    let mut count = vec![0usize; hi + 1];
+    for r in 0..rect.rows() {
+        for c in 0..rect.cols() {
+            if footprint.get(r, c) {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                for k in lo..=hi {
+                    if col[k] > tau {
+                        count[k] += 1;
+                    }
+                }
+            }
+        }
+    }
+    tracing::trace!(need, n, counts = ?&count[lo..=hi], "top counts");
+    (lo..=hi).rev().find(|&k| count[k] >= need).unwrap_or(hi)
+}

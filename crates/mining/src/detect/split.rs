@@ -1,0 +1,365 @@
+//! Stage 3: separating touching objects. Reconstruction blur joins neighbours a few texels
+//! apart, so each first-round region is cut (a) at thin bridges: the cores surviving a
+//! morphological opening become seeds, every texel goes to the geodesically nearest seed,
+//! and pieces that do not reach the ground (a lamp head whose arm is too thin) join their
+//! neighbour; (b) in 3D: 6-connected components of the opaque voxels, each component
+//! standing on the ground starts an object (a chair partly under a table), floating parts
+//! join the object under or next to them, objects that mostly cover each other merge.
+
+use std::collections::VecDeque;
+
+use super::context::Ctx;
+use super::shape::{Part, centroid_distance2, fill_holes, or_into, overlap};
+use crate::image::{Mask, PixelRect};
+use crate::planes::OpacityVolume;
+
+/// A 3D connected component of opaque voxels inside a region.
+#[derive(Debug, Clone)]
+pub(super) struct Blob {
+    pub kmin: usize,
+    pub kmax: usize,
+    /// Projection over the region's bounding box.
+    proj: Mask,
+    proj_count: usize,
+}
+
+/// 6-connected (face-neighbour) components of the voxels `>= tau` in levels `start..`, in the columns set in
+/// `cols_mask` (over `rect`).
+pub(super) fn blobs(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    cols_mask: &Mask,
+    start: usize,
+    tau: f32,
+) -> Vec<Blob> {
+    let (h, w) = (rect.rows(), rect.cols());
+    let nzl = vol.nz.saturating_sub(start);
+    if nzl == 0 {
+        return Vec::new();
+    }
+    let idx = |r: usize, c: usize, k: usize| (r * w + c) * nzl + k;
+    let mut occ = vec![false; h * w * nzl];
+    for r in 0..h {
+        for c in 0..w {
+            if !cols_mask.get(r, c) {
+                continue;
+            }
+            let col = vol.column(rect.r0 + r, rect.c0 + c);
+            for k in 0..nzl {
+                occ[idx(r, c, k)] = col[start + k] >= tau;
+            }
+        }
+    }
+    let mut label = vec![u32::MAX; occ.len()];
+    let mut out = Vec::new();
+    let mut stack = Vec::new();
+    for s in 0..occ.len() {
+        if !occ[s] || label[s] != u32::MAX {
+            continue;
+        }
+        let id = out.len() as u32;
+        let proj = Mask { rows: h, cols: w, data: vec![false; h * w] };
+        let mut b = Blob { kmin: usize::MAX, kmax: 0, proj, proj_count: 0 };
+        label[s] = id;
+        stack.push(s);
+        while let Some(p) = stack.pop() {
+            let k = p % nzl;
+            let rc = p / nzl;
+            let (r, c) = (rc / w, rc % w);
+            b.kmin = b.kmin.min(k + start);
+            b.kmax = b.kmax.max(k + start);
+            if !b.proj.data[rc] {
+                b.proj.data[rc] = true;
+                b.proj_count += 1;
+            }
+            for dr in -1isize..=1 {
+                for dc in -1isize..=1 {
+                    for dk in -1isize..=1 {
+                        if dr.abs() + dc.abs() + dk.abs() != 1 {
+                            continue;
+                        }
+                        let (nr, nc, nk) = (r as isize + dr, c as isize + dc, k as isize + dk);
+                        if nr < 0
+                            || nc < 0
+                            || nk < 0
+                            || nr >= h as isize
+                            || nc >= w as isize
+                            || nk >= nzl as isize
+                        {
+                            continue;
+                        }
+                        let q = idx(nr as usize, nc as usize, nk as usize);
+                        if occ[q] && label[q] == u32::MAX {
+                            label[q] = id;
+                            stack.push(q);
+                        }
+                    }
+                }
+            }
+        }
+        out.push(b);
+    }
+    out
+}
+
+/// Assign every pixel of `region` to the geodesically nearest seed (multi-source BFS inside
+/// the region, 8-connected); pixels no seed reaches get none.
+pub(super) fn geodesic_assign(region: &Mask, seeds: &[Mask]) -> Vec<Option<usize>> {
+    let (rows, cols) = (region.rows, region.cols);
+    let mut owner: Vec<Option<usize>> = vec![None; rows * cols];
+    let mut queue = VecDeque::new();
+    for (s, m) in seeds.iter().enumerate() {
+        for i in 0..rows * cols {
+            if m.data[i] && region.data[i] && owner[i].is_none() {
+                owner[i] = Some(s);
+                queue.push_back(i);
+            }
+        }
+    }
+    while let Some(i) = queue.pop_front() {
+        let (r, c) = (i / cols, i % cols);
+        for dr in -1isize..=1 {
+            for dc in -1isize..=1 {
+                let (nr, nc) = (r as isize + dr, c as isize + dc);
+                if nr < 0 || nc < 0 || nr >= rows as isize || nc >= cols as isize {
+                    continue;
+                }
+                let j = nr as usize * cols + nc as usize;
+                if region.data[j] && owner[j].is_none() {
+                    owner[j] = owner[i];
+                    queue.push_back(j);
+                }
+            }
+        }
+    }
+    owner
+}
+
+/// Split one first-round region into objects by 3D connectivity (see the module docs).
+pub(super) fn split_region(cx: &Ctx, rect: PixelRect, cols: &Mask) -> Vec<Part> {
+    let (vol, start, ground, ground_tol, tau) =
+        (cx.vol, cx.start, cx.ground, cx.ground_tol, cx.tau);
+    let (min_texels, split_3d) = (cx.min_texels, cx.p.stages.split_3d);
+    let bl = blobs(vol, rect, cols, start, tau);
+    let whole = |kmin: usize, kmax: usize| Part { rect, footprint: cols.clone(), kmin, kmax };
+    let (kmin, kmax) = bl.iter().fold((usize::MAX, 0), |(a, b), x| (a.min(x.kmin), b.max(x.kmax)));
+    let (kmin, kmax) = if kmin == usize::MAX { (start, start) } else { (kmin, kmax) };
+    if !split_3d || bl.is_empty() {
+        return vec![whole(kmin, kmax)];
+    }
+    let primary: Vec<usize> = (0..bl.len())
+        .filter(|&i| bl[i].kmin <= ground + ground_tol && bl[i].proj_count >= min_texels)
+        .collect();
+    if tracing::enabled!(tracing::Level::DEBUG) && bl.len() > 1 {
+        let mut big: Vec<(usize, usize, usize)> =
+            bl.iter().map(|b| (b.proj_count, b.kmin, b.kmax)).collect();
+        big.sort_by_key(|b| std::cmp::Reverse(b.0));
+        big.truncate(8);
+        tracing::debug!(
+            ?rect,
+            blobs = bl.len(),
+            primaries = primary.len(),
+            ground,
+            ground_tol,
+            ?big,
+            "3D split"
+        );
+    }
+    if primary.len() < 2 {
+        return vec![whole(kmin, kmax)];
+    }
+    // groups of blobs: (projection, kmin, kmax)
+    let mut groups: Vec<(Mask, usize, usize)> =
+        primary.iter().map(|&i| (bl[i].proj.clone(), bl[i].kmin, bl[i].kmax)).collect();
+    // floating / small blobs join the group they overlap most, else the nearest one
+    let mut order: Vec<usize> = (0..bl.len()).filter(|i| !primary.contains(i)).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(bl[i].proj_count));
+    for i in order {
+        let b = &bl[i];
+        let best = (0..groups.len())
+            .map(|g| (g, overlap(&b.proj, &groups[g].0)))
+            .max_by_key(|&(g, o)| (o, std::cmp::Reverse(g)))
+            .filter(|&(_, o)| o > 0)
+            .map(|(g, _)| g)
+            .or_else(|| {
+                (0..groups.len())
+                    .map(|g| (g, centroid_distance2(&b.proj, &groups[g].0)))
+                    .min_by(|a, b| a.1.total_cmp(&b.1))
+                    .map(|(g, _)| g)
+            });
+        if let Some(g) = best {
+            or_into(&mut groups[g].0, &b.proj);
+            groups[g].1 = groups[g].1.min(b.kmin);
+            groups[g].2 = groups[g].2.max(b.kmax);
+        }
+    }
+    // groups that mostly cover each other are one object
+    loop {
+        let mut merged = false;
+        'outer: for a in 0..groups.len() {
+            for b in 0..groups.len() {
+                if a == b {
+                    continue;
+                }
+                let (na, nb) = (groups[a].0.count(), groups[b].0.count());
+                if na <= nb && overlap(&groups[a].0, &groups[b].0) * 2 >= na {
+                    let ga = groups.remove(a);
+                    let b = if b > a { b - 1 } else { b };
+                    or_into(&mut groups[b].0, &ga.0);
+                    groups[b].1 = groups[b].1.min(ga.1);
+                    groups[b].2 = groups[b].2.max(ga.2);
+                    merged = true;
+                    break 'outer;
+                }
+            }
+        }
+        if !merged {
+            break;
+        }
+    }
+    if groups.len() < 2 {
+        return vec![whole(kmin, kmax)];
+    }
+    // region texels outside every projection go to the geodesically nearest group
+    let seeds: Vec<Mask> = groups.iter().map(|g| g.0.clone()).collect();
+    let owner = geodesic_assign(cols, &seeds);
+    groups
+        .into_iter()
+        .enumerate()
+        .map(|(g, (proj, kmin, kmax))| {
+            let mut fp = proj;
+            for (i, o) in owner.iter().enumerate() {
+                if *o == Some(g) {
+                    fp.data[i] = true;
+                }
+            }
+            Part { rect, footprint: fill_holes(&fp), kmin, kmax }
+        })
+        .collect()
+}
+
+/// Lowest level `>= start` occupied (`>= tau`) in the columns of `m` (over `rect`).
+pub(super) fn lowest_level(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    m: &Mask,
+    start: usize,
+    tau: f32,
+) -> usize {
+    let mut best = usize::MAX;
+    for r in 0..rect.rows() {
+        for c in 0..rect.cols() {
+            if m.get(r, c) {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                if let Some(k) = (start..vol.nz).find(|&k| col[k] >= tau) {
+                    best = best.min(k);
+                }
+            }
+        }
+    }
+    best
+}
+
+/// Whether the opaque voxels in the columns of `m` (over `rect`) stand on the ground: a 3D
+/// component reaching down to `ground` also reaches at least halfway up to the bottom of
+/// the largest floating one. A lamp head over a few specks of haze on the ground does not stand; a
+/// table top over what the field kept of its legs does.
+pub(super) fn stands(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    m: &Mask,
+    start: usize,
+    ground: usize,
+    tau: f32,
+) -> bool {
+    let bl = blobs(vol, rect, m, start, tau);
+    // the bottom of the largest floating component (a table top over legs the field lost in
+    // part); none: standing when anything reaches the ground
+    let top = bl.iter().filter(|b| b.kmin > ground).max_by_key(|b| b.proj_count).map(|b| b.kmin);
+    let Some(top) = top else { return bl.iter().any(|b| b.kmin <= ground) };
+    bl.iter().any(|b| {
+        b.kmin <= ground && 2 * b.kmax.saturating_sub(ground) >= top.saturating_sub(ground)
+    })
+}
+
+/// Cut a region at thin bridges: the cores that survive a morphological opening of radius
+/// `radius` become seeds, every texel goes to the geodesically nearest seed, and pieces
+/// that do not reach the ground (a lamp head whose arm is too thin, a shade over its base)
+/// join the neighbour they share the longest border with.
+pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mask> {
+    let (vol, start, ground, ground_tol, tau) =
+        (cx.vol, cx.start, cx.ground, cx.ground_tol, cx.tau);
+    let (radius, min_texels) = (cx.p.bridge_radius_texels.max(1), cx.min_texels);
+    let (h, w) = (region.rows, region.cols);
+    // pad so that the box edge does not protect texels from erosion
+    let padded = Mask::from_fn(h + 2 * radius, w + 2 * radius, |r, c| {
+        r >= radius && c >= radius && region.get(r - radius, c - radius)
+    });
+    let Ok(opened) = crate::morphology::open(&padded, radius) else {
+        return vec![region.clone()];
+    };
+    let core = Mask::from_fn(h, w, |r, c| opened.get(r + radius, c + radius));
+    let Ok((labels, sizes)) = crate::contours::label_components(&core) else {
+        return vec![region.clone()];
+    };
+    let seeds: Vec<Mask> = (0..sizes.len())
+        .filter(|&l| sizes[l] >= min_texels)
+        .map(|l| Mask { rows: h, cols: w, data: labels.iter().map(|&x| x == l as u32).collect() })
+        .collect();
+    if tracing::enabled!(tracing::Level::DEBUG) {
+        let sizes: Vec<(usize, usize)> =
+            seeds.iter().map(|m| (m.count(), lowest_level(vol, rect, m, start, tau))).collect();
+        tracing::debug!(?rect, cores = seeds.len(), ?sizes, "bridges");
+    }
+    if seeds.len() < 2 {
+        return vec![region.clone()];
+    }
+    let owner = geodesic_assign(region, &seeds);
+    let mut pieces: Vec<Mask> = (0..seeds.len())
+        .map(|s| Mask { rows: h, cols: w, data: owner.iter().map(|&o| o == Some(s)).collect() })
+        .collect();
+    // floating pieces join their longest-bordering neighbour
+    loop {
+        let grounded: Vec<bool> =
+            pieces.iter().map(|p| stands(vol, rect, p, start, ground + ground_tol, tau)).collect();
+        let Some(f) = (0..pieces.len()).find(|&i| !grounded[i]) else { break };
+        let mut border = vec![0usize; pieces.len()];
+        for r in 0..h {
+            for c in 0..w {
+                if !pieces[f].get(r, c) {
+                    continue;
+                }
+                for (dr, dc) in [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)] {
+                    let (nr, nc) = (r as isize + dr, c as isize + dc);
+                    if nr < 0 || nc < 0 || nr >= h as isize || nc >= w as isize {
+                        continue;
+                    }
+                    for (j, p) in pieces.iter().enumerate() {
+                        if j != f && p.get(nr as usize, nc as usize) {
+                            border[j] += 1;
+                        }
+                    }
+                }
+            }
+        }
+        let Some((j, &b)) =
+            border.iter().enumerate().max_by_key(|&(j, &b)| (b, std::cmp::Reverse(j)))
+        else {
+            break;
+        };
+        if b == 0 {
+            // isolated and floating: leave it alone (it may still be an object)
+            if pieces.iter().enumerate().all(|(i, _)| i == f || grounded[i]) {
+                break;
+            }
+            break;
+        }
+        let pf = pieces.remove(f);
+        let j = if j > f { j - 1 } else { j };
+        or_into(&mut pieces[j], &pf);
+        if pieces.len() < 2 {
+            break;
+        }
+    }
+    pieces
+}

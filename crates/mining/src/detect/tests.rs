@@ -1,0 +1,804 @@
+//! Tests of the stages on synthetic opacity volumes (5 cm texels and levels, so "a box of
+//! six levels" is 0.3 m tall in the comments).
+
+use super::merge::fragments_merged;
+use super::shape::{Part, border_ring, is_thin};
+use super::split::stands;
+use super::unpack::closed_shell;
+use super::*;
+use crate::image::{Mask, PixelRect};
+use assetfield_core::Rect2;
+use glam::Vec2;
+
+/// The parameters for these volumes: the defaults' lengths re-expressed at their 5 cm
+/// texels (the defaults count texels of 2.8 cm: an 8 cm window is 3 levels there and 2
+/// here), and a minimum area of 4 texels (0.01 m^2).
+fn params() -> DetectParams {
+    DetectParams {
+        min_area_texels: 4,
+        evidence_window_levels: 2,
+        wall_half_thickness_texels: 2.0,
+        ground_tolerance_levels: 2,
+        bridge_radius_texels: 1,
+        thin_radius_texels: 2,
+        flat_height_levels: 2,
+        haze_low_levels: 6,
+        ragged_low_levels: 10,
+        floating_top_levels: 20,
+        fragment_top_levels: 1,
+        surface_window_levels: 3,
+        raise_levels: 2,
+        low_support_levels: 5,
+        seed_window_texels: 5,
+        ..Default::default()
+    }
+}
+
+/// A volume with a floor slab at levels 0..=1 and boxes standing on it.
+fn scene() -> OpacityVolume {
+    let (rows, cols, nz) = (40, 60, 20);
+    let mut data = vec![0f32; rows * cols * nz];
+    let mut fill = |r0: usize, r1: usize, c0: usize, c1: usize, k0: usize, k1: usize| {
+        for r in r0..r1 {
+            for c in c0..c1 {
+                for k in k0..k1 {
+                    data[(r * cols + c) * nz + k] = 0.9;
+                }
+            }
+        }
+    };
+    fill(0, 40, 0, 60, 0, 2); // floor
+    fill(5, 12, 5, 12, 2, 8); // a box
+    fill(5, 12, 20, 27, 2, 8); // another
+    fill(20, 34, 10, 40, 9, 10); // table top
+    fill(20, 21, 10, 11, 2, 9); // a leg
+    fill(25, 29, 20, 26, 10, 14); // an object on the table
+    fill(0, 1, 0, 60, 2, 10); // a wall along the bottom edge
+    OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data }
+}
+
+#[test]
+fn floor_objects_walls_and_supported_objects() {
+    let vol = scene();
+    let f = floor_band(&vol, &params()).unwrap();
+    assert_eq!((f.lo, f.hi), (0, 1));
+    let grid = PlaneGrid { cols: 60, rows: 40, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+    let color = PlaneImage::from_fn(40, 60, 3, |r, c, k| {
+        if (25..29).contains(&r) && (20..26).contains(&c) { 1.0 } else { k as f32 * 0.1 }
+    })
+    .unwrap();
+    let opts = params();
+    let d = detect(&grid, &vol, &color, None, &opts).unwrap();
+    let boxes: Vec<(PixelRect, Option<usize>)> =
+        d.detections.iter().map(|x| (x.rect, x.parent)).collect();
+    assert_eq!(d.detections.len(), 4, "{boxes:?} removed {:?}", d.removed);
+    assert!(
+        d.removed.iter().any(|r| matches!(r.reason, RemovalReason::Wall { .. })),
+        "{:?}",
+        d.removed
+    );
+    let on_table = d.detections.iter().find(|x| x.parent.is_some()).unwrap();
+    assert_eq!(on_table.rect, PixelRect::new(25, 20, 29, 26));
+    let table = &d.detections[on_table.parent.unwrap()];
+    assert_eq!(table.rect, PixelRect::new(20, 10, 34, 40));
+    assert!((on_table.base - 0.45).abs() < 1e-4, "{}", on_table.base);
+    assert!((table.top - 0.45).abs() < 1e-4);
+    // a box on the floor has its own levels from the ground level (one level of margin
+    // above the floor's top, against haze on the floor) up
+    assert_eq!(d.ground_level, 3);
+    let boxd = d.detections.iter().find(|x| x.rect == PixelRect::new(5, 5, 12, 12)).unwrap();
+    assert!((boxd.base - vol.height(2)).abs() < 1e-6, "{}", boxd.base);
+    assert_eq!(vol.levels_between(boxd.base, boxd.shape_top), (3, 7));
+    assert!(table.own.count() < table.footprint.count());
+}
+
+#[test]
+fn touching_objects_separate_in_3d() {
+    // a low box under the edge of a high slab on its own legs: one region in 2D, two
+    // objects in 3D
+    let (rows, cols, nz) = (30, 40, 20);
+    let mut data = vec![0f32; rows * cols * nz];
+    let mut fill = |r0: usize, r1: usize, c0: usize, c1: usize, k0: usize, k1: usize| {
+        for r in r0..r1 {
+            for c in c0..c1 {
+                for k in k0..k1 {
+                    data[(r * cols + c) * nz + k] = 0.9;
+                }
+            }
+        }
+    };
+    fill(5, 25, 5, 25, 14, 15); // table top
+    fill(5, 7, 5, 25, 0, 14); // its legs (two walls)
+    fill(23, 25, 5, 25, 0, 14);
+    fill(10, 20, 20, 35, 0, 8); // a box partly under the top
+    let vol = OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data };
+    let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+    let color = PlaneImage::zeros(rows, cols, 2).unwrap();
+    let opts = params();
+    let d = detect(&grid, &vol, &color, None, &opts).unwrap();
+    let mut rects: Vec<PixelRect> = d.detections.iter().map(|x| x.rect).collect();
+    rects.sort_by_key(|r| r.c0);
+    assert_eq!(rects, vec![PixelRect::new(5, 5, 25, 25), PixelRect::new(10, 20, 20, 35)]);
+    // the table's own texels leave out the box partly under it; the box keeps them
+    let table = d.detections.iter().find(|x| x.rect.c0 == 5).unwrap();
+    let boxd = d.detections.iter().find(|x| x.rect.c0 == 20).unwrap();
+    assert!(!table.own.get(15 - 5, 22 - 5) && table.own.get(15 - 5, 10 - 5));
+    assert!(boxd.own.get(15 - 10, 22 - 20));
+    // with no floor, both stand on the level below the ground, so their own levels
+    // start at their lowest one
+    assert!(d.floor.is_none());
+    for x in [table, boxd] {
+        assert!((x.base - vol.height_below(0)).abs() < 1e-6, "{}", x.base);
+    }
+    assert_eq!(vol.levels_between(boxd.base, boxd.shape_top), (0, 7));
+    let unsplit = DetectParams {
+        stages: Stages {
+            split_3d: false,
+            split_bridges: false,
+            split_colour: false,
+            ..Stages::ALL
+        },
+        ..opts
+    };
+    assert_eq!(detect(&grid, &vol, &color, None, &unsplit).unwrap().detections.len(), 1);
+}
+
+/// An empty volume with a floor slab at levels 0..=1.
+fn floor_volume(rows: usize, cols: usize, nz: usize) -> OpacityVolume {
+    let mut v = OpacityVolume::empty(rows, cols, nz, 0.05);
+    fill(&mut v, (0, rows), (0, cols), (0, 2), 0.95);
+    v
+}
+
+/// Whether two boxes agree within one texel on every side.
+fn within_a_texel(r: PixelRect, want: PixelRect) -> bool {
+    r.r0.abs_diff(want.r0) <= 1
+        && r.c0.abs_diff(want.c0) <= 1
+        && r.r1.abs_diff(want.r1) <= 1
+        && r.c1.abs_diff(want.c1) <= 1
+}
+
+/// A pallet over rows 10..30, columns 10..34: three runners (level 2) under a deck
+/// (level 3), 1.0 x 1.2 m.
+fn pallet(v: &mut OpacityVolume) {
+    for r0 in [10, 19, 28] {
+        fill(v, (r0, r0 + 2), (10, 34), (2, 3), 0.95);
+    }
+    fill(v, (10, 30), (10, 34), (3, 4), 0.95);
+}
+
+/// The crate of the pallet tests (rows 12..28, columns 14..30) in one colour, the rest
+/// in another.
+fn crate_colour() -> PlaneImage {
+    painted(50, 50, (12..28, 14..30), [0.8, 0.6, 0.3], [0.5, 0.4, 0.3])
+}
+
+/// The crate is found standing on the pallet, give or take the one-texel margin its
+/// colour cluster may take along.
+fn assert_the_crate_unpacks(v: &OpacityVolume) {
+    let d = detect_small(v, &crate_colour());
+    let r = only_child(&d).rect;
+    assert!(within_a_texel(r, PixelRect::new(12, 14, 28, 30)), "{r:?}");
+}
+
+fn fill(v: &mut OpacityVolume, r: (usize, usize), c: (usize, usize), k: (usize, usize), o: f32) {
+    v.fill_box(r.0..r.1, c.0..c.1, k.0..k.1, o);
+}
+
+/// A colour plane of `rows x cols`: `inside` over the texel rectangle `rect` (rows,
+/// columns), `outside` elsewhere.
+fn painted(
+    rows: usize,
+    cols: usize,
+    rect: (std::ops::Range<usize>, std::ops::Range<usize>),
+    inside: [f32; 3],
+    outside: [f32; 3],
+) -> PlaneImage {
+    PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+        if rect.0.contains(&r) && rect.1.contains(&c) { inside[k] } else { outside[k] }
+    })
+    .unwrap()
+}
+
+/// Detection at 5 cm texels with a small minimum area (the unpacking tests).
+fn detect_small(v: &OpacityVolume, color: &PlaneImage) -> Detections {
+    let grid = PlaneGrid { cols: v.cols, rows: v.rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+    let opts = params();
+    detect(&grid, v, color, None, &opts).unwrap()
+}
+
+/// Detection on a plain colour plane keeps exactly the boxes `kept` (in the order of
+/// [`rects`]), and removes something for a reason that mentions `reason`.
+fn assert_kept_and_removed(v: &OpacityVolume, kept: &[PixelRect], reason: &str) {
+    let d = detect_small(v, &PlaneImage::zeros(v.rows, v.cols, 3).unwrap());
+    assert_eq!(rects(&d), kept, "{:?}", d.removed);
+    assert!(d.removed.iter().any(|r| r.reason.to_string().contains(reason)), "{:?}", d.removed);
+}
+
+/// The one object standing on another, of exactly two detections.
+fn only_child(d: &Detections) -> &Detection {
+    let boxes: Vec<(PixelRect, Option<usize>)> =
+        d.detections.iter().map(|x| (x.rect, x.parent)).collect();
+    assert_eq!(d.detections.len(), 2, "{boxes:?}");
+    d.detections.iter().find(|x| x.parent.is_some()).unwrap()
+}
+
+fn rects(d: &Detections) -> Vec<PixelRect> {
+    let mut v: Vec<PixelRect> = d.detections.iter().map(|x| x.rect).collect();
+    v.sort_by_key(|r| (r.c0, r.r0));
+    v
+}
+
+#[test]
+fn a_lamp_on_a_side_table_is_held_on_a_stem() {
+    // areas per level: a table body to level 10, its top's blur, a stem, a shade
+    let mut area = vec![0usize; 30];
+    area[2..=10].fill(400);
+    area[11] = 60;
+    area[12..=16].fill(2);
+    area[17..=20].fill(150);
+    assert!(held_on_a_stem(&area, 10, 400, 3));
+    // a chair's back rises from its seat without a stem
+    let mut chair = area.clone();
+    chair[12..=20].fill(70);
+    assert!(!held_on_a_stem(&chair, 10, 400, 3));
+    // a stem too short to tell from the top's blur
+    let mut short = area.clone();
+    short[14..=16].fill(150);
+    assert!(!held_on_a_stem(&short, 10, 400, 3));
+    // nothing held above the stem (haze)
+    let mut bare = area;
+    bare[17..=20].fill(20);
+    assert!(!held_on_a_stem(&bare, 10, 400, 3));
+
+    // and in a volume: a side table (solid, 0.45 m) whose lamp shade covers 44% of it,
+    // leaving a rim of one or two texels, on a one-texel stem
+    let (rows, cols) = (30, 30);
+    let mut v = floor_volume(rows, cols, 40);
+    fill(&mut v, (10, 19), (10, 19), (2, 12), 0.95);
+    fill(&mut v, (14, 15), (14, 15), (12, 20), 0.95);
+    fill(&mut v, (11, 17), (11, 17), (20, 24), 0.95);
+    // the shade in one colour, the rest in another
+    let color = painted(rows, cols, (11..17, 11..17), [0.95, 0.9, 0.7], [0.6, 0.45, 0.3]);
+    let d = detect_small(&v, &color);
+    let lamp = only_child(&d);
+    assert_eq!(lamp.rect, PixelRect::new(11, 11, 17, 17));
+}
+
+#[test]
+fn an_object_found_twice_keeps_the_copy_standing_on_its_host() {
+    let det = |id: usize, rect: PixelRect, top: f32, parent: Option<usize>| {
+        let mut footprint = Mask::empty(rect.rows(), rect.cols()).unwrap();
+        footprint.data.fill(true);
+        Detection {
+            id,
+            rect,
+            own: footprint.clone(),
+            footprint,
+            world: Rect2::EMPTY,
+            area: 0.0,
+            base: 0.0,
+            top,
+            shape_top: top,
+            parent,
+            children: Vec::new(),
+        }
+    };
+    let mut table = det(0, PixelRect::new(0, 0, 20, 30), 0.75, None);
+    table.children = vec![1, 3];
+    let lamp = det(1, PixelRect::new(5, 5, 12, 12), 1.2, Some(0));
+    // the lamp's column again, from the ground: dropped
+    let twice = det(2, PixelRect::new(5, 5, 13, 12), 1.2, None);
+    // a laptop over a chair pushed under the table: kept (the chair is much larger)
+    let laptop = det(3, PixelRect::new(14, 20, 17, 24), 0.8, Some(0));
+    let chair = det(4, PixelRect::new(12, 18, 24, 30), 0.8, None);
+    let kept = drop_duplicates(vec![table, lamp, twice, laptop, chair], 0.05, 0.6);
+    let rects: Vec<PixelRect> = kept.iter().map(|d| d.rect).collect();
+    assert_eq!(rects.len(), 4, "{rects:?}");
+    assert!(!rects.contains(&PixelRect::new(5, 5, 13, 12)));
+    // renumbered: the laptop is now 2 and still the table's child
+    assert_eq!(kept[0].children, vec![1, 2]);
+    assert_eq!((kept[2].id, kept[2].parent), (2, Some(0)));
+    assert_eq!((kept[3].id, kept[3].parent), (3, None));
+}
+
+#[test]
+fn pivots_sit_at_the_centre_of_the_ground_contact() {
+    let (rows, cols) = (40, 60);
+    let mut v = floor_volume(rows, cols, 20);
+    // a street lamp: a pole at one end of its box, an arm and a head reaching over
+    fill(&mut v, (10, 12), (10, 12), (2, 18), 0.95);
+    fill(&mut v, (9, 12), (10, 30), (17, 19), 0.95);
+    fill(&mut v, (6, 15), (22, 30), (14, 19), 0.95);
+    // paint on the floor under the head: one level, not a contact
+    fill(&mut v, (7, 14), (23, 29), (3, 4), 0.95);
+    // a table on four legs: turns about its centre
+    for (r, c) in [(25, 10), (25, 28), (33, 10), (33, 28)] {
+        fill(&mut v, (r, r + 2), (c, c + 2), (2, 9), 0.95);
+    }
+    fill(&mut v, (25, 35), (10, 30), (9, 10), 0.95);
+    // a chair whose foot is lost in the floor, touching down only along a thin panel at
+    // one edge: a strip is no post, it turns about its centre
+    fill(&mut v, (8, 16), (40, 50), (5, 12), 0.95);
+    fill(&mut v, (8, 16), (40, 41), (2, 12), 0.95);
+    let color = PlaneImage::from_fn(rows, cols, 3, |_, _, k| k as f32 * 0.3).unwrap();
+    let d = detect_small(&v, &color);
+    assert_eq!(
+        rects(&d),
+        vec![
+            PixelRect::new(6, 10, 15, 30),
+            PixelRect::new(25, 10, 35, 30),
+            PixelRect::new(8, 40, 16, 50)
+        ],
+        "{:?}",
+        d.removed
+    );
+    let pivots = crate::pivot::contact_pivots(&v, &d);
+    for (det, p) in d.detections.iter().zip(&pivots) {
+        let centre = crate::pivot::box_centre(det);
+        if det.rect.r0 == 6 {
+            // the pole's centre: texels 10..12 at 5 cm, between the centres of 10 and 11
+            assert!((*p - Vec2::new(0.525, 0.525)).length() < 1e-4, "lamp pivot {p}");
+            assert!((centre.x - p.x) > 0.4, "the box centre {centre} is out on the arm");
+        } else {
+            assert_eq!(*p, centre, "{:?}: pivot at the box centre", det.rect);
+        }
+    }
+}
+
+#[test]
+fn thin_bridges_and_colour_boundaries_separate_objects() {
+    let (rows, cols) = (40, 60);
+    let mut v = floor_volume(rows, cols, 20);
+    fill(&mut v, (5, 15), (5, 15), (2, 10), 0.95); // a box
+    fill(&mut v, (5, 15), (25, 35), (2, 10), 0.95); // another
+    fill(&mut v, (9, 10), (15, 25), (3, 5), 0.95); // a one-texel haze bridge between them
+    // an L of two differently coloured boxes of different heights that touch along a
+    // short edge
+    fill(&mut v, (22, 36), (5, 13), (2, 12), 0.95);
+    fill(&mut v, (22, 30), (13, 27), (2, 8), 0.95);
+    // the red in one colour, the rest in another
+    let color = painted(rows, cols, (22..30, 13..27), [1.0, 0.1, 0.1], [0.1, 0.2, 0.9]);
+    let d = detect_small(&v, &color);
+    assert_eq!(
+        rects(&d),
+        vec![
+            PixelRect::new(5, 5, 15, 15),
+            PixelRect::new(22, 5, 36, 13),
+            PixelRect::new(22, 13, 30, 27),
+            PixelRect::new(5, 25, 15, 35),
+        ],
+        "{:?}",
+        d.removed
+    );
+    // without separation: the bridged pair and the L are one object each
+    let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+    let joined = DetectParams {
+        stages: Stages {
+            split_3d: false,
+            split_bridges: false,
+            split_colour: false,
+            ..Stages::ALL
+        },
+        ..params()
+    };
+    assert_eq!(detect(&grid, &v, &color, None, &joined).unwrap().detections.len(), 2);
+}
+
+#[test]
+fn neighbours_of_one_height_separate_but_a_drawer_block_stays() {
+    let (rows, cols) = (40, 60);
+    // two blocks of one height and different colours touching along a short edge (a
+    // tenth of the smaller one's outline), as an armchair's arm against a sofa's
+    let mut v = floor_volume(rows, cols, 20);
+    fill(&mut v, (2, 26), (5, 15), (2, 10), 0.95);
+    fill(&mut v, (16, 36), (15, 35), (2, 10), 0.95);
+    let color = painted(rows, cols, (2..26, 5..15), [0.9, 0.6, 0.2], [0.35, 0.47, 0.4]);
+    let d = detect_small(&v, &color);
+    assert_eq!(
+        rects(&d),
+        vec![PixelRect::new(2, 5, 26, 15), PixelRect::new(16, 15, 36, 35)],
+        "{:?}",
+        d.removed
+    );
+    // a desk whose drawer block (one end, its own colour, under the same top) shares a
+    // whole side with the rest, and a lower chair pushed against the desk
+    let mut v = floor_volume(rows, cols, 20);
+    fill(&mut v, (5, 15), (5, 35), (2, 10), 0.95);
+    fill(&mut v, (15, 23), (20, 28), (2, 6), 0.95);
+    let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+        let rgb = if r >= 15 {
+            [0.8, 0.1, 0.1]
+        } else if c < 13 {
+            [0.2, 0.2, 0.25]
+        } else {
+            [0.7, 0.55, 0.35]
+        };
+        rgb[k]
+    })
+    .unwrap();
+    let d = detect_small(&v, &color);
+    assert_eq!(
+        rects(&d),
+        vec![PixelRect::new(5, 5, 15, 35), PixelRect::new(15, 20, 23, 28)],
+        "{:?}",
+        d.removed
+    );
+}
+
+#[test]
+fn a_convex_object_with_a_coloured_inside_stays_whole_and_haze_goes() {
+    let (rows, cols) = (40, 60);
+    let mut v = floor_volume(rows, cols, 20);
+    fill(&mut v, (5, 25), (5, 25), (2, 10), 0.95); // a sofa-like block
+    fill(&mut v, (30, 33), (40, 44), (2, 7), 0.5); // faint low haze
+    // the cushion in one colour, the rest in another
+    let color = painted(rows, cols, (8..22, 8..22), [0.9, 0.8, 0.1], [0.1, 0.5, 0.2]);
+    let d = detect_small(&v, &color);
+    assert_eq!(rects(&d), vec![PixelRect::new(5, 5, 25, 25)], "{:?}", d.removed);
+    assert!(
+        d.removed
+            .iter()
+            .any(|r| r.reason.filter().ends_with("haze") || r.reason.filter() == "floating-specks"),
+        "{:?}",
+        d.removed
+    );
+}
+
+#[test]
+fn empty_fields_and_bad_options_are_errors() {
+    let v = floor_volume(20, 20, 10);
+    let grid = PlaneGrid { cols: 20, rows: 20, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+    let color = PlaneImage::zeros(20, 20, 2).unwrap();
+    let e = detect(&grid, &v, &color, None, &params()).unwrap_err();
+    assert!(e.to_string().contains("empty"), "{e}");
+    let mut v2 = v.clone();
+    fill(&mut v2, (5, 10), (5, 10), (2, 6), 0.9);
+    let k1 = DetectParams { k: 1, ..params() };
+    assert!(detect(&grid, &v2, &color, None, &k1).is_err());
+    let big = DetectParams { k: 10_000, ..params() };
+    assert!(detect(&grid, &v2, &color, None, &big).unwrap_err().to_string().contains("distinct"));
+    let wrong = PlaneImage::zeros(10, 20, 2).unwrap();
+    assert!(detect(&grid, &v2, &wrong, None, &params()).is_err());
+}
+
+#[test]
+fn objects_on_a_solid_body_unpack_but_specks_do_not() {
+    // a desk-like solid body (levels 2..=12 over its whole footprint) with a dark monitor
+    // standing on its top away from the rim, and a one-texel speck of haze above it
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 24);
+    fill(&mut v, (5, 29), (10, 50), (2, 13), 0.95);
+    fill(&mut v, (12, 22), (25, 29), (13, 20), 0.95);
+    fill(&mut v, (8, 9), (45, 46), (14, 16), 0.95);
+    // the dark in one colour, the rest in another
+    let color = painted(rows, cols, (12..22, 25..29), [0.1, 0.1, 0.1], [0.9, 0.9, 0.85]);
+    let d = detect_small(&v, &color);
+    let child = only_child(&d);
+    assert_eq!(child.rect, PixelRect::new(12, 25, 22, 29));
+    assert!((child.base - v.height(12)).abs() < 1e-4, "{}", child.base);
+    // a body whose top is mostly covered (a chair's seat under its back) is no support
+    let mut v2 = floor_volume(rows, cols, 24);
+    fill(&mut v2, (5, 20), (10, 25), (2, 13), 0.95);
+    fill(&mut v2, (8, 17), (13, 22), (13, 20), 0.95);
+    let d2 = detect_small(&v2, &color);
+    assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
+}
+
+#[test]
+fn a_crate_covering_most_of_a_low_pallet_unpacks() {
+    // a pallet: runners (levels 2..=3) under a deck (level 3), 1.0 x 1.2 m; a crate of
+    // 0.8 x 0.8 m on it (levels 4..=19) covers 53% of it, with a 0.1 m margin
+    let mut v = floor_volume(50, 50, 24);
+    pallet(&mut v);
+    fill(&mut v, (12, 28), (14, 30), (4, 20), 0.95);
+    assert_the_crate_unpacks(&v);
+    // the same box standing on a tall solid body (a car's cabin on its body) stays one
+    let mut v2 = floor_volume(50, 50, 24);
+    fill(&mut v2, (10, 30), (10, 34), (2, 12), 0.95);
+    fill(&mut v2, (12, 28), (14, 30), (12, 20), 0.95);
+    let d2 = detect_small(&v2, &crate_colour());
+    assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
+}
+
+#[test]
+fn closed_shells_are_told_from_legs_and_open_sides() {
+    // 1.0 x 2.0 m tops over levels 2..=10 of: a car's body (walls one texel thick all
+    // round), a table's four legs, a desk's panels on three sides
+    let (rect, f) = (PixelRect::new(10, 10, 30, 50), Mask::from_fn(20, 40, |_, _| true));
+    let ring = border_ring(&f);
+    let walls = |v: &mut OpacityVolume| {
+        fill(v, (10, 30), (10, 50), (2, 11), 0.95);
+        fill(v, (11, 29), (11, 49), (2, 11), 0.0);
+    };
+    let mut car = floor_volume(60, 80, 30);
+    walls(&mut car);
+    assert!(closed_shell(&car, rect, &f, &ring, 2..11, 0.25, 0.95));
+    // a wall missing at a few levels (a gap above the wheels) still closes most of them
+    fill(&mut car, (10, 11), (20, 40), (5, 8), 0.0);
+    assert!(closed_shell(&car, rect, &f, &ring, 2..11, 0.25, 0.95));
+    // but not one open all the way down one side
+    fill(&mut car, (10, 11), (20, 40), (2, 11), 0.0);
+    assert!(!closed_shell(&car, rect, &f, &ring, 2..11, 0.25, 0.95));
+    let mut table = floor_volume(60, 80, 30);
+    for (r, c) in [(10, 10), (10, 48), (28, 10), (28, 48)] {
+        fill(&mut table, (r, r + 2), (c, c + 2), (2, 11), 0.95);
+    }
+    assert!(!closed_shell(&table, rect, &f, &ring, 2..11, 0.25, 0.95));
+    let mut desk = floor_volume(60, 80, 30);
+    walls(&mut desk);
+    fill(&mut desk, (29, 30), (11, 49), (2, 11), 0.0);
+    assert!(!closed_shell(&desk, rect, &f, &ring, 2..11, 0.25, 0.95));
+    // faint walls are no walls, and no levels make no shell
+    assert!(!closed_shell(&car, rect, &f, &ring, 2..11, 0.99, 0.95));
+    assert!(!closed_shell(&car, rect, &f, &ring, 2..2, 0.25, 0.95));
+}
+
+#[test]
+fn a_hollow_crate_on_a_slatted_pallet_unpacks() {
+    // the pallet of the test above with gaps between the deck's slats under the crate,
+    // and a crate whose walls are one texel thick under a lid: the lid (256 texels) covers
+    // more than 60% of the slatted deck, so it is the highest dense surface, with nothing
+    // on it; the deck below it is the support
+    let mut v = floor_volume(50, 50, 24);
+    pallet(&mut v);
+    for gap in [13, 17, 21] {
+        fill(&mut v, (gap, gap + 2), (14, 30), (3, 4), 0.0);
+    }
+    let hollow_box = |v: &mut OpacityVolume, k0: usize| {
+        fill(v, (12, 28), (14, 15), (k0, 19), 0.95);
+        fill(v, (12, 28), (29, 30), (k0, 19), 0.95);
+        fill(v, (12, 13), (14, 30), (k0, 19), 0.95);
+        fill(v, (27, 28), (14, 30), (k0, 19), 0.95);
+        fill(v, (12, 28), (14, 30), (19, 20), 0.95);
+    };
+    hollow_box(&mut v, 4);
+    assert_the_crate_unpacks(&v);
+    // the same hollow box standing on the floor, nothing on its lid: one object
+    let mut v2 = floor_volume(50, 50, 24);
+    hollow_box(&mut v2, 2);
+    let d2 = detect_small(&v2, &crate_colour());
+    assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
+}
+
+#[test]
+fn soft_tops_and_screens_behind_a_hinge_unpack() {
+    // a body whose top is soft (every texel opaque at one of three levels, so that no
+    // single level covers it) with a laptop: a raised screen, a hinge row of the
+    // surface's colour, and a dark keyboard lying on the top
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 24);
+    fill(&mut v, (5, 35), (10, 50), (2, 10), 0.95);
+    for r in 5..35 {
+        for c in 10..50 {
+            let k = 10 + (r + c) % 3;
+            v.data[(r * cols + c) * v.nz + k] = 0.95;
+        }
+    }
+    fill(&mut v, (12, 14), (25, 33), (14, 20), 0.95); // the screen
+    fill(&mut v, (15, 19), (25, 33), (13, 14), 0.95); // the keyboard
+    let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+        let keyboard = (15..19).contains(&r) && (25..33).contains(&c);
+        let screen = (12..14).contains(&r) && (25..33).contains(&c);
+        if keyboard {
+            [0.1, 0.1, 0.1][k]
+        } else if screen {
+            [0.5, 0.5, 0.5][k]
+        } else {
+            [0.9, 0.9, 0.85][k]
+        }
+    })
+    .unwrap();
+    let d = detect_small(&v, &color);
+    let child = only_child(&d);
+    assert_eq!(child.rect, PixelRect::new(12, 25, 19, 33));
+}
+
+#[test]
+fn a_solid_body_with_a_faint_level_is_no_table() {
+    // a car-like body (levels 2..=9 with one faint level) with a cabin over half of it:
+    // one object, not a cabin standing on a table
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 24);
+    fill(&mut v, (10, 40), (10, 30), (2, 10), 0.95);
+    fill(&mut v, (10, 40), (10, 30), (6, 7), 0.05);
+    fill(&mut v, (20, 30), (13, 27), (10, 16), 0.95);
+    // the cabin in one colour, the rest in another
+    let color = painted(rows, cols, (20..30, 13..27), [0.2, 0.3, 0.4], [0.8, 0.1, 0.1]);
+    let d = detect_small(&v, &color);
+    assert_eq!(rects(&d), vec![PixelRect::new(10, 10, 40, 30)]);
+}
+
+#[test]
+fn ragged_low_haze_goes_and_small_compact_objects_stay() {
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 24);
+    // a streaky blob of haze: thin diagonal strands, low
+    for i in 0..14 {
+        for s in [0usize, 4, 8] {
+            fill(&mut v, (10 + i, 11 + i), (10 + s + i / 2, 11 + s + i / 2), (2, 7), 0.97);
+        }
+    }
+    // a small compact box of the same height
+    fill(&mut v, (40, 46), (50, 56), (2, 7), 0.97);
+    // and a tall one, so that K-means has a background and objects
+    fill(&mut v, (40, 50), (10, 20), (2, 20), 0.97);
+    assert_kept_and_removed(
+        &v,
+        &[PixelRect::new(40, 10, 50, 20), PixelRect::new(40, 50, 46, 56)],
+        "ragged",
+    );
+}
+
+#[test]
+fn a_faint_island_inside_a_ring_goes_but_a_solid_one_stays() {
+    let (rows, cols) = (60, 90);
+    let mut v = floor_volume(rows, cols, 30);
+    // two rings (a van's body around its glass roof, a round bench around a tree), walls
+    // five texels thick
+    for c0 in [10, 50] {
+        fill(&mut v, (10, 40), (c0, c0 + 30), (2, 20), 0.97);
+        fill(&mut v, (15, 35), (c0 + 5, c0 + 25), (2, 20), 0.0);
+    }
+    // in the first, a faint island (no solid core); in the second, a solid one
+    fill(&mut v, (20, 28), (20, 28), (2, 14), 0.5);
+    fill(&mut v, (20, 28), (60, 68), (2, 14), 0.97);
+    let kept = [
+        PixelRect::new(10, 10, 40, 40),
+        PixelRect::new(10, 50, 40, 80),
+        PixelRect::new(20, 60, 28, 68),
+    ];
+    assert_kept_and_removed(&v, &kept, "island");
+}
+
+#[test]
+fn small_floaters_low_in_the_air_go_but_high_heads_and_standing_objects_stay() {
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 80);
+    // a dense speck of 3 x 3 texels hanging at levels 8..11, nothing under it
+    fill(&mut v, (10, 13), (10, 13), (8, 12), 0.97);
+    // the same speck standing on the ground (a small post) stays
+    fill(&mut v, (10, 13), (30, 33), (2, 12), 0.97);
+    // a lamp head of the same size high up (its pole lost) stays: it is no floater
+    fill(&mut v, (30, 33), (60, 63), (60, 64), 0.97);
+    // a large slab floating low stays (the rule is for specks)
+    fill(&mut v, (40, 50), (10, 20), (8, 12), 0.97);
+    // and a tall box, so that K-means has a background and objects
+    fill(&mut v, (40, 50), (40, 50), (2, 40), 0.97);
+    let kept = [
+        PixelRect::new(40, 10, 50, 20),
+        PixelRect::new(10, 30, 13, 33),
+        PixelRect::new(40, 40, 50, 50),
+        PixelRect::new(30, 60, 33, 63),
+    ];
+    assert_kept_and_removed(&v, &kept, "floating");
+}
+
+fn part(r0: usize, c0: usize, rows: usize, cols: usize, f: impl Fn(usize, usize) -> bool) -> Part {
+    Part {
+        rect: PixelRect::new(r0, c0, r0 + rows, c0 + cols),
+        footprint: Mask::from_fn(rows, cols, f),
+        kmin: 0,
+        kmax: 5,
+    }
+}
+
+#[test]
+fn fragments_of_one_object_merge_but_neighbours_do_not() {
+    // a 12 x 12 seat cut along a ragged line: the boxes interleave (the left piece
+    // reaches column 7 in some rows, the right one starts at column 5)
+    let cut = |r: usize| if r % 4 < 2 { 5 } else { 7 };
+    let left = part(10, 10, 12, 8, |r, c| c < cut(r));
+    let right = part(10, 15, 12, 7, |r, c| c + 5 >= cut(r));
+    let m = fragments_merged(&left, &right, 1).expect("fragments merge");
+    assert_eq!(m.rect, PixelRect::new(10, 10, 22, 22));
+    assert_eq!(m.footprint.count(), 144);
+    assert_eq!((m.kmin, m.kmax), (0, 5));
+    // a chair (6 x 6) at a round table (radius 8), in the corner of the table's box and
+    // touching its rim: the boxes overlap, but the union is concave
+    let inside = |r: usize, c: usize| {
+        let (y, x) = (r as f32 - 7.5, c as f32 - 7.5);
+        x * x + y * y <= 64.0
+    };
+    let table = part(0, 0, 16, 16, inside);
+    let chair = part(12, 12, 6, 6, |r, c| !inside(r + 12, c + 12));
+    assert!(fragments_merged(&table, &chair, 1).is_none());
+    // overlapping footprints are nesting, not fragments
+    let under = part(4, 4, 6, 6, |_, _| true);
+    assert!(fragments_merged(&table, &under, 1).is_none());
+    // a fragment reaching another height is another object
+    let taller = Part { kmax: 9, ..right.clone() };
+    assert!(fragments_merged(&left, &taller, 1).is_none());
+    // two crates side by side: their boxes touch but do not overlap
+    let a = part(0, 0, 8, 8, |_, _| true);
+    let b = part(0, 8, 8, 8, |_, _| true);
+    assert!(fragments_merged(&a, &b, 1).is_none());
+}
+
+#[test]
+fn holes_fill() {
+    let m = Mask::from_fn(5, 5, |r, c| r == 0 || r == 4 || c == 0 || c == 4);
+    assert_eq!(fill_holes(&m).count(), 25);
+    let open = Mask::from_fn(5, 5, |r, c| (r == 0 || r == 4 || c == 0) && c < 4);
+    assert_eq!(fill_holes(&open).count(), open.count());
+}
+
+#[test]
+fn robust_top_ignores_specks_of_haze() {
+    let (rows, cols, nz) = (12, 12, 20);
+    let mut data = vec![0f32; rows * cols * nz];
+    // a 10 x 10 box over levels 2..=8
+    for r in 1..11 {
+        for c in 1..11 {
+            for k in 2..=8 {
+                data[(r * cols + c) * nz + k] = 0.9;
+            }
+        }
+    }
+    // a speck of haze over one column at level 15
+    data[(5 * cols + 5) * nz + 15] = 0.9;
+    let vol = OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data };
+    let rect = PixelRect::new(0, 0, rows, cols);
+    let fp = Mask::from_fn(rows, cols, |r, c| (1..11).contains(&r) && (1..11).contains(&c));
+    assert_eq!(robust_top_level(&vol, rect, &fp, 2, 15, 0.5, 0.02), 8);
+    // a tall part over a fifth of the columns (a chair's back) counts
+    let mut vol2 = vol.clone();
+    for r in 1..11 {
+        for c in 1..3 {
+            for k in 9..=14 {
+                vol2.data[(r * cols + c) * nz + k] = 0.9;
+            }
+        }
+    }
+    assert_eq!(robust_top_level(&vol2, rect, &fp, 2, 15, 0.5, 0.02), 14);
+    // a tiny footprint keeps the given top
+    let one = Mask::from_fn(rows, cols, |r, c| r == 5 && c == 5);
+    assert_eq!(robust_top_level(&vol, rect, &one, 2, 15, 0.5, 0.02), 15);
+}
+
+#[test]
+fn thin_strips() {
+    let strip = Mask::from_fn(20, 20, |_, c| (8..13).contains(&c));
+    assert!(is_thin(&strip, 3));
+    assert!(!is_thin(&strip, 2));
+    // a ring is judged with its hole filled
+    let ring = Mask::from_fn(12, 12, |r, c| r == 0 || c == 0 || r == 11 || c == 11);
+    assert!(!is_thin(&ring, 3));
+    assert!(is_thin(&Mask::from_fn(4, 4, |_, _| false), 1));
+}
+
+#[test]
+fn floating_heads_do_not_stand_on_specks() {
+    let (rows, cols, nz) = (6, 6, 40);
+    let vol = |f: &dyn Fn(usize, usize, usize) -> bool| {
+        let mut data = vec![0f32; rows * cols * nz];
+        for r in 0..rows {
+            for c in 0..cols {
+                for k in 0..nz {
+                    if f(r, c, k) {
+                        data[(r * cols + c) * nz + k] = 0.9;
+                    }
+                }
+            }
+        }
+        OpacityVolume { rows, cols, nz, z0: 0.0, dz: 0.05, data }
+    };
+    let rect = PixelRect::new(0, 0, rows, cols);
+    let all = Mask::from_fn(rows, cols, |_, _| true);
+    // a lamp head at levels 30..=33 over a speck of haze on the ground
+    let head = vol(&|r, c, k| {
+        (1..5).contains(&r) && (1..5).contains(&c) && (30..=33).contains(&k)
+            || (r, c) == (2, 2) && k <= 3
+    });
+    assert!(!stands(&head, rect, &all, 0, 2, 0.5));
+    // a table top at levels 10..=11 over legs the field kept up to level 6
+    let table = vol(&|r, c, k| {
+        (10..=11).contains(&k) || [(0, 0), (0, 5), (5, 0), (5, 5)].contains(&(r, c)) && k <= 6
+    });
+    assert!(stands(&table, rect, &all, 0, 2, 0.5));
+    // a post from the ground up
+    let post = vol(&|r, c, _| (r, c) == (3, 3));
+    assert!(stands(&post, rect, &all, 0, 2, 0.5));
+    // nothing at all
+    assert!(!stands(&vol(&|_, _, _| false), rect, &all, 0, 2, 0.5));
+}

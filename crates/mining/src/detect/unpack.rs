@@ -1,0 +1,474 @@
+//! Stage 4: hierarchical unpacking (the paper's "repeat the clustering to unpack the scene",
+//! Fig. 4d). Inside every object, the top surface (a table top) is treated as background: if
+//! it is a thin, flat slab with something rising above it, each raised blob away from the
+//! rim seeds a background subtraction of the colour features around it (K-means on the
+//! distances to the surface's median colour), and the connected result, when enclosed by
+//! free surface, becomes a detection supported by the object (laptops on a table, a crate
+//! on a pallet, a lamp on a side table). A low support (a pallet's deck) may carry an object
+//! over most of it, and so may a support with an object held above it on a stem (a lamp
+//! whose shade covers most of a side table: [`held_on_a_stem`]).
+
+use super::context::Ctx;
+use super::evidence::kmeans_threshold;
+use super::shape::{Part, border_ring, fill_holes, or_into};
+use crate::contours::components;
+use crate::image::{Mask, PixelRect};
+use crate::morphology::erode;
+use crate::planes::OpacityVolume;
+
+/// Whether the per-level areas (`area[k]`: occupied texels of a footprint of `n` at level
+/// `k`) show an object held above the surface ending at level `hi` on a stem: a run of at
+/// least `run_levels` levels (the surface window: 8 cm in the suite's rooms) where at most 2%
+/// of the footprint is occupied (a stem, not a chair's back), then a level covering a tenth
+/// of it again (a lamp's shade).
+pub fn held_on_a_stem(area: &[usize], hi: usize, n: usize, run_levels: usize) -> bool {
+    let need = run_levels.max(1);
+    let stem = (n / 50).max(3);
+    let mut run = 0usize;
+    for k in hi + 1..area.len() {
+        if area[k] <= stem {
+            run += 1;
+        } else if area[k] * 10 >= n {
+            // a body: held on the stem below it, or right above the slab
+            if run >= need {
+                return true;
+            }
+            run = 0;
+        }
+    }
+    false
+}
+
+/// Whether `levels` of footprint `f` (over `rect`, outline `ring`) form a closed shell: at
+/// two thirds of them or more, at least `share` of the outline has a texel of
+/// opacity `ts` or more within one texel (a car's body, a basin's wall; a table's legs, a
+/// desk's panels on three sides leave gaps).
+pub(super) fn closed_shell(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    f: &Mask,
+    ring: &Mask,
+    levels: std::ops::Range<usize>,
+    ts: f32,
+    share: f32,
+) -> bool {
+    let need = share * ring.count() as f32;
+    let walled = levels
+        .clone()
+        .filter(|&k| {
+            let at = Mask::from_fn(f.rows, f.cols, |r, c| {
+                f.get(r, c) && vol.column(rect.r0 + r, rect.c0 + c)[k] >= ts
+            });
+            let near = crate::morphology::dilate(&at, 1).unwrap_or(at);
+            let n = ring.data.iter().zip(&near.data).filter(|(a, b)| **a && **b).count();
+            n as f32 >= need
+        })
+        .count();
+    tracing::trace!(walled, levels = levels.len(), "outline walled in");
+    !levels.is_empty() && walled * 3 >= levels.len() * 2
+}
+
+/// A supported object found inside a part.
+#[derive(Debug, Clone)]
+pub(super) struct Child {
+    pub rect: PixelRect,
+    pub footprint: Mask,
+    pub kmax: usize,
+}
+
+/// Background subtraction inside a window: the surface model is the coordinate-wise median
+/// of the points (the surface dominates the window); the distances to it are split in two by
+/// a 1-D K-means, and the far cluster (plus the seed) is the object. Returns, per point,
+/// whether it belongs to the object.
+pub(super) fn far_from_surface(points: &[f32], dim: usize, seed: &[bool]) -> Vec<bool> {
+    let n = seed.len();
+    if n == 0 || dim == 0 {
+        return seed.to_vec();
+    }
+    let mut col = vec![0f32; n];
+    let med: Vec<f32> = (0..dim)
+        .map(|d| {
+            for i in 0..n {
+                col[i] = points[i * dim + d];
+            }
+            col.sort_unstable_by(f32::total_cmp);
+            col[n / 2]
+        })
+        .collect();
+    let dist: Vec<f32> = (0..n)
+        .map(|i| {
+            points[i * dim..(i + 1) * dim]
+                .iter()
+                .zip(&med)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f32>()
+                .sqrt()
+        })
+        .collect();
+    let mut obj: Vec<bool> = match kmeans_threshold(&dist, 2, crate::kmeans::DEFAULT_SEED) {
+        Ok((t, _)) if t.is_finite() => (0..n).map(|i| seed[i] || dist[i] > t).collect(),
+        _ => return seed.to_vec(),
+    };
+    tracing::trace!(n, far = obj.iter().filter(|&&o| o).count(), "far from the surface");
+    // refine: a point joins the object only if it is nearer to the object's mean than to
+    // the surface (a non-uniform surface has far points that are not object-coloured)
+    let d2 = |i: usize, c: &[f32]| {
+        points[i * dim..(i + 1) * dim].iter().zip(c).map(|(a, b)| (a - b) * (a - b)).sum::<f32>()
+    };
+    for _ in 0..5 {
+        let mut a = vec![0f32; dim];
+        let mut cnt = 0f32;
+        for i in (0..n).filter(|&i| obj[i]) {
+            for (s, v) in a.iter_mut().zip(&points[i * dim..(i + 1) * dim]) {
+                *s += v;
+            }
+            cnt += 1.0;
+        }
+        if cnt == 0.0 {
+            break;
+        }
+        a.iter_mut().for_each(|v| *v /= cnt);
+        let new: Vec<bool> = (0..n).map(|i| seed[i] || d2(i, &a) < d2(i, &med)).collect();
+        if new == obj {
+            break;
+        }
+        obj = new;
+    }
+    obj
+}
+
+/// The second round inside one object: returns the objects standing on its largest surface
+/// and the top level of that surface.
+pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
+    let (vol, color, start, tau, min_texels) = (cx.vol, cx.color, cx.start, cx.tau, cx.min_texels);
+    let p = cx.p;
+    let (rect, f) = (part.rect, &part.footprint);
+    let n = f.count();
+    if n < 4 * min_texels.max(1) || vol.nz <= start {
+        return (Vec::new(), None);
+    }
+    // area per level over the footprint (surfaces may be faint: half the voxel threshold)
+    let ts = 0.5 * tau;
+    let mut area = vec![0usize; vol.nz];
+    for r in 0..rect.rows() {
+        for c in 0..rect.cols() {
+            if f.get(r, c) {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                for k in start..vol.nz {
+                    if col[k] >= ts {
+                        area[k] += 1;
+                    }
+                }
+            }
+        }
+    }
+    let amax = area.iter().copied().max().unwrap_or(0);
+    // the same per window of `thin` levels (accumulated opacity): a briefly trained field's
+    // soft table top spreads over a few levels, none of which covers the whole top
+    let thin = p.surface_window_levels.max(1);
+    let mut areaw = vec![0usize; vol.nz];
+    for r in 0..rect.rows() {
+        for c in 0..rect.cols() {
+            if f.get(r, c) {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                for k in start..vol.nz {
+                    let t = col[k..(k + thin).min(vol.nz)].iter().fold(1f32, |t, &o| t * (1.0 - o));
+                    if 1.0 - t >= ts {
+                        areaw[k] += 1;
+                    }
+                }
+            }
+        }
+    }
+    tracing::trace!(?rect, n, amax, start, area = ?&area[start..], windowed = ?&areaw[start..], "unpack");
+    if amax * 2 < n {
+        return (Vec::new(), None);
+    }
+    // the top surface: the highest window of levels covering at least 60% of the densest one
+    // (ghost layers under a table top can be denser than the top itself), at its densest level
+    // (candidates: the top window of every run of such windows, highest first)
+    let amaxw = areaw.iter().copied().max().unwrap_or(0);
+    let dense = |k: usize| areaw[k] * 10 >= amaxw * 6;
+    let mut tops: Vec<usize> =
+        (start..vol.nz).rev().filter(|&k| dense(k) && (k + 1 == vol.nz || !dense(k + 1))).collect();
+    if tops.is_empty() {
+        tops.push(start);
+    }
+    let low_level = |k: usize| k.saturating_sub(start) < p.low_support_levels;
+    let raise = p.raise_levels.max(1);
+    let (h, w) = (rect.rows(), rect.cols());
+    // the footprint's outline: closed shells wall it in, seeds on it are a table's rim
+    let ring = border_ring(f);
+    let mut found = None;
+    for (i, &kw) in tops.iter().enumerate() {
+        let kstar = (kw..(kw + thin).min(vol.nz))
+            .max_by_key(|&k| (area[k], std::cmp::Reverse(k)))
+            .unwrap_or(kw);
+        let mut hi = kstar;
+        // the surface with the blur above it: levels covering a quarter of it and not growing
+        // (an object standing on it does not fade upwards); and its body below: levels
+        // covering half of it
+        // (blur fades within a few levels: a box standing on a pallet's deck covers a steady
+        // half of it all the way up and is no blur)
+        while hi + 1 < vol.nz
+            && hi + 1 < kstar + thin
+            && area[hi + 1] * 4 >= area[kstar]
+            && area[hi + 1] * 10 <= area[hi] * 11
+        {
+            hi += 1;
+        }
+        let mut lo = kstar;
+        while lo > start && area[lo - 1] * 2 >= area[kstar] {
+            lo -= 1;
+        }
+        // a support is a thin slab (a table top, a shelf, a pallet's deck) or the top of a
+        // solid body (a desk over its drawer pedestal, a side table): then only its top levels
+        // count as the surface, and the checks below are stricter (flat interior, substantial
+        // seeds) (a body with a gap of a faint level or two is solid too: most levels below
+        // the slab cover half of it, where a table's legs and ghost layers cover less)
+        let below = lo.saturating_sub(start);
+        let dense_below = (start..lo).filter(|&k| area[k] * 2 >= area[kstar]).count();
+        // (a closed shell is a solid body too: a car's body under its cabin, a basin's wall
+        // walls in the whole outline at most levels below the top, where a table's legs
+        // leave most of it open)
+        let solid = hi - lo + 1 > thin
+            || below >= thin
+                && (dense_below * 3 >= below * 2
+                    || closed_shell(vol, rect, f, &ring, start..lo, ts, p.walled_outline_share));
+        if solid {
+            lo = hi + 1 - thin;
+        }
+        let above = hi + raise;
+        // surface texels and raised texels
+        let mut surface = Mask { rows: h, cols: w, data: vec![false; h * w] };
+        let mut raised = surface.clone();
+        for r in 0..h {
+            for c in 0..w {
+                if !f.get(r, c) {
+                    continue;
+                }
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                surface.data[r * w + c] = (lo..=hi).any(|k| col[k] >= ts);
+                raised.data[r * w + c] = (above..vol.nz).any(|k| col[k] >= tau);
+            }
+        }
+        // nothing stands on the highest surface, but a low deck lies below it: the lid of a
+        // hollow box (a crate whose walls cover a fifth of the footprint) on a pallet
+        if raised.count() == 0 && tops.get(i + 1).is_some_and(|&k| low_level(k)) {
+            tracing::trace!(kw, "nothing on the surface: trying the low one below");
+            continue;
+        }
+        found = Some((kstar, hi, lo, solid, surface, raised));
+        break;
+    }
+    let Some((kstar, hi, lo, solid, surface, raised)) = found else {
+        return (Vec::new(), None);
+    };
+    if raised.count() == 0 {
+        return (Vec::new(), Some(hi));
+    }
+    let above = hi + raise;
+    // ... and flat: away from what rises above it, most columns end at the slab (a dome, the
+    // top of a sphere, has no flat rim)
+    let near_raised = crate::morphology::dilate(&raised, 3).unwrap_or_else(|_| raised.clone());
+    // a solid body's top is judged away from its blurred fringe, and its faint patches count
+    // (the fringe of a solid block fades over many levels; a thin slab has none)
+    let (judged, there_tau) = if solid {
+        let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
+        let e = erode(&padded, 2).unwrap_or(padded);
+        (Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1)), 0.25 * tau)
+    } else {
+        (f.clone(), 0.5 * tau)
+    };
+    let (mut free_n, mut flat_n) = (0usize, 0usize);
+    for r in 0..h {
+        for c in 0..w {
+            if !judged.get(r, c) || near_raised.get(r, c) {
+                continue;
+            }
+            free_n += 1;
+            let col = vol.column(rect.r0 + r, rect.c0 + c);
+            // nothing rises above the slab and the slab is there (perhaps faintly: NeRF
+            // table tops have thin patches)
+            let clear = !(hi + 1..vol.nz).any(|k| col[k] >= tau);
+            let there = (kstar.saturating_sub(1)..=hi).any(|k| col[k] >= there_tau);
+            flat_n += usize::from(clear && there);
+        }
+    }
+    tracing::debug!(?rect, lo, hi, kstar, solid, flat_n, free_n, n, "surface");
+    // free surface: 30% of a slab, 45% of a solid body's top (a chair's seat under its back
+    // is no table); flat: 70% of the free surface of a slab, 60% of a solid body's (its
+    // blurred top has more haze above it)
+    let (free_share, flat_share) = if solid { (9, 12) } else { (6, 14) };
+    // a low support (a pallet's deck, within `low_support_levels` of the ground) carries an object over most
+    // of it: its free surface is a margin, too narrow to judge away from the object; the
+    // rim and ring checks below still apply
+    let low = low_level(hi);
+    // an object held above the surface on a stem (a table lamp: its shade covers most of a
+    // side table, leaving no free surface to judge): above the slab a run of levels that
+    // only a stem occupies, then a body again
+    let waist = held_on_a_stem(&area, hi, n, thin);
+    if waist {
+        tracing::debug!(?rect, "an object held on a stem above the slab");
+    }
+    if !low && !waist && (free_n * 20 < n * free_share || flat_n * 20 < free_n * flat_share) {
+        return (Vec::new(), Some(hi));
+    }
+    // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
+    // features of a window around it: the cluster holding the blob is the object, the other
+    // one the surface it stands on (the paper's second round with the table as background).
+    let seeds = match components(&raised) {
+        Ok(r) => r,
+        Err(_) => return (Vec::new(), Some(hi)),
+    };
+    let grow = p.seed_window_texels.max(1);
+    // the window never reaches the rim band (edges of a table have colours of their own)
+    let interior = {
+        let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
+        let e = erode(&padded, 3).unwrap_or(padded);
+        Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1) || raised.get(r, c))
+    };
+    let mut taken = Mask { rows: h, cols: w, data: vec![false; h * w] };
+    let mut children = Vec::new();
+    for sd in seeds.iter().filter(|g| g.depth == 0) {
+        let sb = sd.bbox;
+        let at = |r: usize, c: usize| sb.contains(r, c) && sd.pixels.get(r - sb.r0, c - sb.c0);
+        let seed_px: Vec<(usize, usize)> = (sb.r0..sb.r1)
+            .flat_map(|r| (sb.c0..sb.c1).map(move |c| (r, c)))
+            .filter(|&(r, c)| at(r, c))
+            .collect();
+        if seed_px.iter().any(|&(r, c)| ring.get(r, c) || taken.get(r, c)) {
+            tracing::trace!(?sb, texels = seed_px.len(), "seed on the rim or taken");
+            continue;
+        }
+        // on a solid body, a speck of haze above the top is no object (small and low)
+        // (solid voxels above the surface: a laptop's screen is a narrow seed, but tall)
+        let voxels: usize = seed_px
+            .iter()
+            .map(|&(r, c)| {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                (above..vol.nz).filter(|&k| col[k] >= tau).count()
+            })
+            .sum();
+        if solid && seed_px.len() < min_texels && voxels < 2 * min_texels {
+            tracing::trace!(?sb, texels = seed_px.len(), voxels, "seed too small");
+            continue;
+        }
+        let win = sb.expand(grow, h, w);
+        let mut idx = Vec::new();
+        let mut pts = Vec::new();
+        for r in win.r0..win.r1 {
+            for c in win.c0..win.c1 {
+                if interior.get(r, c)
+                    && let Some(v) = color.get(rect.r0 + r, rect.c0 + c)
+                {
+                    idx.push((r, c));
+                    pts.extend_from_slice(v);
+                }
+            }
+        }
+        let mut object = Mask { rows: h, cols: w, data: vec![false; h * w] };
+        for &(r, c) in &seed_px {
+            object.set(r, c, true);
+        }
+        let seedf: Vec<bool> = idx.iter().map(|&(r, c)| at(r, c)).collect();
+        // the connected part of the object cluster that holds the seed
+        let grow_seed = |labels: &[bool]| -> Mask {
+            let mut object = object.clone();
+            for (t, &(r, c)) in idx.iter().enumerate() {
+                if labels[t] {
+                    object.set(r, c, true);
+                }
+            }
+            let mut comp = Mask { rows: h, cols: w, data: vec![false; h * w] };
+            let mut stack: Vec<(usize, usize)> = seed_px.clone();
+            for &(r, c) in &seed_px {
+                comp.set(r, c, true);
+            }
+            while let Some((r, c)) = stack.pop() {
+                // from the seed, a one-texel gap may be jumped (the hinge between a laptop's
+                // raised screen and its keyboard has a colour of its own)
+                let reach: isize = if at(r, c) { 2 } else { 1 };
+                for dr in -reach..=reach {
+                    for dc in -reach..=reach {
+                        let (nr, nc) = (r as isize + dr, c as isize + dc);
+                        if nr < 0 || nc < 0 {
+                            continue;
+                        }
+                        let (nr, nc) = (nr as usize, nc as usize);
+                        if win.contains(nr, nc) && object.get(nr, nc) && !comp.get(nr, nc) {
+                            comp.set(nr, nc, true);
+                            stack.push((nr, nc));
+                        }
+                    }
+                }
+            }
+            // close the jumped gaps
+            let padded =
+                Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && comp.get(r - 1, c - 1));
+            match crate::morphology::close(&padded, 1) {
+                Ok(m) => Mask::from_fn(h, w, |r, c| m.get(r + 1, c + 1) && win.contains(r, c)),
+                Err(_) => comp,
+            }
+        };
+        let comp = grow_seed(&far_from_surface(&pts, color.ch, &seedf));
+        let comp = fill_holes(&comp);
+        let count = comp.count();
+        let touches = (0..h * w).any(|i| comp.data[i] && (ring.data[i] || !f.data[i]));
+        let kmax = seed_px
+            .iter()
+            .filter_map(|&(r, c)| {
+                let col = vol.column(rect.r0 + r, rect.c0 + c);
+                (above..vol.nz).rev().find(|&k| col[k] >= tau)
+            })
+            .max()
+            .unwrap_or(hi);
+        tracing::trace!(?sb, count, touches, "seed grown");
+        // an object on a support leaves most of it free: a piece covering more than half of
+        // it (a car's cabin over its bonnet and boot) belongs to the body
+        // (on a low support up to 80% of it: a crate on a pallet)
+        let most = if low { count * 5 > n * 4 } else { count * 2 > n };
+        if touches || count < min_texels || most {
+            continue;
+        }
+        // it must stand within the surface: most of the ring around it is surface
+        let (mut ring_n, mut ring_s) = (0usize, 0usize);
+        for r in 0..h {
+            for c in 0..w {
+                if comp.get(r, c) {
+                    continue;
+                }
+                let near = (r.saturating_sub(1)..=(r + 1).min(h - 1)).any(|rr| {
+                    (c.saturating_sub(1)..=(c + 1).min(w - 1)).any(|cc| comp.get(rr, cc))
+                });
+                if near {
+                    ring_n += 1;
+                    // a free surface texel: part of the slab with nothing above it
+                    let free = surface.get(r, c) && {
+                        let col = vol.column(rect.r0 + r, rect.c0 + c);
+                        !(hi + 1..vol.nz).any(|k| col[k] >= tau)
+                    };
+                    ring_s += usize::from(free);
+                }
+            }
+        }
+        tracing::trace!(ring_s, ring_n, "ring of free surface");
+        if ring_n == 0 || ring_s * 10 < ring_n * 6 {
+            continue;
+        }
+        or_into(&mut taken, &comp);
+        let Some(bb) = comp.bbox() else { continue };
+        let Ok(footprint) = comp.crop(bb) else { continue };
+        children.push(Child {
+            rect: PixelRect::new(
+                rect.r0 + bb.r0,
+                rect.c0 + bb.c0,
+                rect.r0 + bb.r1,
+                rect.c0 + bb.c1,
+            ),
+            footprint,
+            kmax,
+        });
+    }
+    (children, Some(hi))
+}
