@@ -155,3 +155,94 @@ pub fn fail(dir: &Path, args: &[&str], needles: &[&str]) {
         assert!(err.contains(n), "{args:?}: expected {n:?} in: {err}");
     }
 }
+
+/// A similarity of world coordinates, `p' = scale * rotation * p + offset`: a capture of the
+/// same scene in another frame and unit.
+#[derive(Debug, Clone, Copy)]
+pub struct Similarity {
+    pub scale: f32,
+    pub rotation: glam::Mat3,
+    pub offset: glam::Vec3,
+}
+
+impl Similarity {
+    pub fn point(&self, p: glam::Vec3) -> glam::Vec3 {
+        self.scale * (self.rotation * p) + self.offset
+    }
+}
+
+/// Write the NeRF-synthetic dataset `src` (`transforms_{train,test}.json`, `camera_angle_x`)
+/// as a nerfstudio capture `dst/transforms.json` (`fl_x fl_y cx cy w h`, one file, split by
+/// holdout) whose cameras are moved by `s`: the same photos of the same scene, posed in
+/// another frame and unit. No `synth.json` is written, so nothing tells the tools the
+/// scene's box, its up axis or its unit.
+pub fn repose_as_nerfstudio(src: &Path, dst: &Path, s: &Similarity) {
+    std::fs::create_dir_all(dst.join("images")).unwrap();
+    let mut frames = Vec::new();
+    let (mut w, mut h, mut focal) = (0u32, 0u32, 0f64);
+    for split in ["train", "test"] {
+        let text = std::fs::read_to_string(src.join(format!("transforms_{split}.json"))).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let fov = v["camera_angle_x"].as_f64().unwrap();
+        for (i, f) in v["frames"].as_array().unwrap().iter().enumerate() {
+            let rel = f["file_path"].as_str().unwrap().trim_start_matches("./");
+            let from = src.join(format!("{rel}.png"));
+            let name = format!("images/{split}_{i:03}.png");
+            std::fs::copy(&from, dst.join(&name)).unwrap();
+            if w == 0 {
+                (w, h) = image::image_dimensions(&from).unwrap();
+                focal = 0.5 * f64::from(w) / (0.5 * fov).tan();
+            }
+            let m: Vec<Vec<f32>> = serde_json::from_value(f["transform_matrix"].clone()).unwrap();
+            let rot = glam::Mat3::from_cols(
+                glam::Vec3::new(m[0][0], m[1][0], m[2][0]),
+                glam::Vec3::new(m[0][1], m[1][1], m[2][1]),
+                glam::Vec3::new(m[0][2], m[1][2], m[2][2]),
+            );
+            let pos = s.point(glam::Vec3::new(m[0][3], m[1][3], m[2][3]));
+            let r = s.rotation * rot;
+            let row = |k: usize| serde_json::json!([r.col(0)[k], r.col(1)[k], r.col(2)[k], pos[k]]);
+            frames.push(serde_json::json!({
+                "file_path": name,
+                "transform_matrix": [row(0), row(1), row(2), [0.0, 0.0, 0.0, 1.0]],
+            }));
+        }
+    }
+    let doc = serde_json::json!({
+        "camera_model": "OPENCV",
+        "w": w, "h": h, "fl_x": focal, "fl_y": focal,
+        "cx": f64::from(w) / 2.0, "cy": f64::from(h) / 2.0,
+        "frames": frames,
+    });
+    std::fs::write(dst.join("transforms.json"), serde_json::to_string_pretty(&doc).unwrap())
+        .unwrap();
+}
+
+/// The ground truth of a scene moved by `s` and then by a field's ground alignment `align`
+/// (`p -> align(s(p))`): positions, boxes (the box of the moved corners; exact when the two
+/// turn the ground by a multiple of 90 degrees about the vertical), yaws and scales.
+pub fn moved_gt(
+    gt: &assetfield_layout::GtLayout,
+    s: &Similarity,
+    align: &assetfield_data::GroundAlignment,
+) -> assetfield_layout::GtLayout {
+    let total = |p: glam::Vec3| align.transform_point(s.point(p));
+    let turn = align.rotation_matrix() * s.rotation;
+    let yaw = turn.x_axis.y.atan2(turn.x_axis.x).to_degrees();
+    let mut out = gt.clone();
+    for i in out.instances.iter_mut().chain(out.containers.iter_mut()) {
+        let p = total(glam::Vec3::from(i.position));
+        let top = total(glam::Vec3::new(i.position[0], i.position[1], i.top)).z;
+        let b = i.bev_aabb;
+        let corners = [(b[0], b[1]), (b[2], b[1]), (b[0], b[3]), (b[2], b[3])]
+            .map(|(x, y)| total(glam::Vec3::new(x, y, i.position[2])));
+        let lo = corners.iter().fold(glam::Vec3::splat(f32::INFINITY), |a, c| a.min(*c));
+        let hi = corners.iter().fold(glam::Vec3::splat(f32::NEG_INFINITY), |a, c| a.max(*c));
+        i.position = p.to_array();
+        i.bev_aabb = [lo.x, lo.y, hi.x, hi.y];
+        i.yaw_deg += yaw;
+        i.scale *= s.scale;
+        i.top = top;
+    }
+    out
+}

@@ -3,9 +3,12 @@
 //! the library, layout and pictures it writes; bad input (exit 1, a clear message, nothing
 //! written).
 
-use assetfield_layout::{PartsCatalog, resolve};
+use assetfield_layout::{GtLayout, PartsCatalog, resolve};
 use assetfield_mining::library::open_library;
 use assetfield_tests::{SCENE, fail, ok, run_cli, scratch};
+use assetfield_tests::{Similarity, moved_gt, repose_as_nerfstudio};
+use glam::{Mat3, Vec3};
+use std::path::Path;
 
 #[test]
 fn mine_a_small_scene_into_a_library_and_layout() {
@@ -169,6 +172,82 @@ fn mine_a_small_scene_into_a_library_and_layout() {
         .filter(|n| n.contains(".tmp-"))
         .collect();
     assert!(leftovers.is_empty(), "staging folders left behind: {leftovers:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Train `data` (a nerfstudio capture) briefly, levelled with `--align-ground pca`, and mine
+/// it against its ground truth moved by `s` and the field's own alignment; the metrics.
+fn train_levelled_and_mine(dir: &Path, data: &str, s: &Similarity) -> serde_json::Value {
+    let field = format!("{data}.safetensors");
+    let args =
+        ["train", data, "--out", &field, "--iters", "1500", "--res", "96", "--batch", "2048"];
+    ok(dir, &[&args[..], &["--align-ground", "pca"]].concat());
+    let loaded = assetfield_field::eval::load_field(&dir.join(&field)).unwrap();
+    let align = loaded.info.ground_transform.expect("the field records its alignment");
+    let gt = GtLayout::read(&dir.join("d/gt_layout.json")).unwrap();
+    let gt_path = dir.join(format!("{data}_gt.json"));
+    std::fs::write(&gt_path, serde_json::to_string(&moved_gt(&gt, s, &align)).unwrap()).unwrap();
+    let lib = format!("{data}_lib");
+    let out = ok(dir, &["mine", &field, "--out", &lib, "--gt", gt_path.to_str().unwrap()]);
+    assert!(out.contains("F1"), "{out}");
+    serde_json::from_str(&std::fs::read_to_string(dir.join(lib).join("metrics.json")).unwrap())
+        .unwrap()
+}
+
+/// Issue 16, section 2: the same photos posed in another frame and unit (scale 0.37, turned
+/// 90 degrees and tilted 30, offset), levelled with `--align-ground pca`, mine the same
+/// objects as the capture in its own frame: no length of the detector is in world units.
+#[test]
+fn a_capture_in_another_frame_and_unit_mines_the_same_objects() {
+    let dir = scratch("mining-reposed");
+    std::fs::write(dir.join("tiny.ron"), SCENE).unwrap();
+    ok(
+        &dir,
+        &[
+            "synth",
+            "tiny.ron",
+            "--out",
+            "d",
+            "--views",
+            "24",
+            "--test-views",
+            "2",
+            "--res",
+            "48",
+            "--aa",
+            "1",
+        ],
+    );
+    let same = Similarity { scale: 1.0, rotation: Mat3::IDENTITY, offset: Vec3::ZERO };
+    let moved = Similarity {
+        scale: 0.37,
+        rotation: Mat3::from_rotation_x(30f32.to_radians())
+            * Mat3::from_rotation_z(90f32.to_radians()),
+        offset: Vec3::new(1.3, -0.7, 2.1),
+    };
+    repose_as_nerfstudio(&dir.join("d"), &dir.join("a"), &same);
+    repose_as_nerfstudio(&dir.join("d"), &dir.join("b"), &moved);
+    let a = train_levelled_and_mine(&dir, "a", &same);
+    let b = train_levelled_and_mine(&dir, "b", &moved);
+    let num = |m: &serde_json::Value, k: &str| m[k].as_f64().unwrap_or(f64::NAN);
+    assert!(num(&a, "f1") >= 0.8, "in its own frame: {a}");
+    assert!(
+        (num(&a, "f1") - num(&b, "f1")).abs() <= 0.02,
+        "F1 {} vs {}",
+        num(&a, "f1"),
+        num(&b, "f1")
+    );
+    assert!(
+        (num(&a, "ari") - num(&b, "ari")).abs() <= 0.02,
+        "ARI {} vs {}",
+        num(&a, "ari"),
+        num(&b, "ari")
+    );
+    // positions are in each capture's units
+    assert!(
+        num(&b, "position_median") <= 0.37 * num(&a, "position_median").max(0.02) * 2.0,
+        "{a} {b}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
