@@ -64,6 +64,12 @@ pub enum MiningError {
         "cannot merge {a} and {b}: shared tensor \"{tensor}\" differs ({detail}); libraries can only be merged when they were mined from fields that share their vertical axes, basis and decoders"
     )]
     SharedTensorDiffers { a: String, b: String, tensor: String, detail: String },
+    /// The field's ground is a slab tilted against its XY plane: the ground planes cannot hold
+    /// its objects level (a capture whose up axis is not +Z).
+    #[error(
+        "the ground in this field is tilted by {degrees:.1} degrees against its XY plane (a slab under {coverage_pct:.0}% of the plane rises across it), so no floor level and no ground level can be found: the capture's up axis is not +Z. Train the field on a levelled capture: `assetfield train DATA --align-ground pca ...`"
+    )]
+    TiltedGround { degrees: f32, coverage_pct: f32 },
     /// The output exists and replacing it was not allowed.
     #[error("{0} already exists (pass --force to replace it)")]
     OutputExists(String),

@@ -2,7 +2,7 @@
 //! found (floor, ground, thresholds, evidence), so that stage functions take `&Ctx` instead
 //! of ten positional arguments.
 
-use super::floor::{FloorBand, floor_band, ground_level};
+use super::floor::{FloorBand, MAX_GROUND_TILT_DEG, floor_band, ground_level, ground_tilt};
 use super::params::DetectParams;
 use crate::error::{MiningError, Result};
 use crate::image::PlaneImage;
@@ -55,6 +55,13 @@ impl<'a> Ctx<'a> {
         }
         p.validate().map_err(|(name, reason)| MiningError::InvalidParameter { name, reason })?;
         let floor = if p.stages.floor { floor_band(vol, p) } else { None };
+        if p.stages.floor
+            && floor.is_none()
+            && let Some((degrees, coverage)) = ground_tilt(vol, p)
+            && degrees > MAX_GROUND_TILT_DEG
+        {
+            return Err(MiningError::TiltedGround { degrees, coverage_pct: 100.0 * coverage });
+        }
         let start = floor.map_or(0, |f| (f.hi + 2).min(vol.nz.saturating_sub(1)));
         let evidence = vol.window_max_above(start, p.evidence_window_levels.max(2));
         if evidence.iter().all(|&e| e < EMPTY_EVIDENCE) {

@@ -81,3 +81,61 @@ pub fn ground_level(
         .find(|&k| (0..n).filter(|&i| vol.data[i * vol.nz + k] >= tau).count() >= need)
         .unwrap_or(0)
 }
+
+/// A ground tilted by more than this against the XY plane cannot be a floor of the ground
+/// planes (degrees): a levelled capture (`--align-ground pca`) is within about one degree,
+/// and a slab tilted by 3 degrees rises by 5% of the plane's width, more than the floor
+/// search's coverage rule tolerates.
+pub const MAX_GROUND_TILT_DEG: f32 = 3.0;
+
+/// The tilt of a ground slab the floor search could not find level: per column, the lowest
+/// level with opacity 0.5 or more in the lower half of the volume; a least-squares plane
+/// through those heights (texels and levels are cubic voxels, so its gradient is the
+/// slope). `Some((degrees, coverage))` when such a bottom surface covers at least
+/// [`DetectParams::floor_coverage`] of the plane and the plane fits it (median residual
+/// within two levels); `None` otherwise (no ground slab: objects on an invisible ground).
+pub fn ground_tilt(vol: &OpacityVolume, p: &DetectParams) -> Option<(f32, f32)> {
+    let (rows, cols, nz) = (vol.rows, vol.cols, vol.nz);
+    if rows < 2 || cols < 2 || nz < 2 {
+        return None;
+    }
+    let half = nz.div_ceil(2);
+    let mut pts: Vec<(f64, f64, f64)> = Vec::new();
+    for r in 0..rows {
+        for c in 0..cols {
+            if let Some(k) = vol.column(r, c)[..half].iter().position(|&o| o >= FLOOR_OPACITY) {
+                pts.push((c as f64, r as f64, k as f64));
+            }
+        }
+    }
+    let coverage = pts.len() as f32 / (rows * cols) as f32;
+    if coverage < p.floor_coverage {
+        return None;
+    }
+    // least squares k = a + b c + d r (normal equations, centred)
+    let n = pts.len() as f64;
+    let (mc, mr, mk) = pts.iter().fold((0.0, 0.0, 0.0), |s, q| (s.0 + q.0, s.1 + q.1, s.2 + q.2));
+    let (mc, mr, mk) = (mc / n, mr / n, mk / n);
+    let (mut scc, mut srr, mut scr, mut sck, mut srk) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for &(c, r, k) in &pts {
+        let (dc, dr, dk) = (c - mc, r - mr, k - mk);
+        scc += dc * dc;
+        srr += dr * dr;
+        scr += dc * dr;
+        sck += dc * dk;
+        srk += dr * dk;
+    }
+    let det = scc * srr - scr * scr;
+    if det.abs() < 1e-9 {
+        return None;
+    }
+    let b = (sck * srr - srk * scr) / det;
+    let d = (srk * scc - sck * scr) / det;
+    let mut res: Vec<f64> =
+        pts.iter().map(|&(c, r, k)| (k - (mk + b * (c - mc) + d * (r - mr))).abs()).collect();
+    res.sort_by(f64::total_cmp);
+    if res[res.len() / 2] > 2.0 {
+        return None;
+    }
+    Some(((b.hypot(d)).atan().to_degrees() as f32, coverage))
+}

@@ -802,3 +802,29 @@ fn floating_heads_do_not_stand_on_specks() {
     // nothing at all
     assert!(!stands(&vol(&|_, _, _| false), rect, &all, 0, 2, 0.5));
 }
+
+#[test]
+fn a_tilted_ground_is_refused_with_advice_and_a_level_one_is_measured() {
+    // a ground slab rising one level every 8 texels (7.1 degrees) under boxes
+    let (rows, cols, nz) = (40, 60, 30);
+    let mut v = OpacityVolume::empty(rows, cols, nz, 0.05);
+    for c in 0..cols {
+        let k = c / 8;
+        fill(&mut v, (0, rows), (c, c + 1), (k, k + 2), 0.95);
+    }
+    fill(&mut v, (5, 12), (5, 12), (3, 9), 0.9);
+    let (deg, cov) = floor::ground_tilt(&v, &params()).unwrap();
+    assert!((deg - 7.1).abs() < 0.5 && cov > 0.99, "{deg} {cov}");
+    let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+    let color = PlaneImage::zeros(rows, cols, 3).unwrap();
+    let e = detect(&grid, &v, &color, None, &params()).unwrap_err().to_string();
+    assert!(e.contains("tilted by 7") && e.contains("--align-ground pca"), "{e}");
+    // without the floor search the tilt is not judged
+    let no_floor = DetectParams { stages: Stages { floor: false, ..Stages::ALL }, ..params() };
+    let r = detect(&grid, &v, &color, None, &no_floor);
+    assert!(r.as_ref().map_or_else(|e| !e.to_string().contains("tilted"), |_| true), "{r:?}");
+    // a level floor measures no tilt; no floor at all measures none either
+    let level = floor_volume(rows, cols, nz);
+    assert!(floor::ground_tilt(&level, &params()).unwrap().0 < 0.01);
+    assert!(floor::ground_tilt(&OpacityVolume::empty(rows, cols, nz, 0.05), &params()).is_none());
+}
