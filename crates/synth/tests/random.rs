@@ -11,15 +11,26 @@ use assetfield_synth::{AssetSet, SynthOptions, synthesize_loaded};
 use glam::Vec2;
 use std::path::{Path, PathBuf};
 
-#[derive(Debug, serde::Deserialize)]
+#[derive(Debug)]
 struct Seeds {
     validation: Vec<u64>,
     dev: Vec<u64>,
 }
 
+/// `scenes/validation_seeds.txt`: lines `NAME: SEED SEED ...`, `#` comments.
 fn seeds() -> Seeds {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/validation_seeds.ron");
-    ron::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/validation_seeds.txt");
+    let text = std::fs::read_to_string(p).unwrap();
+    let list = |name: &str| -> Vec<u64> {
+        let lines: Vec<&str> = text
+            .lines()
+            .map(|l| l.split('#').next().unwrap().trim())
+            .filter(|l| l.starts_with(&format!("{name}:")))
+            .collect();
+        assert_eq!(lines.len(), 1, "one `{name}:` line");
+        lines[0][name.len() + 1..].split_whitespace().map(|s| s.parse().unwrap()).collect()
+    };
+    Seeds { validation: list("validation"), dev: list("dev") }
 }
 
 fn catalogs_or_skip(test: &str) -> bool {

@@ -21,7 +21,7 @@ pub struct SynthArgs {
     /// floor (none, thin, thick, partial, or tiled: checker, planks, carpet or asphalt
     /// noise) and walls on 0-3 sides; 256 x 256 views unless --res. The script is written
     /// into the dataset as scene.ron (rendering it again gives the same dataset). Validation
-    /// and dev seeds: scenes/validation_seeds.ron.
+    /// and dev seeds: scenes/validation_seeds.txt.
     #[arg(long, value_name = "SEED", conflicts_with = "scene")]
     pub random: Option<u64>,
     /// With --random: also write the drawn script to FILE (RON).
