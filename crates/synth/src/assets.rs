@@ -178,12 +178,13 @@ pub fn load_obj_into(
     let xf = MeshTransform { linear: rot * scale, normal: rot };
     push_obj_models(g, &models, &materials, &xf, recenter, |g, t| {
         g.textures.push(load_texture(&dir.join(t.replace('\\', "/")))?);
-        Ok(g.textures.len() - 1)
+        Ok(Some(g.textures.len() - 1))
     })
 }
 
 /// Append tobj meshes and their materials to `g` under `xf`; `texture` loads a diffuse
-/// texture by its MTL name into `g.textures` and returns its index. With `recenter` the new
+/// texture by its MTL name into `g.textures` and returns its index (`None`: the texture does
+/// not exist and the material keeps its plain colour). With `recenter` the new
 /// triangles are moved so that their footprint is centred on the origin and they stand on
 /// z = 0.
 pub fn push_obj_models(
@@ -192,14 +193,14 @@ pub fn push_obj_models(
     materials: &[tobj::Material],
     xf: &MeshTransform,
     recenter: bool,
-    mut texture: impl FnMut(&mut AssetGeometry, &str) -> Result<usize, String>,
+    mut texture: impl FnMut(&mut AssetGeometry, &str) -> Result<Option<usize>, String>,
 ) -> Result<(), String> {
     // OBJ materials -> ours (index shift by what the asset already has)
     let base = g.materials.len();
     for m in materials {
         let color = m.diffuse.map(Vec3::from).unwrap_or(Vec3::splat(0.8));
         let texture = match &m.diffuse_texture {
-            Some(t) if !t.is_empty() => Some(texture(g, t)?),
+            Some(t) if !t.is_empty() => texture(g, t)?,
             _ => None,
         };
         g.materials.push(Material { color, texture });

@@ -452,17 +452,27 @@ impl Catalog {
         let axes = Mat3::from_cols(Vec3::Y, Vec3::Z, Vec3::X);
         let xf = MeshTransform { linear: axes * scale * rot, normal: axes * scale.inverse() * rot };
         let mut textures: BTreeMap<String, usize> = BTreeMap::new();
+        // a texture named by a path of its author's machine is looked for by its file name
+        // next to the MTL; one that is not in the zip at all leaves the plain colour (as Sweet
+        // Home 3D shows it)
         let mut load_texture = |g: &mut AssetGeometry, mtl_dir: &str, name: &str| {
-            let entry = zip_join(mtl_dir, name);
+            let direct = zip_join(mtl_dir, name);
+            let by_file_name =
+                zip_join(mtl_dir, name.replace('\\', "/").rsplit('/').next().unwrap_or(name));
+            let Some(entry) =
+                [direct, by_file_name].into_iter().find(|e| zip.index_for_name(e).is_some())
+            else {
+                return Ok(None);
+            };
             if let Some(k) = textures.get(&entry) {
-                return Ok(*k);
+                return Ok(Some(*k));
             }
             let bytes = read_entry(&mut zip, &self.path, &entry)
                 .map_err(|e| format!("texture {entry}: {e}"))?;
             let t = texture_from_bytes(&bytes).map_err(|e| format!("texture {entry}: {e}"))?;
             g.textures.push(t);
             textures.insert(entry, g.textures.len() - 1);
-            Ok(g.textures.len() - 1)
+            Ok(Some(g.textures.len() - 1))
         };
         // textures are relative to the MTL (one per model in these catalogs)
         push_obj_models(g, &models, &materials, &xf, true, |g, name| {

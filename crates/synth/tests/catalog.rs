@@ -204,3 +204,20 @@ fn a_broken_mesh_is_an_error_naming_the_model() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Every curated model loads (mesh, materials, textures) at the catalog's size.
+#[test]
+fn every_curated_model_loads_at_its_catalog_size() {
+    let Some(dir) = catalogs_or_skip("curated models") else { return };
+    let cats: Vec<Catalog> =
+        ALLOWED_CATALOGS.iter().map(|c| Catalog::open_in(&dir, c).unwrap()).collect();
+    for c in CURATED {
+        let cat = cats.iter().find(|k| k.name == c.catalog).unwrap();
+        let m = cat.model(c.id).unwrap();
+        let g = cat.load_geometry(m).unwrap_or_else(|e| panic!("{}: {e}", c.id));
+        let (w, d, h) = c.size_cm;
+        let want = Vec3::new(d, w, h) / 100.0;
+        let got = g.bounds().extent();
+        assert!(((got - want) / want).abs().max_element() < 0.01, "{}: {got} vs {want}", c.id);
+    }
+}
