@@ -25,7 +25,7 @@ pub struct SynthArgs {
     #[arg(long, value_name = "SEED", conflicts_with = "scene")]
     pub random: Option<u64>,
     /// With --random: also write the drawn script to FILE (RON).
-    #[arg(long, value_name = "FILE", requires = "random")]
+    #[arg(long, value_name = "FILE")]
     pub write_script: Option<PathBuf>,
     /// Output folder [default: runs/SCENE_NAME]. Written atomically: it appears only when
     /// complete.
@@ -71,6 +71,9 @@ fn stem(p: &Path) -> String {
 }
 
 pub fn synth(a: SynthArgs) -> Result<()> {
+    if a.write_script.is_some() && a.random.is_none() {
+        anyhow::bail!("--write-script writes a drawn scene: it needs --random SEED");
+    }
     let random = match a.random {
         Some(seed) => {
             let r = assetfield_synth::random::random_scene(seed)
