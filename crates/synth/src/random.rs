@@ -357,7 +357,9 @@ pub fn random_scene(seed: u64) -> Result<RandomScene, SynthError> {
     let pool = candidates()?;
     let mut last_err = None;
     for attempt in 0..ATTEMPTS {
-        let scene = draw(seed, &pool, GROW.powi(attempt as i32))?;
+        // GROW^attempt by multiplication (powi's rounding may vary by platform)
+        let grow = (0..attempt).fold(1.0f32, |g, _| g * GROW);
+        let scene = draw(seed, &pool, grow)?;
         // check that every scatter fits, with the sizes synthesis will use
         let loaded = load_str(Path::new(&format!("random_{seed}.ron")), &scene.text)?;
         match resolve(&loaded, &scene.catalog()?) {
