@@ -166,3 +166,52 @@ fn bad_datasets_name_the_file_and_frame() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `synth --random`: the drawn script lands in the dataset and in `--write-script`, and
+/// rendering that file again gives the same ground truth and images.
+#[test]
+fn a_random_scene_renders_again_from_its_script() {
+    let sh3f = assetfield_synth::sh3f::catalog_dir();
+    if !assetfield_synth::sh3f::ALLOWED_CATALOGS
+        .iter()
+        .all(|c| sh3f.join(format!("{c}.sh3f")).is_file())
+    {
+        let why =
+            format!("{} lacks the catalogs; apt-get install sweethome3d-furniture", sh3f.display());
+        assert!(
+            std::env::var("ASSETFIELD_STRICT_TESTS").as_deref() != Ok("1"),
+            "sweethome3d-furniture not installed ({why}) and ASSETFIELD_STRICT_TESTS=1"
+        );
+        eprintln!(
+            "SKIPPED: sweethome3d-furniture not installed ({why}); synth --random did not run"
+        );
+        return;
+    }
+    let dir = scratch("random");
+    let small = ["--views", "3", "--test-views", "1", "--res", "16", "--aa", "1"];
+    let mut args = vec!["synth", "--random", "3", "--out", "r3", "--write-script", "r3.ron"];
+    args.extend(small);
+    let (code, out, err) = run_cli(&dir, &args);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("random scene 3") && out.contains("units per metre"), "{out}");
+    let script = std::fs::read_to_string(dir.join("r3.ron")).unwrap();
+    assert_eq!(std::fs::read_to_string(dir.join("r3/scene.ron")).unwrap(), script);
+    let mut again = vec!["synth", "r3.ron", "--out", "again"];
+    again.extend(small);
+    let (code, _, err) = run_cli(&dir, &again);
+    assert_eq!(code, 0, "{err}");
+    for f in ["gt_layout.json", "test/r_0.png", "train/r_1.png"] {
+        assert_eq!(
+            std::fs::read(dir.join("r3").join(f)).unwrap(),
+            std::fs::read(dir.join("again").join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    let synth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("r3/synth.json")).unwrap()).unwrap();
+    let u = synth["units_per_metre"].as_f64().unwrap();
+    assert!((0.5..2.0).contains(&u), "{u}");
+    // --write-script without --random is a usage error
+    let (code, _, err) = run_cli(&dir, &["synth", "r3.ron", "--write-script", "x.ron"]);
+    assert!(code != 0 && err.contains("--random"), "{err}");
+}

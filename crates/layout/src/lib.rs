@@ -23,7 +23,7 @@ pub mod script;
 pub mod source;
 
 pub use error::{LayoutError, Location};
-pub use gt::{GtInstance, GtLayout};
+pub use gt::{GtInstance, GtLayout, GtSource};
 pub use resolve::{
     AssetCatalog, AssetInfo, PartsCatalog, ResolvedInstance, ResolvedLayout, resolve,
 };

@@ -251,8 +251,8 @@ fn semantic(location: &Location, message: String) -> LayoutError {
     LayoutError::Semantic { location: location.clone(), message }
 }
 
-/// The closest known name, for "did you mean" hints.
-fn closest<'a>(name: &str, known: &'a [String]) -> Option<&'a String> {
+/// The closest known name (at most 3 edits away), for "did you mean" hints.
+pub fn closest<'a>(name: &str, known: &'a [String]) -> Option<&'a String> {
     fn dist(a: &str, b: &str) -> usize {
         let b: Vec<char> = b.chars().collect();
         let mut prev: Vec<usize> = (0..=b.len()).collect();

@@ -72,6 +72,12 @@ pub struct Script {
     /// Lighting for the ground-truth renderer.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lighting: Option<Lighting>,
+    /// How many scene units make a metre (default 1: the script is in metres). A record for
+    /// readers of the ground truth (`gt_layout.json`, `synth.json`); it rescales nothing
+    /// (catalog models are built in metres: a script in other units scales its instances,
+    /// as `assetfield synth --random` does).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub units_per_metre: Option<f32>,
     /// Placement items, resolved in order (ids follow this order).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub layout: Vec<Item>,
@@ -133,24 +139,51 @@ pub struct LibraryRef {
     pub color_from: Option<String>,
 }
 
-/// An OBJ mesh (with its MTL colours and diffuse textures).
+/// Where an asset's mesh comes from: an OBJ file next to the script, or a model of a
+/// Sweet Home 3D furniture catalog.
+///
+/// ```ron
+/// "crate": Asset(obj: Obj(path: "assets/meshes/crate.obj", scale: 0.8)),
+/// "armchair_kl": Asset(obj: Catalog(name: "KatorLegaz", id: "Kator Legaz#mid-century-chair")),
+/// ```
+///
+/// A catalog model is read straight from `NAME.sh3f` (a zip holding the OBJ, its MTL and
+/// textures) in `/usr/share/sweethome3d/furniture` (Debian's `sweethome3d-furniture`), or in
+/// the folder the environment variable `ASSETFIELD_SH3F_DIR` names. Only the catalogs
+/// `BlendSwap-CC-BY` and `KatorLegaz` are allowed. The model is sized as the catalog says
+/// (its bounding box scaled to the catalog's width x depth x height, centimetres -> metres,
+/// after the catalog's `modelRotation`) and turned into the asset frame: Sweet Home 3D's up
+/// (+Y) becomes +Z and the model's front (Sweet Home 3D's +Z, the side facing the viewer)
+/// becomes the asset's front +X, so the catalog's *depth* runs along local x and its *width*
+/// along local y; the footprint is centred on the origin and the model stands on z = 0.
+/// The ground truth records the model's catalog, id, creator and licence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(rename = "Obj", deny_unknown_fields)]
-pub struct ObjSource {
-    /// Path relative to the script that defines the asset.
-    pub path: String,
-    /// Uniform scale applied to the mesh.
-    #[serde(default = "one", skip_serializing_if = "is_one")]
-    pub scale: f32,
-    /// Which mesh axis points up (many OBJ exporters use +Y).
-    #[serde(default, skip_serializing_if = "Axis::is_z")]
-    pub up: Axis,
-    /// Turn about the up axis (degrees) after levelling, to make the front face +X.
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub yaw_deg: f32,
-    /// Move the mesh so its footprint is centred on the origin and it stands on z = 0.
-    #[serde(default = "yes", skip_serializing_if = "is_true")]
-    pub recenter: bool,
+#[serde(deny_unknown_fields)]
+pub enum ObjSource {
+    /// An OBJ mesh (with its MTL colours and diffuse textures).
+    Obj {
+        /// Path relative to the script that defines the asset.
+        path: String,
+        /// Uniform scale applied to the mesh.
+        #[serde(default = "one", skip_serializing_if = "is_one")]
+        scale: f32,
+        /// Which mesh axis points up (many OBJ exporters use +Y).
+        #[serde(default, skip_serializing_if = "Axis::is_z")]
+        up: Axis,
+        /// Turn about the up axis (degrees) after levelling, to make the front face +X.
+        #[serde(default, skip_serializing_if = "is_zero")]
+        yaw_deg: f32,
+        /// Move the mesh so its footprint is centred on the origin and it stands on z = 0.
+        #[serde(default = "yes", skip_serializing_if = "is_true")]
+        recenter: bool,
+    },
+    /// A model of a Sweet Home 3D furniture catalog (see the type's docs).
+    Catalog {
+        /// The catalog's file name without `.sh3f`: `"BlendSwap-CC-BY"` or `"KatorLegaz"`.
+        name: String,
+        /// The model's `id#N` in the catalog, e.g. `"Kator Legaz#mid-century-chair"`.
+        id: String,
+    },
 }
 
 fn yes() -> bool {

@@ -137,6 +137,8 @@ pub struct LoadedScript {
     pub extent: Option<(V2, V2)>,
     pub views: Option<ViewSettings>,
     pub lighting: Option<Lighting>,
+    /// Scene units per metre, as the script (or its base) records it.
+    pub units_per_metre: Option<f32>,
 }
 
 fn ron_options() -> ron::Options {
@@ -184,6 +186,7 @@ pub fn load_str(path: &Path, text: &str) -> Result<LoadedScript, LayoutError> {
         extent: None,
         views: None,
         lighting: None,
+        units_per_metre: None,
     };
     let mut stack = Vec::new();
     load_into(&mut loaded, path, Some(text.to_string()), &mut stack, false)?;
@@ -260,6 +263,7 @@ fn load_into(
         out.extent = script.extent.or(out.extent);
         out.views = script.views.or(out.views.take());
         out.lighting = script.lighting.or(out.lighting.take());
+        out.units_per_metre = script.units_per_metre.or(out.units_per_metre);
         let mut counters: HashMap<&'static str, usize> = HashMap::new();
         for item in script.layout {
             let node = locate_item(&out.files[file], file, item, &mut counters);

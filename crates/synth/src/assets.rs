@@ -3,10 +3,12 @@
 
 use crate::SynthError;
 use crate::geometry::{AssetGeometry, Material, Shape, Texture};
+use crate::sh3f::{Catalog, CatalogError, texture_from_bytes};
+use assetfield_core::Rect2;
 use assetfield_layout::resolve::asset_info_from_bounds;
 use assetfield_layout::script::{Axis, ObjSource};
 use assetfield_layout::source::AssetEntry;
-use assetfield_layout::{AssetCatalog, AssetInfo, LoadedScript};
+use assetfield_layout::{AssetCatalog, AssetInfo, GtSource, LoadedScript};
 use glam::{Mat3, Vec2, Vec3};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -17,15 +19,27 @@ use std::sync::Arc;
 pub struct AssetSet {
     pub geometry: BTreeMap<String, Arc<AssetGeometry>>,
     infos: BTreeMap<String, AssetInfo>,
+    /// Catalog, id, creator and licence of every asset that is a catalog model.
+    pub sources: BTreeMap<String, GtSource>,
 }
 
 impl AssetSet {
     /// Build the geometry of every asset a script defines (loading OBJ files).
     pub fn from_script(script: &LoadedScript) -> Result<Self, SynthError> {
         let mut set = AssetSet::default();
+        let mut catalogs = Catalogs::default();
         for (name, entry) in &script.assets {
-            let g = build_asset(name, entry, script)?;
-            let info = asset_info_from_bounds(name, &entry.def, g.bounds());
+            let (g, catalog) = build_asset(name, entry, script, &mut catalogs)?;
+            let mut info = asset_info_from_bounds(name, &entry.def, g.bounds());
+            if let Some((source, size)) = catalog {
+                set.sources.insert(name.clone(), source);
+                if entry.def.parts.is_empty() {
+                    // the catalog's size exactly (the mesh is scaled to it; its triangle
+                    // bounds differ by rounding), so layouts drawn from catalog sizes agree
+                    info.footprint = Rect2::new(-0.5 * size.truncate(), 0.5 * size.truncate());
+                    info.height = size.z;
+                }
+            }
             set.infos.insert(name.clone(), info);
             set.geometry.insert(name.clone(), Arc::new(g));
         }
@@ -42,11 +56,28 @@ impl AssetCatalog for AssetSet {
     }
 }
 
+/// Catalog indexes opened while building a script's assets (each zip's index is read once).
+#[derive(Debug, Default)]
+struct Catalogs {
+    open: BTreeMap<String, Catalog>,
+}
+
+impl Catalogs {
+    fn get(&mut self, name: &str) -> Result<&Catalog, CatalogError> {
+        if !self.open.contains_key(name) {
+            let c = Catalog::open(name)?;
+            self.open.insert(name.to_string(), c);
+        }
+        Ok(&self.open[name])
+    }
+}
+
 fn build_asset(
     name: &str,
     entry: &AssetEntry,
     script: &LoadedScript,
-) -> Result<AssetGeometry, SynthError> {
+    catalogs: &mut Catalogs,
+) -> Result<(AssetGeometry, Option<(GtSource, Vec3)>), SynthError> {
     if let Some(l) = &entry.def.library {
         return Err(SynthError::LibraryAsset {
             location: entry.location.clone(),
@@ -58,14 +89,38 @@ fn build_asset(
     for p in &entry.def.parts {
         g.push_part(p);
     }
-    if let Some(obj) = &entry.def.obj {
-        let path = entry.base_dir(script).join(&obj.path);
-        load_obj_into(&mut g, &path, obj).map_err(|message| SynthError::Obj {
-            location: entry.location.clone(),
-            asset: name.to_string(),
-            path: path.clone(),
-            message,
-        })?;
+    let mut source = None;
+    match &entry.def.obj {
+        Some(ObjSource::Obj { path: rel, scale, up, yaw_deg, recenter }) => {
+            let path = entry.base_dir(script).join(rel);
+            load_obj_into(&mut g, &path, *scale, *up, *yaw_deg, *recenter).map_err(|message| {
+                SynthError::Obj {
+                    location: entry.location.clone(),
+                    asset: name.to_string(),
+                    path: path.clone(),
+                    message,
+                }
+            })?;
+        }
+        Some(ObjSource::Catalog { name: catalog, id }) => {
+            let err = |source: CatalogError| SynthError::Catalog {
+                location: entry.location.clone(),
+                asset: name.to_string(),
+                source: Box::new(source),
+            };
+            let c = catalogs.get(catalog).map_err(err)?;
+            let model = c.model(id).map_err(err)?;
+            c.load_into(&mut g, model).map_err(err)?;
+            let gt = GtSource {
+                catalog: c.name.clone(),
+                id: model.id.clone(),
+                name: model.name.clone(),
+                creator: model.creator.clone(),
+                license: model.license.clone(),
+            };
+            source = Some((gt, model.size_m()));
+        }
+        None => {}
     }
     if g.shapes.is_empty() {
         return Err(SynthError::EmptyAsset {
@@ -74,19 +129,32 @@ fn build_asset(
         });
     }
     g.finish();
-    Ok(g)
+    Ok((g, source))
 }
 
 fn load_texture(path: &Path) -> Result<Texture, String> {
-    let img = image::open(path).map_err(|e| format!("texture {}: {e}", path.display()))?.to_rgb8();
-    let rgb =
-        img.pixels().map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32) / 255.0).collect();
-    Ok(Texture { width: img.width(), height: img.height(), rgb })
+    let bytes = std::fs::read(path).map_err(|e| format!("texture {}: {e}", path.display()))?;
+    texture_from_bytes(&bytes).map_err(|e| format!("texture {}: {e}", path.display()))
 }
 
-/// Load an OBJ (with its MTL diffuse colours and textures) into `g`, levelled, scaled and
-/// recentred as `src` asks.
-pub fn load_obj_into(g: &mut AssetGeometry, path: &Path, src: &ObjSource) -> Result<(), String> {
+/// A linear map applied to mesh positions, and the one for its normals (the inverse
+/// transpose, up to scale).
+#[derive(Debug, Clone, Copy)]
+pub struct MeshTransform {
+    pub linear: Mat3,
+    pub normal: Mat3,
+}
+
+/// Load an OBJ file (with its MTL diffuse colours and textures) into `g`: levelled so that
+/// `up` points along +Z, turned by `yaw_deg`, scaled, and recentred on request.
+pub fn load_obj_into(
+    g: &mut AssetGeometry,
+    path: &Path,
+    scale: f32,
+    up: Axis,
+    yaw_deg: f32,
+    recenter: bool,
+) -> Result<(), String> {
     if !path.exists() {
         return Err("file not found".into());
     }
@@ -99,16 +167,40 @@ pub fn load_obj_into(g: &mut AssetGeometry, path: &Path, src: &ObjSource) -> Res
     let (models, materials) = tobj::load_obj(path, &opts).map_err(|e| e.to_string())?;
     let materials = materials.map_err(|e| format!("material library: {e}"))?;
     let dir = path.parent().unwrap_or(Path::new("."));
+    let level = match up {
+        Axis::Z => Mat3::IDENTITY,
+        // +Y up -> +Z up: (x, y, z) -> (x, -z, y)
+        Axis::Y => Mat3::from_rotation_x(std::f32::consts::FRAC_PI_2),
+        // +X up -> +Z up
+        Axis::X => Mat3::from_rotation_y(-std::f32::consts::FRAC_PI_2),
+    };
+    let rot = Mat3::from_rotation_z(yaw_deg.to_radians()) * level;
+    let xf = MeshTransform { linear: rot * scale, normal: rot };
+    push_obj_models(g, &models, &materials, &xf, recenter, |g, t| {
+        g.textures.push(load_texture(&dir.join(t.replace('\\', "/")))?);
+        Ok(Some(g.textures.len() - 1))
+    })
+}
 
+/// Append tobj meshes and their materials to `g` under `xf`; `texture` loads a diffuse
+/// texture by its MTL name into `g.textures` and returns its index (`None`: the texture does
+/// not exist and the material keeps its plain colour). With `recenter` the new
+/// triangles are moved so that their footprint is centred on the origin and they stand on
+/// z = 0.
+pub fn push_obj_models(
+    g: &mut AssetGeometry,
+    models: &[tobj::Model],
+    materials: &[tobj::Material],
+    xf: &MeshTransform,
+    recenter: bool,
+    mut texture: impl FnMut(&mut AssetGeometry, &str) -> Result<Option<usize>, String>,
+) -> Result<(), String> {
     // OBJ materials -> ours (index shift by what the asset already has)
     let base = g.materials.len();
-    for m in &materials {
+    for m in materials {
         let color = m.diffuse.map(Vec3::from).unwrap_or(Vec3::splat(0.8));
         let texture = match &m.diffuse_texture {
-            Some(t) if !t.is_empty() => {
-                g.textures.push(load_texture(&dir.join(t.replace('\\', "/")))?);
-                Some(g.textures.len() - 1)
-            }
+            Some(t) if !t.is_empty() => texture(g, t)?,
             _ => None,
         };
         g.materials.push(Material { color, texture });
@@ -116,19 +208,9 @@ pub fn load_obj_into(g: &mut AssetGeometry, path: &Path, src: &ObjSource) -> Res
     let default_material = g.materials.len();
     g.materials.push(Material { color: Vec3::splat(0.8), texture: None });
 
-    let level = match src.up {
-        Axis::Z => Mat3::IDENTITY,
-        // +Y up -> +Z up: (x, y, z) -> (x, -z, y)
-        Axis::Y => Mat3::from_rotation_x(std::f32::consts::FRAC_PI_2),
-        // +X up -> +Z up
-        Axis::X => Mat3::from_rotation_y(-std::f32::consts::FRAC_PI_2),
-    };
-    let rot = Mat3::from_rotation_z(src.yaw_deg.to_radians()) * level;
-    let xf = |p: Vec3| rot * p * src.scale;
-
     let first_shape = g.shapes.len();
     let mut tri_count = 0usize;
-    for model in &models {
+    for model in models {
         let m = &model.mesh;
         let pos = |i: u32| {
             Vec3::new(
@@ -146,14 +228,22 @@ pub fn load_obj_into(g: &mut AssetGeometry, path: &Path, src: &ObjSource) -> Res
             .unwrap_or(default_material);
         for tri in m.indices.chunks_exact(3) {
             let [a, b, c] = [tri[0], tri[1], tri[2]];
-            let (p0, p1, p2) = (xf(pos(a)), xf(pos(b)), xf(pos(c)));
+            if [a, b, c].iter().any(|&i| 3 * i as usize + 2 >= m.positions.len()) {
+                return Err(format!(
+                    "a face refers to vertex {} of {}",
+                    a.max(b).max(c),
+                    m.positions.len() / 3
+                ));
+            }
+            let (p0, p1, p2) = (xf.linear * pos(a), xf.linear * pos(b), xf.linear * pos(c));
             let nrm = |i: u32| {
                 if has_n {
-                    (rot * Vec3::new(
-                        m.normals[3 * i as usize],
-                        m.normals[3 * i as usize + 1],
-                        m.normals[3 * i as usize + 2],
-                    ))
+                    (xf.normal
+                        * Vec3::new(
+                            m.normals[3 * i as usize],
+                            m.normals[3 * i as usize + 1],
+                            m.normals[3 * i as usize + 2],
+                        ))
                     .normalize_or_zero()
                 } else {
                     Vec3::ZERO
@@ -181,7 +271,7 @@ pub fn load_obj_into(g: &mut AssetGeometry, path: &Path, src: &ObjSource) -> Res
     if tri_count == 0 {
         return Err("the mesh has no faces".into());
     }
-    if src.recenter {
+    if recenter {
         let b = g.shapes[first_shape..]
             .iter()
             .fold(assetfield_core::Aabb3::EMPTY, |acc, s| acc.union(&s.bounds()));

@@ -11,6 +11,15 @@ pub enum SynthError {
     Data(#[from] assetfield_data::DataError),
     #[error("{location}: asset \"{asset}\": cannot load OBJ {}: {message}", path.display())]
     Obj { location: assetfield_layout::Location, asset: String, path: PathBuf, message: String },
+    /// A catalog model that cannot be used (catalog not allowed or missing, unknown id,
+    /// broken mesh).
+    #[error("{location}: asset \"{asset}\": {source}")]
+    Catalog {
+        location: assetfield_layout::Location,
+        asset: String,
+        #[source]
+        source: Box<crate::sh3f::CatalogError>,
+    },
     #[error("{location}: asset \"{asset}\" has no geometry (give `parts` or `obj`)")]
     EmptyAsset { location: assetfield_layout::Location, asset: String },
     #[error(

@@ -5,7 +5,8 @@
 //! `transforms_train.json`, `transforms_test.json`, `train/r_K.png`, `test/r_K.png`,
 //! `gt_layout.json`, `layout.png` (bird's-eye view of the ground truth), `synth.json`
 //! (settings, bounds, timings) and, with an edited layout, `edited/` holding the same test
-//! cameras rendered with the edited layout plus its `gt_layout.json`.
+//! cameras rendered with the edited layout plus its `gt_layout.json`. A script given as
+//! text ([`synthesize_loaded`], e.g. a random scene) is also written as `scene.ron`.
 
 use crate::SynthError;
 use crate::assets::AssetSet;
@@ -178,6 +179,8 @@ pub struct SynthReport {
     pub edited_views: usize,
     pub instances: usize,
     pub categories: Vec<String>,
+    /// Scene units per metre (the script's `units_per_metre`, 1 when it gives none).
+    pub units_per_metre: f32,
     pub scene_aabb: [[f32; 3]; 2],
     pub camera_radius: f32,
     pub seconds: f64,
@@ -224,8 +227,26 @@ pub fn synthesize(
     edited: Option<&Path>,
     progress: Progress<'_>,
 ) -> Result<SynthReport, SynthError> {
+    let script = assetfield_layout::load(scene)?;
+    synthesize_loaded(&script, scene, None, opts, out, overwrite, edited, progress)
+}
+
+/// [`synthesize`] for a script already loaded (`scene` names it in the report); with
+/// `script_text` the script's text is also written into the dataset as `scene.ron`, so a
+/// generated scene can be read and rendered again.
+pub fn synthesize_loaded(
+    script: &LoadedScript,
+    scene: &Path,
+    script_text: Option<&str>,
+    opts: &SynthOptions,
+    out: &Path,
+    overwrite: bool,
+    edited: Option<&Path>,
+    progress: Progress<'_>,
+) -> Result<SynthReport, SynthError> {
     let start = Instant::now();
-    let (script, assets, layout) = load_scene(scene)?;
+    let assets = AssetSet::from_script(script)?;
+    let layout = resolve(script, &assets)?;
     let cfg = SynthConfig::resolve(opts, script.views.as_ref())?;
     let light = Light::from_script(script.lighting.as_ref());
     let world = Scene::new(&layout, &assets, light);
@@ -233,7 +254,9 @@ pub fn synthesize(
         Some(p) => {
             let (escript, eassets, elayout) = load_scene(p)?;
             let light = Light::from_script(escript.lighting.as_ref().or(script.lighting.as_ref()));
-            Some((Scene::new(&elayout, &eassets, light), elayout))
+            let gt = GtLayout::from_resolved(&elayout)
+                .to_json_with(escript.units_per_metre.or(script.units_per_metre), &eassets.sources);
+            Some((Scene::new(&elayout, &eassets, light), elayout, gt))
         }
         None => None,
     };
@@ -264,11 +287,14 @@ pub fn synthesize(
     let fov = cfg.fov_deg.to_radians();
     write_transforms(&dir.join("transforms_train.json"), &transforms_for(&train, fov))?;
     write_transforms(&dir.join("transforms_test.json"), &transforms_for(&test, fov))?;
-    let gt = GtLayout::from_resolved(&layout);
-    write_atomic(&dir.join("gt_layout.json"), gt.to_json().as_bytes())?;
+    let gt = GtLayout::from_resolved(&layout).to_json_with(script.units_per_metre, &assets.sources);
+    write_atomic(&dir.join("gt_layout.json"), gt.as_bytes())?;
     layout_picture(&layout, &dir.join("layout.png"))?;
+    if let Some(text) = script_text {
+        write_atomic(&dir.join("scene.ron"), text.as_bytes())?;
+    }
 
-    if let Some((escene, elayout)) = &edited_scene {
+    if let Some((escene, elayout, egt)) = &edited_scene {
         let edir = dir.join("edited");
         std::fs::create_dir_all(edir.join("test"))
             .map_err(|e| assetfield_core::CoreError::io(&edir, e))?;
@@ -282,10 +308,7 @@ pub fn synthesize(
             progress(rig.len() + k + 1, total);
         }
         write_transforms(&edir.join("transforms_test.json"), &transforms_for(&test, fov))?;
-        write_atomic(
-            &edir.join("gt_layout.json"),
-            GtLayout::from_resolved(elayout).to_json().as_bytes(),
-        )?;
+        write_atomic(&edir.join("gt_layout.json"), egt.as_bytes())?;
         layout_picture(elayout, &edir.join("layout.png"))?;
     }
 
@@ -302,6 +325,7 @@ pub fn synthesize(
         edited_views: n_edit,
         instances: layout.objects().count(),
         categories: layout.categories(),
+        units_per_metre: script.units_per_metre.unwrap_or(1.0),
         scene_aabb: [bounds.min.to_array(), bounds.max.to_array()],
         camera_radius: rig
             .first()

@@ -3,14 +3,30 @@
 use super::util::progress_bar;
 use anyhow::{Context, Result};
 use assetfield_data::{Dataset, DatasetSummary, LoadOptions, Split};
-use assetfield_synth::{SynthOptions, synthesize};
+use assetfield_synth::{SynthOptions, synthesize, synthesize_loaded};
 use clap::Args;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Args)]
 pub struct SynthArgs {
-    /// The layout script to render (e.g. scenes/conference_room.ron).
-    pub scene: PathBuf,
+    /// The layout script to render (e.g. scenes/conference_room.ron); or give --random.
+    #[arg(required_unless_present = "random")]
+    pub scene: Option<PathBuf>,
+    /// Render a random scene drawn from SEED instead of a script (the same seed gives the
+    /// same scene on every machine). The draw: scene units per metre in 0.5..2 (every
+    /// length scaled, recorded as `units_per_metre`); 3-12 object categories from curated
+    /// Sweet Home 3D furniture (package sweethome3d-furniture) and the primitive assets of
+    /// scenes/assets, 2-5 instances each at varied yaw; some as touching pairs, small
+    /// objects on some tables, ground objects never overlapping; a room sized to them; a
+    /// floor (none, thin, thick, partial, or tiled: checker, planks, carpet or asphalt
+    /// noise) and walls on 0-3 sides; 256 x 256 views unless --res. The script is written
+    /// into the dataset as scene.ron (rendering it again gives the same dataset). Validation
+    /// and dev seeds: scenes/validation_seeds.txt.
+    #[arg(long, value_name = "SEED", conflicts_with = "scene")]
+    pub random: Option<u64>,
+    /// With --random: also write the drawn script to FILE (RON).
+    #[arg(long, value_name = "FILE")]
+    pub write_script: Option<PathBuf>,
     /// Output folder [default: runs/SCENE_NAME]. Written atomically: it appears only when
     /// complete.
     #[arg(long, short)]
@@ -55,7 +71,27 @@ fn stem(p: &Path) -> String {
 }
 
 pub fn synth(a: SynthArgs) -> Result<()> {
-    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("runs").join(stem(&a.scene)));
+    if a.write_script.is_some() && a.random.is_none() {
+        anyhow::bail!("--write-script writes a drawn scene: it needs --random SEED");
+    }
+    let random = match a.random {
+        Some(seed) => {
+            let r = assetfield_synth::random::random_scene(seed)
+                .with_context(|| format!("drawing random scene {seed}"))?;
+            if let Some(f) = &a.write_script {
+                assetfield_core::fsx::write_atomic(f, r.text.as_bytes())
+                    .with_context(|| format!("writing {}", f.display()))?;
+            }
+            Some(r)
+        }
+        None => None,
+    };
+    let scene = match (&random, &a.scene) {
+        (Some(r), _) => PathBuf::from(format!("random_{}.ron", r.seed)),
+        (None, Some(s)) => s.clone(),
+        (None, None) => anyhow::bail!("give a scene script or --random SEED"),
+    };
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("runs").join(stem(&scene)));
     let elevation = match (a.elev_min, a.elev_max) {
         (None, None) => None,
         (lo, hi) => Some((lo.unwrap_or(15.0), hi.unwrap_or(75.0))),
@@ -74,9 +110,25 @@ pub fn synth(a: SynthArgs) -> Result<()> {
         pb.set_length(total as u64);
         pb.set_position(done as u64);
     };
-    let result = synthesize(&a.scene, &opts, &out, a.force, a.edited.as_deref(), &mut progress);
+    let result = match &random {
+        Some(r) => assetfield_layout::load_str(&scene, &r.text)
+            .map_err(assetfield_synth::SynthError::from)
+            .and_then(|loaded| {
+                synthesize_loaded(
+                    &loaded,
+                    &scene,
+                    Some(&r.text),
+                    &opts,
+                    &out,
+                    a.force,
+                    a.edited.as_deref(),
+                    &mut progress,
+                )
+            }),
+        None => synthesize(&scene, &opts, &out, a.force, a.edited.as_deref(), &mut progress),
+    };
     pb.finish_and_clear();
-    let report = result.with_context(|| format!("synthesising {}", a.scene.display()))?;
+    let report = result.with_context(|| format!("synthesising {}", scene.display()))?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
@@ -104,6 +156,15 @@ pub fn synth(a: SynthArgs) -> Result<()> {
         report.seconds,
         report.rays_per_second / 1e6
     );
+    if let Some(r) = &random {
+        println!(
+            "random scene {}: floor {}, {:.3} units per metre; script: {}",
+            r.seed,
+            r.floor,
+            r.units_per_metre,
+            out.join("scene.ron").display()
+        );
+    }
     println!("wrote {}", out.display());
     Ok(())
 }
@@ -168,13 +229,14 @@ pub struct LayoutArgs {
 }
 
 pub fn layout(a: LayoutArgs) -> Result<()> {
-    let (_, _, layout) = assetfield_synth::load_scene(&a.scene)
+    let (script, assets, layout) = assetfield_synth::load_scene(&a.scene)
         .with_context(|| format!("resolving {}", a.scene.display()))?;
     if let Some(p) = &a.picture {
         assetfield_synth::synth::layout_picture(&layout, p)?;
     }
     if a.json {
-        println!("{}", assetfield_layout::GtLayout::from_resolved(&layout).to_json());
+        let gt = assetfield_layout::GtLayout::from_resolved(&layout);
+        println!("{}", gt.to_json_with(script.units_per_metre, &assets.sources));
         return Ok(());
     }
     println!(

@@ -1,0 +1,682 @@
+//! Random scenes (`assetfield synth --random SEED`): a room drawn from a seed, written as an
+//! ordinary layout [`Script`] (so it can be saved as RON, read and rendered again).
+//!
+//! The draw, all from one SplitMix64 seed ([`assetfield_layout::rng::Rng`], no platform- or
+//! version-dependent distributions):
+//! - scene units per metre in `[0.5, 2)`: every length and position of the scene is
+//!   multiplied by it (objects through their instance scale, floor and walls directly), and
+//!   it is recorded as the script's `units_per_metre`;
+//! - 3 to 12 object categories, each one asset, from the curated catalog models
+//!   ([`crate::curated::CURATED`]) and the primitive assets of `scenes/assets/furniture.ron`
+//!   and `scenes/assets/street.ron` (embedded in the binary), 2 to 5 instances each at
+//!   varied yaw; table-top categories stand on tables (`Group(on: ...)`), only drawn when a
+//!   table category was;
+//! - some categories placed as touching pairs (two instances side by side, footprints in
+//!   contact); the rest scattered with footprints kept clear (`Scatter`), so ground objects
+//!   never overlap;
+//! - a room sized to the footprints drawn (2.5-4x their area);
+//! - a floor: none, a thin slab, a thick slab, a slab under part of the room only, or a
+//!   patterned floor made of box tiles (checker, wood-like planks, carpet noise, asphalt
+//!   noise); walls along 0 to 3 sides (low, so cameras see over them);
+//! - cameras: the usual rig around the scene's bounds at 256 x 256 ([`RANDOM_RESOLUTION`]).
+
+use crate::SynthError;
+use crate::curated::{CURATED, CuratedModel, Placement, asset_name};
+use assetfield_core::Rect2;
+use assetfield_layout::resolve::asset_info_from_bounds;
+use assetfield_layout::rng::Rng;
+use assetfield_layout::script::{AssetDef, Item, ObjSource, Part, Region, Variation, ViewSettings};
+use assetfield_layout::source::{parse_script, write_script};
+use assetfield_layout::{AssetCatalog, AssetInfo, Script, load_str, resolve};
+use glam::Vec2;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Image size of random scenes unless `--res` says otherwise (pixels; what the mining
+/// measurements of issue 16 use).
+pub const RANDOM_RESOLUTION: u32 = 256;
+/// Range of scene units per metre.
+pub const UNITS_PER_METRE: (f32, f32) = (0.5, 2.0);
+/// Range of the number of object categories (inclusive).
+pub const CATEGORIES: (usize, usize) = (3, 12);
+/// Range of instances per ground category (inclusive).
+const INSTANCES: (usize, usize) = (2, 5);
+/// Room area per unit of drawn footprint area (footprints padded by [`CLEARANCE`]).
+const ROOM_FACTOR: (f32, f32) = (2.5, 4.0);
+/// Gap kept around every footprint when sizing the room and between scattered objects
+/// (metres): room to walk, and a few texels between objects on a trained plane.
+const CLEARANCE: f32 = 0.3;
+/// Smallest room side (metres).
+const MIN_SIDE: f32 = 4.0;
+/// Walls: thickness and height range (metres); low enough for cameras at 15 degrees to
+/// see most of the floor over them.
+const WALL_THICKNESS: f32 = 0.12;
+const WALL_HEIGHT: (f32, f32) = (0.5, 1.1);
+/// Times the room grows by [`GROW`] when the objects do not fit (scatter fails).
+const ATTEMPTS: u32 = 8;
+const GROW: f32 = 1.2;
+/// Chance that a ground category is placed as a touching pair, and that a table carries
+/// objects (when table-top categories exist).
+const PAIR_CHANCE: f32 = 0.3;
+const LOADED_TABLE_CHANCE: f32 = 0.6;
+
+/// The built-in primitive asset files (shared with the scene suite).
+const FURNITURE_RON: &str = include_str!("../../../scenes/assets/furniture.ron");
+const STREET_RON: &str = include_str!("../../../scenes/assets/street.ron");
+
+/// Where the primitive assets may stand (the rest of the two files: floor objects).
+const PRIMITIVE_TABLES: [&str; 8] = [
+    "table_rect",
+    "table_round",
+    "cafe_table",
+    "desk",
+    "student_desk",
+    "coffee_table",
+    "side_table",
+    "bar_counter",
+];
+const PRIMITIVE_TABLE_TOPS: [&str; 3] = ["lamp", "monitor", "laptop"];
+
+/// One asset a scene may draw.
+#[derive(Debug, Clone)]
+struct Candidate {
+    name: String,
+    def: AssetDef,
+    info: AssetInfo,
+    placement: Placement,
+}
+
+fn round3(v: f32) -> f32 {
+    (v * 1000.0).round() / 1000.0
+}
+
+fn ceil3(v: f32) -> f32 {
+    (v * 1000.0).ceil() / 1000.0
+}
+
+fn candidates() -> Result<Vec<Candidate>, SynthError> {
+    let mut out = Vec::new();
+    for (file, text) in [("furniture.ron", FURNITURE_RON), ("street.ron", STREET_RON)] {
+        let s = parse_script(Path::new(file), text)?;
+        for (name, def) in s.assets {
+            if def.container {
+                continue;
+            }
+            let placement = if PRIMITIVE_TABLES.contains(&name.as_str()) {
+                Placement::Table
+            } else if PRIMITIVE_TABLE_TOPS.contains(&name.as_str()) {
+                Placement::TableTop
+            } else {
+                Placement::Floor
+            };
+            let info = asset_info_from_bounds(&name, &def, def.parts_bounds());
+            out.push(Candidate { name, def, info, placement });
+        }
+    }
+    for m in CURATED {
+        out.push(curated_candidate(m));
+    }
+    Ok(out)
+}
+
+/// The asset of a curated model, with the footprint and height the synthesiser will give
+/// it (the catalog size: depth along x, width along y).
+fn curated_candidate(m: &CuratedModel) -> Candidate {
+    let name = asset_name(m);
+    let def = AssetDef {
+        parts: Vec::new(),
+        obj: Some(ObjSource::Catalog { name: m.catalog.to_string(), id: m.id.to_string() }),
+        category: None,
+        yaw_symmetry_deg: m.yaw_symmetry_deg,
+        container: false,
+        library: None,
+    };
+    let (w, d, h) = m.size_cm;
+    let half = Vec2::new(d, w) / 200.0;
+    let info = AssetInfo {
+        category: name.clone(),
+        footprint: Rect2::new(-half, half),
+        height: h / 100.0,
+        yaw_symmetry_deg: m.yaw_symmetry_deg,
+        container: false,
+    };
+    Candidate { name, def, info, placement: m.placement }
+}
+
+/// Resolution-time sizes of a drawn scene's assets (the synthesiser gives the same ones):
+/// resolves a random scene without opening the furniture catalogs.
+#[derive(Debug, Clone)]
+pub struct DrawCatalog(BTreeMap<String, AssetInfo>);
+
+impl AssetCatalog for DrawCatalog {
+    fn asset_info(&self, name: &str) -> Option<AssetInfo> {
+        self.0.get(name).cloned()
+    }
+    fn asset_names(&self) -> Vec<String> {
+        self.0.keys().cloned().collect()
+    }
+}
+
+/// Draw `k` distinct items of `pool` (in draw order).
+fn pick<T: Clone>(rng: &mut Rng, pool: &[T], k: usize) -> Vec<T> {
+    let mut idx: Vec<usize> = (0..pool.len()).collect();
+    let mut out = Vec::new();
+    for _ in 0..k.min(pool.len()) {
+        let j = rng.below(idx.len());
+        out.push(pool[idx.swap_remove(j)].clone());
+    }
+    out
+}
+
+fn int_in(rng: &mut Rng, lo: usize, hi: usize) -> usize {
+    lo + rng.below(hi - lo + 1)
+}
+
+fn tile_box(center: (f32, f32, f32), size: (f32, f32, f32), color: (f32, f32, f32)) -> Part {
+    Part::Box { center, size, color, yaw: 0.0 }
+}
+
+/// The floor's kind, as drawn (also the floor asset's name in the script).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FloorKind {
+    None,
+    ThinSlab,
+    ThickSlab,
+    PartialSlab,
+    Checker,
+    Planks,
+    Carpet,
+    Asphalt,
+}
+
+impl FloorKind {
+    const ALL: [FloorKind; 8] = [
+        FloorKind::None,
+        FloorKind::ThinSlab,
+        FloorKind::ThickSlab,
+        FloorKind::PartialSlab,
+        FloorKind::Checker,
+        FloorKind::Planks,
+        FloorKind::Carpet,
+        FloorKind::Asphalt,
+    ];
+    fn name(self) -> &'static str {
+        match self {
+            FloorKind::None => "none",
+            FloorKind::ThinSlab => "floor_thin",
+            FloorKind::ThickSlab => "floor_thick",
+            FloorKind::PartialSlab => "floor_partial",
+            FloorKind::Checker => "floor_checker",
+            FloorKind::Planks => "floor_planks",
+            FloorKind::Carpet => "floor_carpet",
+            FloorKind::Asphalt => "floor_asphalt",
+        }
+    }
+}
+
+/// Thin tiles (metres): thickness of a slab that only shows a colour or pattern.
+const THIN: f32 = 0.02;
+
+/// Floor parts in scene units over the room `[-hx, hx] x [-hy, hy]` (scene units, `u` per
+/// metre).
+fn floor_parts(rng: &mut Rng, kind: FloorKind, hx: f32, hy: f32, u: f32) -> Vec<Part> {
+    let grey = |rng: &mut Rng, lo: f32, hi: f32| {
+        let g = round3(rng.range(lo, hi));
+        (g, g, round3(g * rng.range(0.95, 1.05)))
+    };
+    let slab = |t: f32, c| {
+        tile_box((0.0, 0.0, round3(-0.5 * t)), (round3(2.0 * hx), round3(2.0 * hy), round3(t)), c)
+    };
+    match kind {
+        FloorKind::None => Vec::new(),
+        FloorKind::ThinSlab => vec![slab(THIN * u, grey(rng, 0.45, 0.8))],
+        FloorKind::ThickSlab => vec![slab(rng.range(0.12, 0.3) * u, grey(rng, 0.4, 0.7))],
+        FloorKind::PartialSlab => {
+            let (fx, fy) = (rng.range(0.5, 0.85), rng.range(0.5, 0.85));
+            let (sx, sy) = (2.0 * hx * fx, 2.0 * hy * fy);
+            let cx = rng.range(-hx + 0.5 * sx, hx - 0.5 * sx);
+            let cy = rng.range(-hy + 0.5 * sy, hy - 0.5 * sy);
+            let t = THIN * u;
+            vec![tile_box(
+                (round3(cx), round3(cy), round3(-0.5 * t)),
+                (round3(sx), round3(sy), round3(t)),
+                grey(rng, 0.45, 0.75),
+            )]
+        }
+        FloorKind::Checker | FloorKind::Carpet | FloorKind::Asphalt => {
+            // square tiles: checker 0.5-1 m, noise 0.25-0.4 m
+            let (lo, hi) = if kind == FloorKind::Checker { (0.5, 1.0) } else { (0.25, 0.4) };
+            let tile = rng.range(lo, hi) * u;
+            let (nx, ny) =
+                (((2.0 * hx) / tile).ceil() as usize, ((2.0 * hy) / tile).ceil() as usize);
+            let (tx, ty) = (2.0 * hx / nx as f32, 2.0 * hy / ny as f32);
+            let a = grey(rng, 0.55, 0.9);
+            let b = grey(rng, 0.15, 0.4);
+            let base = match kind {
+                FloorKind::Carpet => {
+                    (rng.range(0.3, 0.7), rng.range(0.2, 0.5), rng.range(0.2, 0.6))
+                }
+                _ => grey(rng, 0.22, 0.35),
+            };
+            let t = THIN * u;
+            let mut parts = Vec::with_capacity(nx * ny);
+            for j in 0..ny {
+                for i in 0..nx {
+                    let c = match kind {
+                        FloorKind::Checker => {
+                            if (i + j) % 2 == 0 {
+                                a
+                            } else {
+                                b
+                            }
+                        }
+                        _ => {
+                            let k = rng.range(0.85, 1.15);
+                            (
+                                round3((base.0 * k).min(1.0)),
+                                round3((base.1 * k).min(1.0)),
+                                round3((base.2 * k).min(1.0)),
+                            )
+                        }
+                    };
+                    let x = -hx + (i as f32 + 0.5) * tx;
+                    let y = -hy + (j as f32 + 0.5) * ty;
+                    parts.push(tile_box(
+                        (round3(x), round3(y), round3(-0.5 * t)),
+                        (round3(tx), round3(ty), round3(t)),
+                        c,
+                    ));
+                }
+            }
+            parts
+        }
+        FloorKind::Planks => {
+            // boards along x, 0.12-0.25 m wide, shades of brown
+            let w = rng.range(0.12, 0.25) * u;
+            let n = ((2.0 * hy) / w).ceil() as usize;
+            let w = 2.0 * hy / n as f32;
+            let t = THIN * u;
+            let hue = (rng.range(0.45, 0.7), rng.range(0.28, 0.42), rng.range(0.12, 0.22));
+            (0..n)
+                .map(|j| {
+                    let k = rng.range(0.8, 1.2);
+                    let y = -hy + (j as f32 + 0.5) * w;
+                    tile_box(
+                        (0.0, round3(y), round3(-0.5 * t)),
+                        (round3(2.0 * hx), round3(w), round3(t)),
+                        (round3(hue.0 * k), round3(hue.1 * k), round3(hue.2 * k)),
+                    )
+                })
+                .collect()
+        }
+    }
+}
+
+/// Walls along 0-3 sides of the room (scene units).
+fn wall_parts(rng: &mut Rng, hx: f32, hy: f32, u: f32) -> Vec<Part> {
+    let sides = rng.below(4);
+    let h = rng.range(WALL_HEIGHT.0, WALL_HEIGHT.1) * u;
+    let t = WALL_THICKNESS * u;
+    let c =
+        (round3(rng.range(0.7, 0.9)), round3(rng.range(0.68, 0.88)), round3(rng.range(0.65, 0.85)));
+    // start at a random side, continue counter-clockwise (an L or a U)
+    let first = rng.below(4);
+    (0..sides)
+        .map(|k| {
+            let (center, size) = match (first + k) % 4 {
+                0 => ((0.0, -hy - 0.5 * t), (2.0 * hx + 2.0 * t, t)),
+                1 => ((hx + 0.5 * t, 0.0), (t, 2.0 * hy + 2.0 * t)),
+                2 => ((0.0, hy + 0.5 * t), (2.0 * hx + 2.0 * t, t)),
+                _ => ((-hx - 0.5 * t, 0.0), (t, 2.0 * hy + 2.0 * t)),
+            };
+            tile_box(
+                (round3(center.0), round3(center.1), round3(0.5 * h)),
+                (round3(size.0), round3(size.1), round3(h)),
+                c,
+            )
+        })
+        .collect()
+}
+
+/// What a drawn scene holds, for reports and tests.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RandomScene {
+    pub seed: u64,
+    pub script: Script,
+    /// The script as RON (what `--write-script` and the dataset's `scene.ron` hold).
+    pub text: String,
+    pub units_per_metre: f32,
+    pub floor: &'static str,
+    /// Object categories (= assets) in draw order.
+    pub categories: Vec<String>,
+}
+
+/// Draw the scene of `seed` (see the module docs). The same seed gives the same script, byte
+/// for byte, on every machine.
+pub fn random_scene(seed: u64) -> Result<RandomScene, SynthError> {
+    let pool = candidates()?;
+    let mut last_err = None;
+    for attempt in 0..ATTEMPTS {
+        // GROW^attempt by multiplication (powi's rounding may vary by platform)
+        let grow = (0..attempt).fold(1.0f32, |g, _| g * GROW);
+        let scene = draw(seed, &pool, grow)?;
+        // check that every scatter fits, with the sizes synthesis will use
+        let loaded = load_str(Path::new(&format!("random_{seed}.ron")), &scene.text)?;
+        match resolve(&loaded, &scene.catalog()?) {
+            Ok(_) => return Ok(scene),
+            Err(e) => last_err = Some(e),
+        }
+    }
+    Err(SynthError::Config(format!(
+        "random scene {seed}: the objects did not fit after {ATTEMPTS} attempts: {}",
+        last_err.map(|e| e.to_string()).unwrap_or_default()
+    )))
+}
+
+impl RandomScene {
+    /// The sizes resolution needs, from the curated table and the primitives' parts.
+    pub fn catalog(&self) -> Result<DrawCatalog, SynthError> {
+        let pool = candidates()?;
+        let infos = self
+            .script
+            .assets
+            .iter()
+            .map(|(n, d)| {
+                let info = pool.iter().find(|c| &c.name == n).map(|c| c.info.clone());
+                let info = info.unwrap_or_else(|| asset_info_from_bounds(n, d, d.parts_bounds()));
+                (n.clone(), info)
+            })
+            .collect();
+        Ok(DrawCatalog(infos))
+    }
+}
+
+fn draw(seed: u64, pool: &[Candidate], grow: f32) -> Result<RandomScene, SynthError> {
+    let mut rng = Rng::stream(seed, "random-scene");
+    let u = round3(rng.range(UNITS_PER_METRE.0, UNITS_PER_METRE.1));
+    let k = int_in(&mut rng, CATEGORIES.0, CATEGORIES.1);
+    let of = |p: Placement| pool.iter().filter(|c| c.placement == p).cloned().collect::<Vec<_>>();
+    let (floors, tables, tops) =
+        (of(Placement::Floor), of(Placement::Table), of(Placement::TableTop));
+    // tables in 7 of 10 scenes; table-top categories only with tables
+    let n_tables = if rng.f32() < 0.7 { 1 + rng.below(2) } else { 0 };
+    let n_tops = if n_tables > 0 { rng.below(3).min(k.saturating_sub(n_tables + 1)) } else { 0 };
+    let n_floor = k - n_tables - n_tops;
+    let mut chosen: Vec<Candidate> = pick(&mut rng, &tables, n_tables);
+    chosen.extend(pick(&mut rng, &floors, n_floor));
+    let top_cats = pick(&mut rng, &tops, n_tops);
+
+    // instances per ground category, room size from the padded footprints
+    let counts: Vec<usize> =
+        chosen.iter().map(|_| int_in(&mut rng, INSTANCES.0, INSTANCES.1)).collect();
+    let area: f32 = chosen
+        .iter()
+        .zip(&counts)
+        .map(|(c, &n)| {
+            let s = c.info.footprint.size() + Vec2::splat(CLEARANCE);
+            n as f32 * s.x * s.y
+        })
+        .sum();
+    let room_area = area * rng.range(ROOM_FACTOR.0, ROOM_FACTOR.1) * grow * grow;
+    let aspect = rng.range(0.7, 1.4);
+    let sx = (room_area * aspect).sqrt().max(MIN_SIDE);
+    let sy = (room_area / aspect).sqrt().max(MIN_SIDE);
+    let (hx, hy) = (round3(0.5 * sx * u), round3(0.5 * sy * u));
+
+    let mut assets: BTreeMap<String, AssetDef> = BTreeMap::new();
+    let mut layout: Vec<Item> = Vec::new();
+    let floor = FloorKind::ALL[rng.below(FloorKind::ALL.len())];
+    let mut container_parts = floor_parts(&mut rng, floor, hx, hy, u);
+    let walls = wall_parts(&mut rng, hx, hy, u);
+    let has_walls = !walls.is_empty();
+    if !container_parts.is_empty() || has_walls {
+        let name = if container_parts.is_empty() { "walls" } else { floor.name() };
+        container_parts.extend(walls);
+        assets.insert(
+            name.to_string(),
+            AssetDef {
+                parts: container_parts,
+                obj: None,
+                category: None,
+                yaw_symmetry_deg: 360.0,
+                container: true,
+                library: None,
+            },
+        );
+        layout.push(Item::Instance {
+            asset: name.to_string(),
+            at: (0.0, 0.0),
+            yaw: 0.0,
+            scale: 1.0,
+            base: 0.0,
+            name: Some("room".into()),
+        });
+    }
+
+    // touching pairs first (placed by the draw itself, kept apart with axis-aligned boxes),
+    // then scatters, which keep clear of everything placed before them
+    let mut taken: Vec<Rect2> = Vec::new();
+    let inner = |c: &Candidate| {
+        let r = 0.5 * c.info.footprint.size().length() * u + CLEARANCE * u;
+        (hx - r, hy - r)
+    };
+    let mut table_keys: Vec<(String, Candidate, usize)> = Vec::new();
+    let mut paired = vec![false; chosen.len()];
+    for (ci, c) in chosen.iter().enumerate() {
+        assets.insert(c.name.clone(), c.def.clone());
+        let item_name = format!("{}s", c.name);
+        let (ix, iy) = inner(c);
+        let pair =
+            c.placement == Placement::Floor && rng.f32() < PAIR_CHANCE && ix > 0.0 && iy > 0.0;
+        let mut placed_pair = false;
+        if pair {
+            // side by side along local y, turned by a multiple of 90 degrees
+            let quarter = rng.below(4);
+            let fp = c.info.footprint.size();
+            let (w, d) = (fp.y, fp.x);
+            let half = if quarter.is_multiple_of(2) {
+                Vec2::new(0.5 * d, w)
+            } else {
+                Vec2::new(w, 0.5 * d)
+            } * u;
+            for _ in 0..50 {
+                let p = Vec2::new(rng.range(-ix, ix), rng.range(-iy, iy));
+                let pad = Vec2::splat(CLEARANCE * u);
+                let r = Rect2::new(p - half - pad, p + half + pad);
+                if r.min.x < -hx || r.min.y < -hy || r.max.x > hx || r.max.y > hy {
+                    continue;
+                }
+                if taken.iter().any(|t| !t.intersection(&r).is_empty()) {
+                    continue;
+                }
+                taken.push(r);
+                layout.push(Item::Group {
+                    name: Some(format!("{}_pair", c.name)),
+                    at: (round3(p.x), round3(p.y)),
+                    yaw: 90.0 * quarter as f32,
+                    scale: u,
+                    base: 0.0,
+                    on: None,
+                    around: None,
+                    children: vec![Item::Row {
+                        asset: c.name.clone(),
+                        // rounded up to the millimetre: in contact, never overlapping
+                        from: (0.0, -ceil3(0.5 * w)),
+                        to: (0.0, ceil3(0.5 * w)),
+                        count: 2,
+                        yaw: 0.0,
+                        face: Default::default(),
+                        scale: 1.0,
+                        vary: None,
+                        name: Some(item_name.clone()),
+                    }],
+                });
+                placed_pair = true;
+                break;
+            }
+        }
+        paired[ci] = placed_pair;
+    }
+    for (ci, (c, &n)) in chosen.iter().zip(&counts).enumerate() {
+        let item_name = format!("{}s", c.name);
+        let (ix, iy) = inner(c);
+        let placed_pair = paired[ci];
+        let rest = if placed_pair { n.saturating_sub(2) } else { n };
+        if rest == 0 {
+            continue;
+        }
+        let diag = c.info.footprint.size().length();
+        let yaw_rule = if rng.f32() < 0.5 {
+            Variation {
+                yaw_jitter_deg: 180.0,
+                seed: seed.wrapping_add(ci as u64),
+                ..Default::default()
+            }
+        } else {
+            Variation {
+                yaw_choices: vec![0.0, 90.0, 180.0, 270.0],
+                yaw_jitter_deg: round3(rng.range(0.0, 20.0)),
+                seed: seed.wrapping_add(ci as u64),
+                ..Default::default()
+            }
+        };
+        let scatter_name = if placed_pair { format!("{}_more", c.name) } else { item_name.clone() };
+        layout.push(Item::Scatter {
+            asset: c.name.clone(),
+            region: Region::Rect { min: (round3(-ix), round3(-iy)), max: (round3(ix), round3(iy)) },
+            count: rest as u32,
+            min_distance: round3((0.5 * diag + CLEARANCE) * u),
+            seed: seed.wrapping_mul(31).wrapping_add(ci as u64),
+            yaw: 0.0,
+            scale: u,
+            overlap: false,
+            vary: Some(yaw_rule),
+            name: Some(scatter_name.clone()),
+        });
+        if c.placement == Placement::Table {
+            table_keys.push((scatter_name, c.clone(), rest));
+        }
+    }
+
+    // objects on tables: one or two per loaded table, in the table's own (unscaled) frame;
+    // every table-top category is used first (where it fits), then tables are loaded by chance
+    let mut unused: Vec<Candidate> = top_cats.clone();
+    let mut used_tops: Vec<String> = Vec::new();
+    for (key, table, n) in &table_keys {
+        for t in 0..*n {
+            if top_cats.is_empty() || (unused.is_empty() && rng.f32() >= LOADED_TABLE_CHANCE) {
+                continue;
+            }
+            let tf = table.info.footprint;
+            let fits = |c: &Candidate| {
+                let room = tf.size() - Vec2::splat(c.info.footprint.size().length());
+                room.x > 0.0 && room.y > 0.0
+            };
+            let top = match unused.iter().position(&fits) {
+                Some(j) => unused.remove(j),
+                None => {
+                    let fitting: Vec<&Candidate> = top_cats.iter().filter(|c| fits(c)).collect();
+                    if fitting.is_empty() {
+                        continue;
+                    }
+                    fitting[rng.below(fitting.len())].clone()
+                }
+            };
+            let of = top.info.footprint.size().length();
+            let room = tf.size() - Vec2::splat(of);
+            assets.insert(top.name.clone(), top.def.clone());
+            if !used_tops.contains(&top.name) {
+                used_tops.push(top.name.clone());
+            }
+            // one object anywhere on the top, or two on the halves of its longer side
+            let two = rng.f32() < 0.4 && room.x.max(room.y) > 2.0 * of;
+            let along_x = tf.size().x >= tf.size().y;
+            let (lo, hi) = (tf.center() - 0.5 * room, tf.center() + 0.5 * room);
+            let spans: Vec<(Vec2, Vec2)> = if !two {
+                vec![(lo, hi)]
+            } else if along_x {
+                let mid = tf.center().x;
+                vec![(lo, Vec2::new(mid - 0.5 * of, hi.y)), (Vec2::new(mid + 0.5 * of, lo.y), hi)]
+            } else {
+                let mid = tf.center().y;
+                vec![(lo, Vec2::new(hi.x, mid - 0.5 * of)), (Vec2::new(lo.x, mid + 0.5 * of), hi)]
+            };
+            let children: Vec<Item> = spans
+                .iter()
+                .enumerate()
+                .map(|(half, (a, b))| Item::Instance {
+                    asset: top.name.clone(),
+                    at: (
+                        round3(rng.range(a.x, b.x.max(a.x))),
+                        round3(rng.range(a.y, b.y.max(a.y))),
+                    ),
+                    yaw: round3(rng.range(-180.0, 180.0)),
+                    scale: 1.0,
+                    base: 0.0,
+                    name: Some(format!("{}_{half}", top.name)),
+                })
+                .collect();
+            layout.push(Item::Group {
+                name: None,
+                at: (0.0, 0.0),
+                yaw: 0.0,
+                scale: 1.0,
+                base: 0.0,
+                on: Some(format!("{key}[{t}]")),
+                around: None,
+                children,
+            });
+        }
+    }
+    let mut categories: Vec<String> = chosen.iter().map(|c| c.name.clone()).collect();
+    categories.extend(used_tops);
+    // table-top categories that found no table: floor categories take their place
+    let spare: Vec<Candidate> =
+        floors.iter().filter(|c| !assets.contains_key(&c.name)).cloned().collect();
+    let extra = pick(&mut rng, &spare, CATEGORIES.0.saturating_sub(categories.len()));
+    for (j, c) in extra.iter().enumerate() {
+        let (ix, iy) = inner(c);
+        assets.insert(c.name.clone(), c.def.clone());
+        layout.push(Item::Scatter {
+            asset: c.name.clone(),
+            region: Region::Rect { min: (round3(-ix), round3(-iy)), max: (round3(ix), round3(iy)) },
+            count: INSTANCES.0 as u32,
+            min_distance: round3((0.5 * c.info.footprint.size().length() + CLEARANCE) * u),
+            seed: seed.wrapping_mul(37).wrapping_add(j as u64),
+            yaw: 0.0,
+            scale: u,
+            overlap: false,
+            vary: Some(Variation {
+                yaw_jitter_deg: 180.0,
+                seed: seed.wrapping_add(100 + j as u64),
+                ..Default::default()
+            }),
+            name: Some(format!("{}s", c.name)),
+        });
+        categories.push(c.name.clone());
+    }
+    let script = Script {
+        name: Some(format!("random_{seed}")),
+        assets,
+        extent: Some(((-hx, -hy), (hx, hy))),
+        views: Some(ViewSettings {
+            count: None,
+            test: None,
+            resolution: Some(RANDOM_RESOLUTION),
+            radius: None,
+            elevation_deg: None,
+            fov_deg: None,
+        }),
+        units_per_metre: Some(u),
+        layout,
+        ..Script::default()
+    };
+    let body = write_script(&script)?;
+    let text = format!(
+        "// Random scene {seed} drawn by `assetfield synth --random {seed}` ({} categories, floor: {}, {:.3} scene units per metre).\n// Rendering this file gives the same dataset: assetfield synth THIS_FILE\n{body}",
+        categories.len(),
+        floor.name(),
+        u
+    );
+    Ok(RandomScene { seed, script, text, units_per_metre: u, floor: floor.name(), categories })
+}
