@@ -4,7 +4,7 @@
 //! (a sofa against an armchair, stools against a bar) become objects.
 
 use super::context::Ctx;
-use super::shape::{Part, fill_holes, is_thin, or_into};
+use super::shape::{Part, at_least, fill_holes, is_thin, more_than, or_into, share_of};
 use super::split::{geodesic_assign, lowest_level};
 use crate::image::{Mask, PlaneImage};
 use crate::kmeans::{KMeansOptions, kmeans};
@@ -104,10 +104,11 @@ pub(super) fn principal_components(plane: &PlaneImage, over: &Mask, k: usize) ->
 pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usize) -> Vec<Part> {
     let (vol, start, tau, min_texels) = (cx.vol, cx.start, cx.tau, cx.min_texels);
     let thin = cx.p.thin_radius_texels.max(1);
+    let cs = &cx.p.colour;
     let (rect, f) = (part.rect, &part.footprint);
     let (h, w) = (f.rows, f.cols);
     let n = f.count();
-    if depth == 0 || n < 8 * min_texels.max(1) {
+    if depth == 0 || n < cs.min_part_factor * min_texels.max(1) {
         return vec![part];
     }
     let idx: Vec<usize> = (0..h * w).filter(|&i| f.data[i]).collect();
@@ -117,7 +118,8 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
         return vec![part];
     }
     let pts: Vec<f32> = idx.iter().flat_map(|&i| pcs[gi(i)].iter().copied()).collect();
-    let Ok(km) = kmeans(&pts, dim, None, &KMeansOptions { k: 3, ..Default::default() }) else {
+    let Ok(km) = kmeans(&pts, dim, None, &KMeansOptions { k: cs.k.max(2), ..Default::default() })
+    else {
         return vec![part];
     };
     let mut label = vec![u32::MAX; h * w];
@@ -125,20 +127,21 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
         label[i] = km.labels[t];
     }
     // connected pieces of each label; small ones go to their geodesic neighbours
-    let min_piece = (n / 40).max(2 * min_texels);
+    let min_piece = share_of(cs.min_piece_share, n).max(2 * min_texels);
     let mut seeds: Vec<Mask> = Vec::new();
     for l in 0..km.k as u32 {
         // cut thin strips of one colour joining separate objects (an opening, padded so the
         // box edge does not protect texels)
-        let m = Mask::from_fn(h + 4, w + 4, |r, c| {
-            r >= 2
-                && c >= 2
-                && label.get((r - 2) * w + c - 2).is_some_and(|&x| x == l)
-                && r < h + 2
-                && c < w + 2
+        let o = cs.strip_opening_texels;
+        let m = Mask::from_fn(h + 2 * o, w + 2 * o, |r, c| {
+            r >= o
+                && c >= o
+                && label.get((r - o) * w + c - o).is_some_and(|&x| x == l)
+                && r < h + o
+                && c < w + o
         });
-        let m = crate::morphology::open(&m, 2).unwrap_or(m);
-        let m = Mask::from_fn(h, w, |r, c| m.get(r + 2, c + 2));
+        let m = crate::morphology::open(&m, o).unwrap_or(m);
+        let m = Mask::from_fn(h, w, |r, c| m.get(r + o, c + o));
         if let Ok((lab, sizes)) = crate::contours::label_components(&m) {
             for (c, &sz) in sizes.iter().enumerate() {
                 if sz >= min_piece {
@@ -236,7 +239,9 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
         // A piece touching the rest along less than a fifth of its outline is a neighbour
         // pushed against it, whatever their heights: an armchair's arm against a sofa's arm
         // of the same height; a drawer block shares a whole side or more.
-        let continuous = pairs > 0 && level * 20 >= pairs * 17 && shared * 5 >= outline;
+        let continuous = pairs > 0
+            && at_least(level, cs.continuous_top_share, pairs)
+            && at_least(shared, cs.neighbour_outline_share, outline);
         tracing::debug!(
             ?rect,
             piece = piece.count(),
@@ -253,10 +258,10 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
             "colour split candidate"
         );
         if nb == 0
-            || shared * 2 > outline
+            || more_than(shared, cs.max_shared_outline, outline)
             || contrast < cx.p.colour_contrast
-            || s_all > 0.9
-            || s_piece < 0.6
+            || s_all > cs.max_part_solidity
+            || s_piece < cs.min_piece_solidity
             || continuous
             || is_thin(piece, thin)
         {

@@ -76,7 +76,7 @@ pub fn ground_level(
         return start;
     }
     let n = vol.rows * vol.cols;
-    let need = ((n as f32 * p.ground_min_share) as usize).max(20);
+    let need = super::shape::share_of(p.ground_min_share, n).max(20);
     (0..vol.nz)
         .find(|&k| (0..n).filter(|&i| vol.data[i * vol.nz + k] >= tau).count() >= need)
         .unwrap_or(0)

@@ -7,7 +7,8 @@
 
 use super::Detection;
 use super::context::Ctx;
-use super::shape::{Part, fill_holes};
+use super::params::Fragments;
+use super::shape::{Part, at_least, fill_holes, more_than};
 use crate::image::Mask;
 
 /// Whether two parts on the ground are fragments of one object, and if so the merged part:
@@ -18,7 +19,7 @@ use crate::image::Mask;
 /// convex than either), and they reach the same height (tops within `top_tol` levels). A
 /// colour split can cut a chair's seat in two; a chair beside a table makes a concave union,
 /// a chair pushed under a desk rises above it, and both stay apart.
-pub(super) fn fragments_merged(a: &Part, b: &Part, top_tol: usize) -> Option<Part> {
+pub(super) fn fragments_merged(a: &Part, b: &Part, top_tol: usize, fp: &Fragments) -> Option<Part> {
     let (ra, rb) = (a.rect, b.rect);
     if a.kmax.abs_diff(b.kmax) > top_tol {
         return None;
@@ -29,7 +30,7 @@ pub(super) fn fragments_merged(a: &Part, b: &Part, top_tol: usize) -> Option<Par
         return None;
     }
     let inter = (r1 - r0) * (c1 - c0);
-    if inter * 4 < ra.area().min(rb.area()) {
+    if !at_least(inter, fp.box_overlap, ra.area().min(rb.area())) {
         return None;
     }
     let rect = ra.union(&rb);
@@ -43,7 +44,7 @@ pub(super) fn fragments_merged(a: &Part, b: &Part, top_tol: usize) -> Option<Par
     let (ma, mb) = (place(a), place(b));
     let (na, nb) = (ma.count(), mb.count());
     let both = ma.data.iter().zip(&mb.data).filter(|(x, y)| **x && **y).count();
-    if both * 20 > na.min(nb) {
+    if more_than(both, fp.max_common, na.min(nb)) {
         return None;
     }
     let mut touching = 0usize;
@@ -59,7 +60,7 @@ pub(super) fn fragments_merged(a: &Part, b: &Part, top_tol: usize) -> Option<Par
             touching += usize::from(near);
         }
     }
-    if touching < 3 {
+    if touching < fp.min_touching {
         return None;
     }
     let union = Mask {
@@ -71,7 +72,7 @@ pub(super) fn fragments_merged(a: &Part, b: &Part, top_tol: usize) -> Option<Par
     let solidity = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
     let (s, sa, sb) = (solidity(&union), solidity(&a.footprint), solidity(&b.footprint));
     tracing::debug!(?ra, ?rb, inter, touching, sa, sb, s, "fragments?");
-    if s < 0.85 || s < sa.min(sb) + 0.03 {
+    if s < fp.min_union_solidity || s < sa.min(sb) + fp.min_solidity_gain {
         return None;
     }
     Some(Part { rect, footprint: union, kmin: a.kmin.min(b.kmin), kmax: a.kmax.max(b.kmax) })
@@ -143,7 +144,7 @@ pub(super) fn merge_fragments(cx: &Ctx, parts: &mut Vec<Part>) {
                 if !cx.on_ground(parts[i].kmin) || !cx.on_ground(parts[j].kmin) {
                     continue;
                 }
-                if let Some(m) = fragments_merged(&parts[i], &parts[j], top_tol) {
+                if let Some(m) = fragments_merged(&parts[i], &parts[j], top_tol, &cx.p.fragments) {
                     parts[i] = m;
                     parts.remove(j);
                     merged = true;

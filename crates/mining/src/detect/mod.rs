@@ -241,7 +241,10 @@ fn parts_of_regions(
             split.extend(split::split_region(cx, reg.bbox, piece));
         }
         let split = if p.stages.split_colour {
-            split.into_iter().flat_map(|part| colour::split_by_colour(cx, &pcs, part, 3)).collect()
+            split
+                .into_iter()
+                .flat_map(|part| colour::split_by_colour(cx, &pcs, part, p.colour.depth))
+                .collect()
         } else {
             split
         };

@@ -284,6 +284,13 @@ pub struct DetectParams {
     /// car's body all of it, a table's legs at most a third).
     pub walled_outline_share: f32,
 
+    /// The colour split's values.
+    pub colour: ColourSplit,
+    /// The fragment merge's values.
+    pub fragments: Fragments,
+    /// The second round's values.
+    pub unpack: Unpack,
+
     // --- duplicates, shape ---
     /// Share of each footprint two detections must have in common (with tops within two
     /// levels) for the one on the ground to be the other found twice (0.6).
@@ -330,8 +337,139 @@ impl Default for DetectParams {
             low_support_levels: 9,
             seed_window_texels: 9,
             walled_outline_share: 0.95,
+            colour: ColourSplit::default(),
+            fragments: Fragments::default(),
+            unpack: Unpack::default(),
             duplicate_overlap: 0.6,
             shape_top_share: 0.02,
+        }
+    }
+}
+
+/// When a colour piece of a part is an object of its own ([`super::colour`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ColourSplit {
+    /// Clusters of the K-means on the colour principal components (3: an object, its
+    /// neighbour and a shadow or trim).
+    pub k: usize,
+    /// Rounds of splitting (3: a bar with stools on both sides).
+    pub depth: usize,
+    /// Only parts of at least this many times the smallest object are split (8).
+    pub min_part_factor: usize,
+    /// A piece covers at least this share of its part (1/40) and twice the smallest object.
+    pub min_piece_share: f32,
+    /// Opening radius cutting thin strips of one colour between objects, texels (2).
+    pub strip_opening_texels: usize,
+    /// A piece sharing more than this share of its outline with the rest is framed by it
+    /// (a cushion in a sofa), not beside it (0.5).
+    pub max_shared_outline: f32,
+    /// A part this convex (solidity) is one object, whatever its colours (0.9).
+    pub max_part_solidity: f32,
+    /// A piece less convex than this is a fragment, not an object (0.6).
+    pub min_piece_solidity: f32,
+    /// A top surface meeting at one height along this share of the shared outline runs on
+    /// across it: one object with two colours below (0.85)...
+    pub continuous_top_share: f32,
+    /// ... unless the piece touches the rest along less than this share of its outline (a
+    /// neighbour pushed against it: 0.2).
+    pub neighbour_outline_share: f32,
+}
+
+impl Default for ColourSplit {
+    fn default() -> Self {
+        ColourSplit {
+            k: 3,
+            depth: 3,
+            min_part_factor: 8,
+            min_piece_share: 1.0 / 40.0,
+            strip_opening_texels: 2,
+            max_shared_outline: 0.5,
+            max_part_solidity: 0.9,
+            min_piece_solidity: 0.6,
+            continuous_top_share: 0.85,
+            neighbour_outline_share: 0.2,
+        }
+    }
+}
+
+/// When two parts on the ground are fragments of one object ([`super::merge`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Fragments {
+    /// Their boxes overlap by at least this share of the smaller box: fragments interleave,
+    /// neighbours only touch (0.25).
+    pub box_overlap: f32,
+    /// Their footprints overlap by at most this share of the smaller one (0.05).
+    pub max_common: f32,
+    /// They touch along at least this many texels (3).
+    pub min_touching: usize,
+    /// Their union is at least this convex (solidity 0.85)...
+    pub min_union_solidity: f32,
+    /// ... and more convex than the less convex fragment by this (0.03: two objects side by
+    /// side make a union less convex than either).
+    pub min_solidity_gain: f32,
+}
+
+impl Default for Fragments {
+    fn default() -> Self {
+        Fragments {
+            box_overlap: 0.25,
+            max_common: 0.05,
+            min_touching: 3,
+            min_union_solidity: 0.85,
+            min_solidity_gain: 0.03,
+        }
+    }
+}
+
+/// The second round's judgement of a top surface and of what stands on it
+/// ([`super::unpack`]). Shares are of the part's footprint `n` unless said otherwise.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Unpack {
+    /// Parts smaller than this many times the smallest object are not unpacked (4).
+    pub min_part_factor: usize,
+    /// A level covers a surface where a voxel reaches this share of the voxel threshold
+    /// (0.5: table tops are faint in places).
+    pub surface_opacity: f32,
+    /// A window of levels is a dense surface candidate when it covers this share of the
+    /// densest one (0.6: ghost layers under a table top can be denser than the top).
+    pub dense_window_share: f32,
+    /// The surface's blur above it: levels covering at least this share of the surface
+    /// (0.25) and growing by no more than 10%.
+    pub blur_share: f32,
+    /// Levels below the surface covering this share of it are its body (0.5).
+    pub body_share: f32,
+    /// A body is solid when this share of its levels are dense (2/3), or a closed shell.
+    pub solid_levels_share: f32,
+    /// Free surface (not near what is raised) needed: of a thin slab 0.3, of a solid body's
+    /// top 0.45 (a chair's seat under its back is no table).
+    pub free_share: (f32, f32),
+    /// Flat (nothing above it, the slab there) share of the free surface: of a slab 0.7, of
+    /// a solid body's top 0.6 (its blurred top has more haze above it).
+    pub flat_share: (f32, f32),
+    /// A supported object covers at most this share of its support: 0.5; on a low support
+    /// 0.8 (a crate on a pallet).
+    pub max_cover: (f32, f32),
+    /// Share of the ring around a supported object that is free surface (0.6).
+    pub ring_free_share: f32,
+    /// A stem (of an object held on one) occupies at most this share of the footprint
+    /// (0.02), the body it holds at least 0.1.
+    pub stem_share: (f32, f32),
+}
+
+impl Default for Unpack {
+    fn default() -> Self {
+        Unpack {
+            min_part_factor: 4,
+            surface_opacity: 0.5,
+            dense_window_share: 0.6,
+            blur_share: 0.25,
+            body_share: 0.5,
+            solid_levels_share: 2.0 / 3.0,
+            free_share: (0.3, 0.45),
+            flat_share: (0.7, 0.6),
+            max_cover: (0.5, 0.8),
+            ring_free_share: 0.6,
+            stem_share: (0.02, 0.1),
         }
     }
 }
@@ -367,8 +505,9 @@ impl DetectParams {
     /// `seed`; the range counts twice), for the record of how many remain.
     pub const fn count_tuned() -> usize {
         // evidence 4 (window, min area, range x2), floor 3, walls 2, ground 2, split 3,
-        // filters 9, merging 1, unpacking 5, duplicates and shape 2
-        4 + 3 + 2 + 2 + 3 + 9 + 1 + 5 + 2
+        // filters 9, merging 1, unpacking 5, duplicates and shape 2; colour split 10,
+        // fragments 5, second round 15 (pairs count twice)
+        4 + 3 + 2 + 2 + 3 + 9 + 1 + 5 + 2 + 10 + 5 + 15
     }
 
     /// Refuse values that cannot work, naming the field.

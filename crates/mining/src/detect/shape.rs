@@ -198,3 +198,19 @@ pub fn robust_top_level(
     tracing::trace!(need, n, counts = ?&count[lo..=hi], "top counts");
     (lo..=hi).rev().find(|&k| count[k] >= need).unwrap_or(hi)
 }
+
+/// Whether `count >= share * of`, with ties decided as in exact arithmetic (counts are
+/// integers: a threshold within 1e-3 of one is taken as that integer).
+pub(super) fn at_least(count: usize, share: f32, of: usize) -> bool {
+    count as f64 + 1e-3 >= f64::from(share) * of as f64
+}
+
+/// Whether `count > share * of`, ties as in exact arithmetic ([`at_least`]).
+pub(super) fn more_than(count: usize, share: f32, of: usize) -> bool {
+    count as f64 > f64::from(share) * of as f64 + 1e-3
+}
+
+/// `floor(share * of)`, exact at integers as [`at_least`] is.
+pub(super) fn share_of(share: f32, of: usize) -> usize {
+    (f64::from(share) * of as f64 + 1e-3).floor().max(0.0) as usize
+}

@@ -237,19 +237,19 @@ fn a_lamp_on_a_side_table_is_held_on_a_stem() {
     area[11] = 60;
     area[12..=16].fill(2);
     area[17..=20].fill(150);
-    assert!(held_on_a_stem(&area, 10, 400, 3));
+    assert!(held_on_a_stem(&area, 10, 400, 3, (0.02, 0.1)));
     // a chair's back rises from its seat without a stem
     let mut chair = area.clone();
     chair[12..=20].fill(70);
-    assert!(!held_on_a_stem(&chair, 10, 400, 3));
+    assert!(!held_on_a_stem(&chair, 10, 400, 3, (0.02, 0.1)));
     // a stem too short to tell from the top's blur
     let mut short = area.clone();
     short[14..=16].fill(150);
-    assert!(!held_on_a_stem(&short, 10, 400, 3));
+    assert!(!held_on_a_stem(&short, 10, 400, 3, (0.02, 0.1)));
     // nothing held above the stem (haze)
     let mut bare = area;
     bare[17..=20].fill(20);
-    assert!(!held_on_a_stem(&bare, 10, 400, 3));
+    assert!(!held_on_a_stem(&bare, 10, 400, 3, (0.02, 0.1)));
 
     // and in a volume: a side table (solid, 0.45 m) whose lamp shade covers 44% of it,
     // leaving a rim of one or two texels, on a one-texel stem
@@ -513,25 +513,25 @@ fn closed_shells_are_told_from_legs_and_open_sides() {
     };
     let mut car = floor_volume(60, 80, 30);
     walls(&mut car);
-    assert!(closed_shell(&car, rect, &f, &ring, 2..11, 0.25, 0.95));
+    assert!(closed_shell(&car, rect, &f, &ring, 2..11, 0.25, 0.95, 2.0 / 3.0));
     // a wall missing at a few levels (a gap above the wheels) still closes most of them
     fill(&mut car, (10, 11), (20, 40), (5, 8), 0.0);
-    assert!(closed_shell(&car, rect, &f, &ring, 2..11, 0.25, 0.95));
+    assert!(closed_shell(&car, rect, &f, &ring, 2..11, 0.25, 0.95, 2.0 / 3.0));
     // but not one open all the way down one side
     fill(&mut car, (10, 11), (20, 40), (2, 11), 0.0);
-    assert!(!closed_shell(&car, rect, &f, &ring, 2..11, 0.25, 0.95));
+    assert!(!closed_shell(&car, rect, &f, &ring, 2..11, 0.25, 0.95, 2.0 / 3.0));
     let mut table = floor_volume(60, 80, 30);
     for (r, c) in [(10, 10), (10, 48), (28, 10), (28, 48)] {
         fill(&mut table, (r, r + 2), (c, c + 2), (2, 11), 0.95);
     }
-    assert!(!closed_shell(&table, rect, &f, &ring, 2..11, 0.25, 0.95));
+    assert!(!closed_shell(&table, rect, &f, &ring, 2..11, 0.25, 0.95, 2.0 / 3.0));
     let mut desk = floor_volume(60, 80, 30);
     walls(&mut desk);
     fill(&mut desk, (29, 30), (11, 49), (2, 11), 0.0);
-    assert!(!closed_shell(&desk, rect, &f, &ring, 2..11, 0.25, 0.95));
+    assert!(!closed_shell(&desk, rect, &f, &ring, 2..11, 0.25, 0.95, 2.0 / 3.0));
     // faint walls are no walls, and no levels make no shell
-    assert!(!closed_shell(&car, rect, &f, &ring, 2..11, 0.99, 0.95));
-    assert!(!closed_shell(&car, rect, &f, &ring, 2..2, 0.25, 0.95));
+    assert!(!closed_shell(&car, rect, &f, &ring, 2..11, 0.99, 0.95, 2.0 / 3.0));
+    assert!(!closed_shell(&car, rect, &f, &ring, 2..2, 0.25, 0.95, 2.0 / 3.0));
 }
 
 #[test]
@@ -690,7 +690,8 @@ fn fragments_of_one_object_merge_but_neighbours_do_not() {
     let cut = |r: usize| if r % 4 < 2 { 5 } else { 7 };
     let left = part(10, 10, 12, 8, |r, c| c < cut(r));
     let right = part(10, 15, 12, 7, |r, c| c + 5 >= cut(r));
-    let m = fragments_merged(&left, &right, 1).expect("fragments merge");
+    let m =
+        fragments_merged(&left, &right, 1, &params::Fragments::default()).expect("fragments merge");
     assert_eq!(m.rect, PixelRect::new(10, 10, 22, 22));
     assert_eq!(m.footprint.count(), 144);
     assert_eq!((m.kmin, m.kmax), (0, 5));
@@ -702,17 +703,17 @@ fn fragments_of_one_object_merge_but_neighbours_do_not() {
     };
     let table = part(0, 0, 16, 16, inside);
     let chair = part(12, 12, 6, 6, |r, c| !inside(r + 12, c + 12));
-    assert!(fragments_merged(&table, &chair, 1).is_none());
+    assert!(fragments_merged(&table, &chair, 1, &params::Fragments::default()).is_none());
     // overlapping footprints are nesting, not fragments
     let under = part(4, 4, 6, 6, |_, _| true);
-    assert!(fragments_merged(&table, &under, 1).is_none());
+    assert!(fragments_merged(&table, &under, 1, &params::Fragments::default()).is_none());
     // a fragment reaching another height is another object
     let taller = Part { kmax: 9, ..right.clone() };
-    assert!(fragments_merged(&left, &taller, 1).is_none());
+    assert!(fragments_merged(&left, &taller, 1, &params::Fragments::default()).is_none());
     // two crates side by side: their boxes touch but do not overlap
     let a = part(0, 0, 8, 8, |_, _| true);
     let b = part(0, 8, 8, 8, |_, _| true);
-    assert!(fragments_merged(&a, &b, 1).is_none());
+    assert!(fragments_merged(&a, &b, 1, &params::Fragments::default()).is_none());
 }
 
 #[test]

@@ -10,7 +10,7 @@
 
 use super::context::Ctx;
 use super::evidence::kmeans_threshold;
-use super::shape::{Part, border_ring, fill_holes, or_into};
+use super::shape::{Part, at_least, border_ring, fill_holes, more_than, or_into, share_of};
 use crate::contours::components;
 use crate::image::{Mask, PixelRect};
 use crate::morphology::erode;
@@ -18,17 +18,23 @@ use crate::planes::OpacityVolume;
 
 /// Whether the per-level areas (`area[k]`: occupied texels of a footprint of `n` at level
 /// `k`) show an object held above the surface ending at level `hi` on a stem: a run of at
-/// least `run_levels` levels (the surface window: 8 cm in the suite's rooms) where at most 2%
-/// of the footprint is occupied (a stem, not a chair's back), then a level covering a tenth
-/// of it again (a lamp's shade).
-pub fn held_on_a_stem(area: &[usize], hi: usize, n: usize, run_levels: usize) -> bool {
+/// least `run_levels` levels (the surface window: 8 cm in the suite's rooms) where at most
+/// `shares.0` of the footprint is occupied (2%: a stem, not a chair's back), then a level
+/// covering `shares.1` of it again (a tenth: a lamp's shade).
+pub fn held_on_a_stem(
+    area: &[usize],
+    hi: usize,
+    n: usize,
+    run_levels: usize,
+    shares: (f32, f32),
+) -> bool {
     let need = run_levels.max(1);
-    let stem = (n / 50).max(3);
+    let stem = share_of(shares.0, n).max(3);
     let mut run = 0usize;
     for k in hi + 1..area.len() {
         if area[k] <= stem {
             run += 1;
-        } else if area[k] * 10 >= n {
+        } else if at_least(area[k], shares.1, n) {
             // a body: held on the stem below it, or right above the slab
             if run >= need {
                 return true;
@@ -40,7 +46,7 @@ pub fn held_on_a_stem(area: &[usize], hi: usize, n: usize, run_levels: usize) ->
 }
 
 /// Whether `levels` of footprint `f` (over `rect`, outline `ring`) form a closed shell: at
-/// two thirds of them or more, at least `share` of the outline has a texel of
+/// `levels_share` of them or more (two thirds), at least `share` of the outline has a texel of
 /// opacity `ts` or more within one texel (a car's body, a basin's wall; a table's legs, a
 /// desk's panels on three sides leave gaps).
 pub(super) fn closed_shell(
@@ -51,6 +57,7 @@ pub(super) fn closed_shell(
     levels: std::ops::Range<usize>,
     ts: f32,
     share: f32,
+    levels_share: f32,
 ) -> bool {
     let need = share * ring.count() as f32;
     let walled = levels
@@ -65,7 +72,7 @@ pub(super) fn closed_shell(
         })
         .count();
     tracing::trace!(walled, levels = levels.len(), "outline walled in");
-    !levels.is_empty() && walled * 3 >= levels.len() * 2
+    !levels.is_empty() && at_least(walled, levels_share, levels.len())
 }
 
 /// A supported object found inside a part.
@@ -142,13 +149,14 @@ pub(super) fn far_from_surface(points: &[f32], dim: usize, seed: &[bool]) -> Vec
 pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     let (vol, color, start, tau, min_texels) = (cx.vol, cx.color, cx.start, cx.tau, cx.min_texels);
     let p = cx.p;
+    let up = &p.unpack;
     let (rect, f) = (part.rect, &part.footprint);
     let n = f.count();
-    if n < 4 * min_texels.max(1) || vol.nz <= start {
+    if n < up.min_part_factor * min_texels.max(1) || vol.nz <= start {
         return (Vec::new(), None);
     }
     // area per level over the footprint (surfaces may be faint: half the voxel threshold)
-    let ts = 0.5 * tau;
+    let ts = up.surface_opacity * tau;
     let mut area = vec![0usize; vol.nz];
     for r in 0..rect.rows() {
         for c in 0..rect.cols() {
@@ -181,6 +189,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         }
     }
     tracing::trace!(?rect, n, amax, start, area = ?&area[start..], windowed = ?&areaw[start..], "unpack");
+    // no level covers half the footprint (a majority, not a tuned value): no surface
     if amax * 2 < n {
         return (Vec::new(), None);
     }
@@ -188,7 +197,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     // (ghost layers under a table top can be denser than the top itself), at its densest level
     // (candidates: the top window of every run of such windows, highest first)
     let amaxw = areaw.iter().copied().max().unwrap_or(0);
-    let dense = |k: usize| areaw[k] * 10 >= amaxw * 6;
+    let dense = |k: usize| at_least(areaw[k], up.dense_window_share, amaxw);
     let mut tops: Vec<usize> =
         (start..vol.nz).rev().filter(|&k| dense(k) && (k + 1 == vol.nz || !dense(k + 1))).collect();
     if tops.is_empty() {
@@ -212,13 +221,13 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         // half of it all the way up and is no blur)
         while hi + 1 < vol.nz
             && hi + 1 < kstar + thin
-            && area[hi + 1] * 4 >= area[kstar]
+            && at_least(area[hi + 1], up.blur_share, area[kstar])
             && area[hi + 1] * 10 <= area[hi] * 11
         {
             hi += 1;
         }
         let mut lo = kstar;
-        while lo > start && area[lo - 1] * 2 >= area[kstar] {
+        while lo > start && at_least(area[lo - 1], up.body_share, area[kstar]) {
             lo -= 1;
         }
         // a support is a thin slab (a table top, a shelf, a pallet's deck) or the top of a
@@ -227,14 +236,24 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         // seeds) (a body with a gap of a faint level or two is solid too: most levels below
         // the slab cover half of it, where a table's legs and ghost layers cover less)
         let below = lo.saturating_sub(start);
-        let dense_below = (start..lo).filter(|&k| area[k] * 2 >= area[kstar]).count();
+        let dense_below =
+            (start..lo).filter(|&k| at_least(area[k], up.body_share, area[kstar])).count();
         // (a closed shell is a solid body too: a car's body under its cabin, a basin's wall
         // walls in the whole outline at most levels below the top, where a table's legs
         // leave most of it open)
         let solid = hi - lo + 1 > thin
             || below >= thin
-                && (dense_below * 3 >= below * 2
-                    || closed_shell(vol, rect, f, &ring, start..lo, ts, p.walled_outline_share));
+                && (at_least(dense_below, up.solid_levels_share, below)
+                    || closed_shell(
+                        vol,
+                        rect,
+                        f,
+                        &ring,
+                        start..lo,
+                        ts,
+                        p.walled_outline_share,
+                        up.solid_levels_share,
+                    ));
         if solid {
             lo = hi + 1 - thin;
         }
@@ -299,19 +318,21 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     // free surface: 30% of a slab, 45% of a solid body's top (a chair's seat under its back
     // is no table); flat: 70% of the free surface of a slab, 60% of a solid body's (its
     // blurred top has more haze above it)
-    let (free_share, flat_share) = if solid { (9, 12) } else { (6, 14) };
-    // a low support (a pallet's deck, within `low_support_levels` of the ground) carries an object over most
-    // of it: its free surface is a margin, too narrow to judge away from the object; the
+    let pick = |(slab, body): (f32, f32)| if solid { body } else { slab };
+    let (free_share, flat_share) = (pick(up.free_share), pick(up.flat_share));
+    // a low support (a pallet's deck, within `low_support_levels` of the ground) carries an
+    // object over most of it: its free surface is a margin, too narrow to judge away from the object; the
     // rim and ring checks below still apply
     let low = low_level(hi);
     // an object held above the surface on a stem (a table lamp: its shade covers most of a
     // side table, leaving no free surface to judge): above the slab a run of levels that
     // only a stem occupies, then a body again
-    let waist = held_on_a_stem(&area, hi, n, thin);
+    let waist = held_on_a_stem(&area, hi, n, thin, up.stem_share);
     if waist {
         tracing::debug!(?rect, "an object held on a stem above the slab");
     }
-    if !low && !waist && (free_n * 20 < n * free_share || flat_n * 20 < free_n * flat_share) {
+    if !low && !waist && (!at_least(free_n, free_share, n) || !at_least(flat_n, flat_share, free_n))
+    {
         return (Vec::new(), Some(hi));
     }
     // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
@@ -427,7 +448,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         // an object on a support leaves most of it free: a piece covering more than half of
         // it (a car's cabin over its bonnet and boot) belongs to the body
         // (on a low support up to 80% of it: a crate on a pallet)
-        let most = if low { count * 5 > n * 4 } else { count * 2 > n };
+        let most = more_than(count, if low { up.max_cover.1 } else { up.max_cover.0 }, n);
         if touches || count < min_texels || most {
             continue;
         }
@@ -453,7 +474,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
             }
         }
         tracing::trace!(ring_s, ring_n, "ring of free surface");
-        if ring_n == 0 || ring_s * 10 < ring_n * 6 {
+        if ring_n == 0 || !at_least(ring_s, up.ring_free_share, ring_n) {
             continue;
         }
         or_into(&mut taken, &comp);
