@@ -251,6 +251,37 @@ fn a_capture_in_another_frame_and_unit_mines_the_same_objects() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Issue 16, section 4: a small field trained by `assetfield train` and frozen in
+/// `tests/data` (see its README), mined end to end with the defaults and with the paper's
+/// steps alone; the detector must find what it found when the field was frozen and beat the
+/// paper's baseline.
+#[test]
+fn a_frozen_trained_field_mines_with_the_defaults_and_the_paper_preset() {
+    let dir = scratch("mining-frozen");
+    let data = assetfield_tests::repo().join("tests/data");
+    let field = data.join("living_room_s128.safetensors");
+    let gt = data.join("living_room_gt_layout.json");
+    let (field, gt) = (field.to_str().unwrap(), gt.to_str().unwrap());
+    let metrics = |lib: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join(lib).join("metrics.json")).unwrap())
+            .unwrap()
+    };
+    ok(&dir, &["mine", field, "--out", "default", "--gt", gt]);
+    ok(&dir, &["mine", field, "--out", "paper", "--gt", gt, "--preset", "paper"]);
+    let (d, p) = (metrics("default"), metrics("paper"));
+    let num = |m: &serde_json::Value, k: &str| m[k].as_f64().unwrap_or(f64::NAN);
+    assert!(num(&d, "f1") >= 0.85 && num(&d, "ari") >= 0.95, "default: {d}");
+    assert!(num(&d, "yaw_median_deg") <= 3.0, "default: {d}");
+    assert!(num(&p, "f1") < num(&d, "f1"), "the paper's steps alone: {p}");
+    // every removal names its filter
+    let report = std::fs::read_to_string(dir.join("default/mining.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&report).unwrap();
+    for r in v["removed_as_background"].as_array().unwrap() {
+        assert!(r.as_str().unwrap().contains("(filter "), "{r}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn mine_help_explains_the_flags() {
     let dir = scratch("mining-help");

@@ -78,11 +78,6 @@ impl fmt::Display for RemovalReason {
     }
 }
 
-/// Solidity (footprint over convex hull area) below which a small low part is ragged haze:
-/// floaters of a briefly trained field streak along the camera rays; real small, low
-/// objects are compact (0.7).
-const RAGGED_SOLIDITY: f32 = 0.7;
-
 /// The wall judgement of a mask (a region's own pixels or a part's footprint): thin (half
 /// its thickness, the erosions it takes to vanish, within
 /// [`super::DetectParams::wall_half_thickness_texels`]) and long (its box's longer side at
@@ -131,7 +126,7 @@ pub(super) fn judge(cx: &Ctx, p: &Part) -> Result<Kept, RemovalReason> {
         return Err(RemovalReason::FaintHaze { q90, height });
     }
     let solidity = count as f32 / crate::group::hull_area(&p.footprint).max(1.0);
-    if f.ragged_haze && solidity < RAGGED_SOLIDITY && height < prm.ragged_low_levels && small {
+    if f.ragged_haze && solidity < prm.ragged_solidity && height < prm.ragged_low_levels && small {
         return Err(RemovalReason::RaggedHaze { solidity, height });
     }
     // floating specks: a small blob hanging low in mid-air, reaching neither the ground nor
