@@ -10,25 +10,17 @@ use assetfield_tests::{Similarity, moved_gt, repose_as_nerfstudio};
 use glam::{Mat3, Vec3};
 use std::path::Path;
 
+/// The small scene (`SCENE`) synthesised into `dir/d`: 24 training views at 48 x 48.
+fn synth_tiny(dir: &Path) {
+    std::fs::write(dir.join("tiny.ron"), SCENE).unwrap();
+    let args = ["synth", "tiny.ron", "--out", "d", "--views", "24", "--test-views", "2"];
+    ok(dir, &[&args[..], &["--res", "48", "--aa", "1"]].concat());
+}
+
 #[test]
 fn mine_a_small_scene_into_a_library_and_layout() {
     let dir = scratch("mining");
-    std::fs::write(dir.join("tiny.ron"), SCENE).unwrap();
-    let synth = [
-        "synth",
-        "tiny.ron",
-        "--out",
-        "d",
-        "--views",
-        "24",
-        "--test-views",
-        "2",
-        "--res",
-        "48",
-        "--aa",
-        "1",
-    ];
-    ok(&dir, &synth);
+    synth_tiny(&dir);
     ok(
         &dir,
         &[
@@ -200,24 +192,7 @@ fn train_levelled_and_mine(dir: &Path, data: &str, s: &Similarity) -> serde_json
 #[test]
 fn a_capture_in_another_frame_and_unit_mines_the_same_objects() {
     let dir = scratch("mining-reposed");
-    std::fs::write(dir.join("tiny.ron"), SCENE).unwrap();
-    ok(
-        &dir,
-        &[
-            "synth",
-            "tiny.ron",
-            "--out",
-            "d",
-            "--views",
-            "24",
-            "--test-views",
-            "2",
-            "--res",
-            "48",
-            "--aa",
-            "1",
-        ],
-    );
+    synth_tiny(&dir);
     let same = Similarity { scale: 1.0, rotation: Mat3::IDENTITY, offset: Vec3::ZERO };
     let moved = Similarity {
         scale: 0.37,

@@ -210,20 +210,7 @@ fn parts_of_regions(
     let (mut parts, mut kept) = (Vec::new(), Vec::new());
     for (ri, reg) in regions.iter().enumerate() {
         check_interrupt()?;
-        // columns of this region: its filled footprint without regions nested in its holes
-        let mut cols_mask = reg.footprint.clone();
-        for (j, other) in regions.iter().enumerate() {
-            if other.parent == Some(ri) && j != ri {
-                let ob = other.bbox;
-                for r in ob.r0..ob.r1 {
-                    for c in ob.c0..ob.c1 {
-                        if other.footprint.get(r - ob.r0, c - ob.c0) {
-                            cols_mask.set(r - reg.bbox.r0, c - reg.bbox.c0, false);
-                        }
-                    }
-                }
-            }
-        }
+        let cols_mask = shape::region_columns(&regions, ri);
         // a wall ring around the room: judge its own pixels, not the filled footprint
         if let Some(reason) = filters::wall(cx, &reg.pixels, reg.bbox) {
             removed.push(Removed { world: grid.rect_to_world(reg.bbox), reason });

@@ -11,12 +11,12 @@
 use super::Detection;
 use super::assemble::assemble;
 use super::context::Ctx;
-use super::shape::{Part, border_ring, fill_holes};
+use super::shape::{Part, border_ring, fill_holes, region_columns};
 use super::split::blobs;
 use super::unpack::Child;
 use crate::contours::{components, label_components};
 use crate::error::Result;
-use crate::image::{Mask, PixelRect};
+use crate::image::Mask;
 use crate::kmeans::{KMeansOptions, kmeans};
 
 /// Detections of the paper's steps from the first-round mask.
@@ -24,20 +24,7 @@ pub(super) fn detections(cx: &Ctx, mask: &Mask) -> Result<Vec<Detection>> {
     let regions = components(mask)?;
     let mut parts = Vec::new();
     for (ri, reg) in regions.iter().enumerate() {
-        // the region's filled footprint without the regions nested in its holes
-        let mut fp = reg.footprint.clone();
-        for (j, other) in regions.iter().enumerate() {
-            if other.parent == Some(ri) && j != ri {
-                let ob = other.bbox;
-                for r in ob.r0..ob.r1 {
-                    for c in ob.c0..ob.c1 {
-                        if other.footprint.get(r - ob.r0, c - ob.c0) {
-                            fp.set(r - reg.bbox.r0, c - reg.bbox.c0, false);
-                        }
-                    }
-                }
-            }
-        }
+        let fp = region_columns(&regions, ri);
         if fp.count() < cx.min_texels {
             continue;
         }
@@ -112,8 +99,6 @@ fn second_round(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
             continue;
         }
         let piece = fill_holes(&piece);
-        let Some(bb) = piece.bbox() else { continue };
-        let Ok(footprint) = piece.crop(bb) else { continue };
         let kmax = (0..h * w)
             .filter(|&i| piece.data[i])
             .filter_map(|i| {
@@ -122,16 +107,7 @@ fn second_round(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
             })
             .max()
             .unwrap_or(level);
-        children.push(Child {
-            rect: PixelRect::new(
-                rect.r0 + bb.r0,
-                rect.c0 + bb.c0,
-                rect.r0 + bb.r1,
-                rect.c0 + bb.c1,
-            ),
-            footprint,
-            kmax,
-        });
+        children.extend(Child::cut(rect, &piece, kmax));
     }
     (children, Some(level))
 }

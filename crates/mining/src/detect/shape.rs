@@ -214,3 +214,23 @@ pub(super) fn more_than(count: usize, share: f32, of: usize) -> bool {
 pub(super) fn share_of(share: f32, of: usize) -> usize {
     (f64::from(share) * of as f64 + 1e-3).floor().max(0.0) as usize
 }
+
+/// The columns of region `ri` (over its box): its filled footprint without the regions
+/// nested in its holes (a chair inside a table's outline is a region of its own).
+pub(super) fn region_columns(regions: &[crate::contours::Region], ri: usize) -> Mask {
+    let reg = &regions[ri];
+    let mut cols = reg.footprint.clone();
+    for (j, other) in regions.iter().enumerate() {
+        if other.parent == Some(ri) && j != ri {
+            let ob = other.bbox;
+            for r in ob.r0..ob.r1 {
+                for c in ob.c0..ob.c1 {
+                    if other.footprint.get(r - ob.r0, c - ob.c0) {
+                        cols.set(r - reg.bbox.r0, c - reg.bbox.c0, false);
+                    }
+                }
+            }
+        }
+    }
+    cols
+}

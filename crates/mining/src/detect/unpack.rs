@@ -83,6 +83,18 @@ pub(super) struct Child {
     pub kmax: usize,
 }
 
+impl Child {
+    /// The child whose footprint is `mask` (over its parent's box `rect`), cropped to its own
+    /// box; `None` for an empty mask.
+    pub(super) fn cut(rect: PixelRect, mask: &Mask, kmax: usize) -> Option<Child> {
+        let bb = mask.bbox()?;
+        let footprint = mask.crop(bb).ok()?;
+        let rect =
+            PixelRect::new(rect.r0 + bb.r0, rect.c0 + bb.c0, rect.r0 + bb.r1, rect.c0 + bb.c1);
+        Some(Child { rect, footprint, kmax })
+    }
+}
+
 /// Background subtraction inside a window: the surface model is the coordinate-wise median
 /// of the points (the surface dominates the window); the distances to it are split in two by
 /// a 1-D K-means, and the far cluster (plus the seed) is the object. Returns, per point,
@@ -478,18 +490,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
             continue;
         }
         or_into(&mut taken, &comp);
-        let Some(bb) = comp.bbox() else { continue };
-        let Ok(footprint) = comp.crop(bb) else { continue };
-        children.push(Child {
-            rect: PixelRect::new(
-                rect.r0 + bb.r0,
-                rect.c0 + bb.c0,
-                rect.r0 + bb.r1,
-                rect.c0 + bb.c1,
-            ),
-            footprint,
-            kmax,
-        });
+        children.extend(Child::cut(rect, &comp, kmax));
     }
     (children, Some(hi))
 }
