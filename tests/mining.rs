@@ -248,6 +248,22 @@ fn a_frozen_trained_field_mines_with_the_defaults_and_the_paper_preset() {
     assert!(num(&d, "f1") >= 0.85 && num(&d, "ari") >= 0.95, "default: {d}");
     assert!(num(&d, "yaw_median_deg") <= 3.0, "default: {d}");
     assert!(num(&p, "f1") < num(&d, "f1"), "the paper's steps alone: {p}");
+    // the detector's decisions on stderr when asked for, nothing otherwise
+    let logged = std::process::Command::new(assetfield_tests::assetfield_bin())
+        .args(["mine", field, "--out", "logged"])
+        .env("ASSETFIELD_LOG", "assetfield_mining=debug")
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&logged.stderr);
+    assert!(logged.status.success() && err.contains("final") && err.contains("part"), "{err}");
+    let quiet = std::process::Command::new(assetfield_tests::assetfield_bin())
+        .args(["mine", field, "--out", "quiet"])
+        .env_remove("ASSETFIELD_LOG")
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(!String::from_utf8_lossy(&quiet.stderr).contains("final"));
     // every removal names its filter
     let report = std::fs::read_to_string(dir.join("default/mining.json")).unwrap();
     let v: serde_json::Value = serde_json::from_str(&report).unwrap();

@@ -94,7 +94,10 @@ pub enum Command {
     /// Templates: medoids (--template to choose); every instance's yaw and position come
     /// from rotating the template patch onto it. Writes LIB_DIR/index.ron,
     /// patches.safetensors, shared.safetensors, layout.ron, boxes.png, categories.png,
-    /// mining.json and, with --gt, metrics.json.
+    /// mining.json and, with --gt, metrics.json. Every detection threshold is in plane
+    /// texels or volume levels, never in world units, so captures in any unit mine alike;
+    /// --preset paper runs only the paper's steps. Set ASSETFIELD_LOG=assetfield_mining=debug
+    /// to see each decision of the detector on stderr.
     Mine(MineArgs),
     /// Check asset libraries or merge them into a cross-scene library (`library check LIB`,
     /// `library merge LIB_A LIB_B ... --out LIB_C`).
