@@ -264,6 +264,13 @@ fn a_frozen_trained_field_mines_with_the_defaults_and_the_paper_preset() {
         .output()
         .unwrap();
     assert!(!String::from_utf8_lossy(&quiet.stderr).contains("final"));
+    // nothing left: a clear message, nothing written
+    fail(
+        &dir,
+        &["mine", field, "--out", "none", "--min-area", "100000"],
+        &["no object found", "--min-area"],
+    );
+    assert!(!dir.join("none").exists());
     // every removal names its filter
     let report = std::fs::read_to_string(dir.join("default/mining.json")).unwrap();
     let v: serde_json::Value = serde_json::from_str(&report).unwrap();

@@ -412,13 +412,32 @@ pub fn mine(
     };
     let dets = detect(&grid, &vol, &planes.color, det_feature, &opts.detect)?;
     if dets.detections.is_empty() {
+        // what each filter took, so that the user knows which one to question
+        let mut by_filter: Vec<(&str, usize)> = Vec::new();
+        for r in &dets.removed {
+            match by_filter.iter_mut().find(|(f, _)| *f == r.reason.filter()) {
+                Some((_, n)) => *n += 1,
+                None => by_filter.push((r.reason.filter(), 1)),
+            }
+        }
+        let dropped = if by_filter.is_empty() {
+            "no region was left after the first K-means and the minimum area (--min-area, \
+             texels)"
+                .to_string()
+        } else {
+            let list: Vec<String> = by_filter.iter().map(|(f, n)| format!("{n} by {f}")).collect();
+            format!(
+                "{} region(s) dropped: {}; `--no-filter FILTER` keeps what a filter drops",
+                dets.removed.len(),
+                list.join(", ")
+            )
+        };
         return Err(MiningError::InvalidParameter {
             name: "detection",
             reason: format!(
-                "no object found in {} (evidence threshold {:.3}; {} region(s) dropped as background)",
+                "no object found in {} (evidence threshold {:.3}; {dropped})",
                 field_path.display(),
                 dets.threshold,
-                dets.removed.len()
             ),
         });
     }
