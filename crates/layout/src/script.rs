@@ -439,6 +439,21 @@ fn is_origin(v: &V2) -> bool {
 }
 
 impl Item {
+    /// A `Group` with no frame of its own whose `children` stand on every instance matching
+    /// `on` (a key pattern) and move with it.
+    pub fn standing_on(on: String, children: Vec<Item>) -> Item {
+        Item::Group {
+            name: None,
+            at: (0.0, 0.0),
+            yaw: 0.0,
+            scale: 1.0,
+            base: 0.0,
+            on: Some(on),
+            around: None,
+            children,
+        }
+    }
+
     /// The RON variant name (used to locate the item in its file).
     pub fn variant(&self) -> &'static str {
         match self {

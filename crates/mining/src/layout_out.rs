@@ -175,16 +175,7 @@ pub fn layout_script(
         }
     }
     for (parent, kids) in children {
-        layout.push(Item::Group {
-            name: None,
-            at: (0.0, 0.0),
-            yaw: 0.0,
-            scale: 1.0,
-            base: 0.0,
-            on: Some(display(parent)),
-            around: None,
-            children: kids,
-        });
+        layout.push(Item::standing_on(display(parent), kids));
     }
     Ok(Script {
         name: Some(name.to_string()),

@@ -616,16 +616,7 @@ fn draw(seed: u64, pool: &[Candidate], grow: f32) -> Result<RandomScene, SynthEr
                     name: Some(format!("{}_{half}", top.name)),
                 })
                 .collect();
-            layout.push(Item::Group {
-                name: None,
-                at: (0.0, 0.0),
-                yaw: 0.0,
-                scale: 1.0,
-                base: 0.0,
-                on: Some(format!("{key}[{t}]")),
-                around: None,
-                children,
-            });
+            layout.push(Item::standing_on(format!("{key}[{t}]"), children));
         }
     }
     let mut categories: Vec<String> = chosen.iter().map(|c| c.name.clone()).collect();
