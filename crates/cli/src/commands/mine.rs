@@ -117,9 +117,9 @@ pub struct MineArgs {
     /// lowest cluster is always background).
     #[arg(long, default_value_t = 2)]
     pub k: usize,
-    /// Smallest object footprint in plane texels [default: 32] (smaller specks are dropped;
-    /// at the default 300-texel plane, 32 texels is 0.02 m^2 in a 7.5 m room). Texels, not
-    /// world units: captures come in any unit.
+    /// Smallest object footprint in plane texels (smaller specks are dropped; at the
+    /// default 300-texel plane, 25 texels is 0.02 m^2 in an 8 m room). Texels, not world
+    /// units: captures come in any unit.
     #[arg(long, value_name = "TEXELS")]
     pub min_area: Option<usize>,
     /// Do not look for a floor slab (measure the evidence over the whole column).

@@ -195,9 +195,8 @@ pub struct DetectParams {
     /// Levels over which opacity accumulates into the evidence (3: 8 cm in the suite's
     /// rooms, the thickness a soft table top spreads over in a 3-minute field).
     pub evidence_window_levels: usize,
-    /// Smallest object footprint, texels (32: 0.02 m^2 at the conference room's 2.5 cm
-    /// voxels, a small vase; 25, its value at 2.8 cm, kept two specks of haze of the demo's
-    /// 3-minute field and changed nothing else on dev or validation; never below 4).
+    /// Smallest object footprint, texels (25: 0.02 m^2 in the suite's rooms, a small vase;
+    /// never below 4).
     pub min_area_texels: usize,
     /// The voxel threshold is the first K-means' column threshold clamped to this range
     /// (opacity): a voxel is occupied above it (3D connectivity, levels, surfaces).
@@ -317,7 +316,7 @@ impl Default for DetectParams {
             stages: Stages::ALL,
             filters: Filters::ALL,
             evidence_window_levels: 3,
-            min_area_texels: 32,
+            min_area_texels: 25,
             voxel_threshold_range: (0.1, 0.9),
             floor_coverage: 0.3,
             floor_step_share: 0.4,
