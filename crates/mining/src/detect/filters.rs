@@ -84,7 +84,7 @@ impl fmt::Display for RemovalReason {
 /// least [`super::DetectParams::wall_min_length`] of the plane's).
 pub(super) fn wall(cx: &Ctx, m: &Mask, rect: crate::image::PixelRect) -> Option<RemovalReason> {
     let p = cx.p;
-    if !p.filters.walls || p.wall_half_thickness_texels <= 0.0 {
+    if !p.walls_on() {
         return None;
     }
     let half = erosions_to_vanish(m, 64);

@@ -12,7 +12,7 @@ use super::Detection;
 use super::assemble::assemble;
 use super::context::Ctx;
 use super::shape::{Part, border_ring, fill_holes, region_columns};
-use super::split::blobs;
+use super::split::level_range;
 use super::unpack::Child;
 use crate::contours::{components, label_components};
 use crate::error::Result;
@@ -28,9 +28,7 @@ pub(super) fn detections(cx: &Ctx, mask: &Mask) -> Result<Vec<Detection>> {
         if fp.count() < cx.min_texels {
             continue;
         }
-        let bl = blobs(cx.vol, reg.bbox, &fp, 0, cx.tau);
-        let kmin = bl.iter().map(|b| b.kmin).min().unwrap_or(0);
-        let kmax = bl.iter().map(|b| b.kmax).max().unwrap_or(0);
+        let (kmin, kmax) = level_range(cx.vol, reg.bbox, &fp, 0, cx.tau).unwrap_or((0, 0));
         parts.push(Part { rect: reg.bbox, footprint: fp, kmin, kmax });
     }
     let mut dets = assemble(cx, &parts, second_round)?;

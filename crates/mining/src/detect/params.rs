@@ -503,6 +503,11 @@ impl DetectParams {
         }
     }
 
+    /// Whether walls are looked for (the filter is on and a wall may have a thickness).
+    pub fn walls_on(&self) -> bool {
+        self.filters.walls && self.wall_half_thickness_texels > 0.0
+    }
+
     /// Whether the first round clusters plane features (the pipeline must hand `detect`
     /// the plane named by [`DetectParams::on`]).
     pub fn needs_feature_plane(&self) -> bool {

@@ -363,3 +363,27 @@ pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mas
     }
     pieces
 }
+
+/// The lowest and highest level `>= start` occupied (`>= tau`) in the columns of `m` (over
+/// `rect`), `None` when none is.
+pub(super) fn level_range(
+    vol: &OpacityVolume,
+    rect: PixelRect,
+    m: &Mask,
+    start: usize,
+    tau: f32,
+) -> Option<(usize, usize)> {
+    let mut range: Option<(usize, usize)> = None;
+    for r in 0..rect.rows() {
+        for c in 0..rect.cols() {
+            if !m.get(r, c) {
+                continue;
+            }
+            let col = vol.column(rect.r0 + r, rect.c0 + c);
+            for k in (start..vol.nz).filter(|&k| col[k] >= tau) {
+                range = Some(range.map_or((k, k), |(a, b)| (a.min(k), b.max(k))));
+            }
+        }
+    }
+    range
+}

@@ -167,39 +167,26 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     if n < up.min_part_factor * min_texels.max(1) || vol.nz <= start {
         return (Vec::new(), None);
     }
-    // area per level over the footprint (surfaces may be faint: half the voxel threshold)
+    // area per level over the footprint (surfaces may be faint: half the voxel threshold),
+    // and the same per window of `thin` levels (accumulated opacity): a briefly trained
+    // field's soft table top spreads over a few levels, none of which covers the whole top
     let ts = up.surface_opacity * tau;
-    let mut area = vec![0usize; vol.nz];
-    for r in 0..rect.rows() {
-        for c in 0..rect.cols() {
-            if f.get(r, c) {
-                let col = vol.column(rect.r0 + r, rect.c0 + c);
-                for k in start..vol.nz {
-                    if col[k] >= ts {
-                        area[k] += 1;
-                    }
-                }
-            }
-        }
-    }
-    let amax = area.iter().copied().max().unwrap_or(0);
-    // the same per window of `thin` levels (accumulated opacity): a briefly trained field's
-    // soft table top spreads over a few levels, none of which covers the whole top
     let thin = p.surface_window_levels.max(1);
+    let mut area = vec![0usize; vol.nz];
     let mut areaw = vec![0usize; vol.nz];
     for r in 0..rect.rows() {
         for c in 0..rect.cols() {
             if f.get(r, c) {
                 let col = vol.column(rect.r0 + r, rect.c0 + c);
                 for k in start..vol.nz {
+                    area[k] += usize::from(col[k] >= ts);
                     let t = col[k..(k + thin).min(vol.nz)].iter().fold(1f32, |t, &o| t * (1.0 - o));
-                    if 1.0 - t >= ts {
-                        areaw[k] += 1;
-                    }
+                    areaw[k] += usize::from(1.0 - t >= ts);
                 }
             }
         }
     }
+    let amax = area.iter().copied().max().unwrap_or(0);
     tracing::trace!(?rect, n, amax, start, area = ?&area[start..], windowed = ?&areaw[start..], "unpack");
     // no level covers half the footprint (a majority, not a tuned value): no surface
     if amax * 2 < n {

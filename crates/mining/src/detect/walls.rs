@@ -13,7 +13,7 @@ use crate::morphology::remove_small;
 /// Remove the walls from the first-round mask, recording each.
 pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> Result<Mask> {
     let p = cx.p;
-    if !p.filters.walls || p.wall_half_thickness_texels <= 0.0 {
+    if !p.walls_on() {
         return Ok(mask);
     }
     let (rows, cols) = (mask.rows, mask.cols);
