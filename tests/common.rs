@@ -177,45 +177,30 @@ impl Similarity {
 /// another frame and unit. No `synth.json` is written, so nothing tells the tools the
 /// scene's box, its up axis or its unit.
 pub fn repose_as_nerfstudio(src: &Path, dst: &Path, s: &Similarity) {
+    use assetfield_data::schema::{FrameEntry, TransformsFile, write_transforms};
     std::fs::create_dir_all(dst.join("images")).unwrap();
-    let mut frames = Vec::new();
-    let (mut w, mut h, mut focal) = (0u32, 0u32, 0f64);
+    let mut out = TransformsFile { camera_model: Some("OPENCV".into()), ..Default::default() };
     for split in ["train", "test"] {
-        let text = std::fs::read_to_string(src.join(format!("transforms_{split}.json"))).unwrap();
-        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-        let fov = v["camera_angle_x"].as_f64().unwrap();
-        for (i, f) in v["frames"].as_array().unwrap().iter().enumerate() {
-            let rel = f["file_path"].as_str().unwrap().trim_start_matches("./");
-            let from = src.join(format!("{rel}.png"));
+        let file = TransformsFile::read(&src.join(format!("transforms_{split}.json"))).unwrap();
+        let fov = file.camera_angle_x.expect("a NeRF-synthetic file");
+        for (i, f) in file.frames.iter().enumerate() {
+            let from = src.join(format!("{}.png", f.file_path.trim_start_matches("./")));
             let name = format!("images/{split}_{i:03}.png");
             std::fs::copy(&from, dst.join(&name)).unwrap();
-            if w == 0 {
-                (w, h) = image::image_dimensions(&from).unwrap();
-                focal = 0.5 * f64::from(w) / (0.5 * fov).tan();
+            if out.w.is_none() {
+                let (w, h) = image::image_dimensions(&from).unwrap();
+                let focal = 0.5 * w as f32 / (0.5 * fov).tan();
+                (out.w, out.h, out.fl_x, out.fl_y) = (Some(w), Some(h), Some(focal), Some(focal));
+                (out.cx, out.cy) = (Some(w as f32 / 2.0), Some(h as f32 / 2.0));
             }
-            let m: Vec<Vec<f32>> = serde_json::from_value(f["transform_matrix"].clone()).unwrap();
-            let rot = glam::Mat3::from_cols(
-                glam::Vec3::new(m[0][0], m[1][0], m[2][0]),
-                glam::Vec3::new(m[0][1], m[1][1], m[2][1]),
-                glam::Vec3::new(m[0][2], m[1][2], m[2][2]),
-            );
-            let pos = s.point(glam::Vec3::new(m[0][3], m[1][3], m[2][3]));
-            let r = s.rotation * rot;
-            let row = |k: usize| serde_json::json!([r.col(0)[k], r.col(1)[k], r.col(2)[k], pos[k]]);
-            frames.push(serde_json::json!({
-                "file_path": name,
-                "transform_matrix": [row(0), row(1), row(2), [0.0, 0.0, 0.0, 1.0]],
-            }));
+            let m = f.matrix();
+            let rotation = s.rotation * glam::Mat3::from_mat4(m);
+            let position = s.point(m.w_axis.truncate());
+            let c2w = glam::Mat4::from_mat3_translation(rotation, position);
+            out.frames.push(FrameEntry::new(name, c2w));
         }
     }
-    let doc = serde_json::json!({
-        "camera_model": "OPENCV",
-        "w": w, "h": h, "fl_x": focal, "fl_y": focal,
-        "cx": f64::from(w) / 2.0, "cy": f64::from(h) / 2.0,
-        "frames": frames,
-    });
-    std::fs::write(dst.join("transforms.json"), serde_json::to_string_pretty(&doc).unwrap())
-        .unwrap();
+    write_transforms(&dst.join("transforms.json"), &out).unwrap();
 }
 
 /// The ground truth of a scene moved by `s` and then by a field's ground alignment `align`
