@@ -17,14 +17,19 @@
 //! with `A` the footprint area, `H` the height above the object's base, `w` the shape weight
 //! and `tol` a dead zone for reconstruction noise. Average-linkage agglomerative clustering
 //! follows; the dendrogram is cut at a given number of categories, at a distance, or
-//! automatically at the largest *ratio* between consecutive merge heights (see
-//! [`auto_cut`]), which separates fine categories (red vs blue chairs) even when coarse ones
-//! (chairs vs tables) are much further apart.
+//! automatically where the categories are best separated: among the cuts whose next merge
+//! is at least [`GroupOptions::min_separation`] high, the one of highest mean *silhouette*
+//! (see [`silhouette_cut`]). The silhouette weighs every object's distance to its own
+//! category against its distance to the nearest other one, so fine categories (red vs blue
+//! chairs) stay apart when coarse ones (chairs vs tables) are much further, and one far
+//! outlier (a haze speck) stays alone instead of deciding the cut for everyone, as it does
+//! with the largest ratio of consecutive merge heights ([`auto_cut`], kept as
+//! [`GroupCut::LargestRatio`]).
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::agglomerative::{Cut, DistanceMatrix, Linkage, Merge, linkage};
+use crate::agglomerative::{Cut, Dendrogram, DistanceMatrix, Linkage, Merge, linkage};
 use crate::detect::Detections;
 use crate::error::{MiningError, Result};
 use crate::histogram::jsd_matrix;
@@ -38,9 +43,12 @@ use glam::Vec3;
 /// Where to cut the dendrogram.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub enum GroupCut {
-    /// The largest ratio between consecutive merge heights ([`auto_cut`]).
+    /// The cut of highest mean silhouette among those separated by at least
+    /// [`GroupOptions::min_separation`] ([`silhouette_cut`]).
     #[default]
-    Auto,
+    Silhouette,
+    /// The largest ratio between consecutive merge heights ([`auto_cut`]).
+    LargestRatio,
     /// Exactly this many categories.
     Categories(usize),
     /// Merge everything closer than this distance.
@@ -64,7 +72,10 @@ pub struct GroupOptions {
     pub area_tolerance: f64,
     /// Dead zone of the height ratio in the shape term (log ratio; 0.15 tolerates 16%).
     pub height_tolerance: f64,
-    /// Smallest merge height that can separate categories in the automatic cut.
+    /// Smallest merge height (JSD in bits plus the shape term) that can separate categories
+    /// in the automatic cuts: two groups of objects closer than this are one category.
+    /// Between instances of one object the distance is reconstruction noise (a few
+    /// hundredths); 0.12 is where the suite's nearest distinct categories begin.
     pub min_separation: f64,
     /// At most this many samples fit the K-means codebook (the rest are only labelled).
     pub max_samples: usize,
@@ -76,7 +87,7 @@ impl Default for GroupOptions {
         GroupOptions {
             labels: 24,
             soft: true,
-            cut: GroupCut::Auto,
+            cut: GroupCut::Silhouette,
             linkage: Linkage::Average,
             shape_weight: 1.0,
             area_tolerance: 0.3,
@@ -194,6 +205,61 @@ pub fn auto_cut(merges: &[Merge], min_separation: f64) -> usize {
         }
     }
     best.map_or(h.len(), |(g, _)| g)
+}
+
+/// Mean silhouette of a labelling under a distance matrix: for every item `i` of a
+/// category with other members, `(b - a) / max(a, b)` with `a` its mean distance to the other
+/// members and `b` its mean distance to the nearest other category; items alone in their
+/// category count 0 (Rousseeuw 1987). `None` with fewer than two categories.
+pub fn mean_silhouette(dist: &DistanceMatrix, labels: &[usize]) -> Option<f64> {
+    let n = labels.len();
+    let k = labels.iter().max().map_or(0, |&m| m + 1);
+    if k < 2 || dist.n() != n {
+        return None;
+    }
+    let mut count = vec![0usize; k];
+    labels.iter().for_each(|&l| count[l] += 1);
+    let mut sum = vec![0f64; k];
+    let mut total = 0.0;
+    for i in 0..n {
+        sum.iter_mut().for_each(|s| *s = 0.0);
+        for j in (0..n).filter(|&j| j != i) {
+            sum[labels[j]] += dist.get(i, j).unwrap_or(0.0);
+        }
+        let own = labels[i];
+        if count[own] < 2 {
+            continue;
+        }
+        let a = sum[own] / (count[own] - 1) as f64;
+        let b = (0..k)
+            .filter(|&c| c != own && count[c] > 0)
+            .map(|c| sum[c] / count[c] as f64)
+            .fold(f64::INFINITY, f64::min);
+        let m = a.max(b);
+        if m > 0.0 {
+            total += (b - a) / m;
+        }
+    }
+    Some(total / n as f64)
+}
+
+/// Number of merges to apply: among the cuts whose next merge is at least `min_separation`
+/// high (the categories it leaves apart are really apart), the one of highest
+/// [`mean_silhouette`] (ties: fewer categories). No such cut: one category (every merge
+/// applied).
+pub fn silhouette_cut(dendro: &Dendrogram, dist: &DistanceMatrix, min_separation: f64) -> usize {
+    let n = dendro.n;
+    let mut best: Option<(usize, f64)> = None;
+    for (m, merge) in dendro.merges.iter().enumerate().rev() {
+        if merge.distance < min_separation {
+            break;
+        }
+        let Some(s) = mean_silhouette(dist, &dendro.labels_after(m)) else { continue };
+        if best.is_none_or(|(_, b)| s > b) {
+            best = Some((m, s));
+        }
+    }
+    best.map_or(n.saturating_sub(1), |(m, _)| m)
 }
 
 /// What the label histograms are built from: feature vectors (`[len][dim]`), each with a
@@ -516,7 +582,19 @@ pub fn group_samples(
     let (cut, desc) = match opts.cut {
         GroupCut::Categories(c) => (Cut::Clusters(c), format!("{c} categories (given)")),
         GroupCut::Distance(t) => (Cut::Distance(t), format!("distance {t} (given)")),
-        GroupCut::Auto => {
+        GroupCut::Silhouette => {
+            let m = silhouette_cut(&dendro, &distance, opts.min_separation);
+            let k = n - m;
+            let desc = match mean_silhouette(&distance, &dendro.labels_after(m)) {
+                Some(s) => format!(
+                    "automatic: highest mean silhouette ({s:.3}) among cuts separated by at least {}, {k} categories",
+                    opts.min_separation
+                ),
+                None => format!("automatic: {k} category (no merge above {})", opts.min_separation),
+            };
+            (Cut::Clusters(k), desc)
+        }
+        GroupCut::LargestRatio => {
             let m = auto_cut(&dendro.merges, opts.min_separation);
             let k = n - m;
             let at = dendro.merges.get(m).map(|x| x.distance);
@@ -548,6 +626,55 @@ mod tests {
 
     fn merges(h: &[f64]) -> Vec<Merge> {
         h.iter().map(|&d| Merge { a: 0, b: 1, distance: d, size: 2 }).collect()
+    }
+
+    /// Items on a line: distance |x_i - x_j|.
+    fn line(x: &[f64]) -> DistanceMatrix {
+        DistanceMatrix::from_fn(x.len(), |i, j| (x[i] - x[j]).abs()).unwrap()
+    }
+
+    fn silhouette_categories(x: &[f64]) -> usize {
+        let d = line(x);
+        let dendro = linkage(&d, Linkage::Average);
+        let m = silhouette_cut(&dendro, &d, 0.12);
+        x.len() - m
+    }
+
+    #[test]
+    fn silhouette_of_two_tight_groups_is_near_one_and_singletons_count_zero() {
+        let d = line(&[0.0, 0.01, 1.0, 1.01]);
+        let s = mean_silhouette(&d, &[0, 0, 1, 1]).unwrap();
+        assert!(s > 0.98 && s < 1.0, "{s}");
+        // a wrong labelling scores below zero
+        assert!(mean_silhouette(&d, &[0, 1, 0, 1]).unwrap() < 0.0);
+        // every item alone: 0; one category: undefined
+        assert_eq!(mean_silhouette(&d, &[0, 1, 2, 3]), Some(0.0));
+        assert_eq!(mean_silhouette(&d, &[0, 0, 0, 0]), None);
+    }
+
+    #[test]
+    fn silhouette_cut_keeps_fine_categories_next_to_coarse_ones() {
+        // red chairs, blue chairs (0.4 apart), tables far away (3.0)
+        let x = [0.0, 0.01, 0.02, 0.4, 0.41, 0.42, 3.0, 3.01, 3.02];
+        assert_eq!(silhouette_categories(&x), 3);
+        // everything within the minimum separation: one category
+        assert_eq!(silhouette_categories(&[0.0, 0.02, 0.05, 0.03]), 1);
+        // two items far apart stay apart
+        assert_eq!(silhouette_categories(&[0.0, 0.9]), 2);
+    }
+
+    #[test]
+    fn a_far_outlier_does_not_merge_the_categories_as_the_ratio_rule_does() {
+        // four categories of three, 0.5 apart, and one speck 20 away: the largest ratio of
+        // merge heights lies at the speck's merge, so the ratio rule keeps only it apart
+        let mut x: Vec<f64> = (0..4)
+            .flat_map(|c| (0..3).map(move |i| f64::from(c) * 0.5 + f64::from(i) * 0.01))
+            .collect();
+        x.push(20.0);
+        let d = line(&x);
+        let dendro = linkage(&d, Linkage::Average);
+        assert_eq!(x.len() - auto_cut(&dendro.merges, 0.12), 2);
+        assert_eq!(silhouette_categories(&x), 5);
     }
 
     #[test]

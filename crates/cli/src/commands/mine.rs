@@ -146,10 +146,16 @@ pub struct MineArgs {
     /// objects' texels or voxels, weighted by opacity).
     #[arg(long, default_value_t = 24)]
     pub labels: usize,
-    /// Number of categories [default: automatic, at the largest ratio between consecutive
-    /// merge heights of the dendrogram].
+    /// Number of categories [default: automatic, see --auto-cut].
     #[arg(long, conflicts_with = "distance")]
     pub categories: Option<usize>,
+    /// How the number of categories is chosen when neither --categories nor --distance is
+    /// given: silhouette (the cut of highest mean silhouette: each object's distance to its
+    /// own category against the nearest other one) or largest-ratio (where the next merge
+    /// height is largest relative to the previous one). Either way, groups closer than the
+    /// minimum separation (0.12) are one category.
+    #[arg(long, value_enum, default_value_t = AutoCutArg::Silhouette)]
+    pub auto_cut: AutoCutArg,
     /// Cut the dendrogram at this distance (JSD in bits plus the shape term) instead.
     #[arg(long, value_name = "T")]
     pub distance: Option<f64>,
@@ -227,6 +233,15 @@ pub enum LinkageArg {
     Average,
     Single,
     Complete,
+}
+
+/// `--auto-cut`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum AutoCutArg {
+    /// The cut of highest mean silhouette.
+    Silhouette,
+    /// The largest ratio between consecutive merge heights.
+    LargestRatio,
 }
 
 #[derive(Debug, Args)]
@@ -344,7 +359,10 @@ pub fn mine(a: MineArgs) -> Result<()> {
     o.group.cut = match (a.categories, a.distance) {
         (Some(n), _) => GroupCut::Categories(n),
         (None, Some(t)) => GroupCut::Distance(t),
-        (None, None) => GroupCut::Auto,
+        (None, None) => match a.auto_cut {
+            AutoCutArg::Silhouette => GroupCut::Silhouette,
+            AutoCutArg::LargestRatio => GroupCut::LargestRatio,
+        },
     };
     o.group_on = a.group_on.choice();
     if let Some(y) = a.yaw_on {
