@@ -68,6 +68,11 @@ pub struct GroupOptions {
     pub linkage: Linkage,
     /// Weight of the shape term (0: JSD only, as in the paper).
     pub shape_weight: f64,
+    /// Weight of the vertical-profile term: the Jensen-Shannon divergence (bits) of how two
+    /// objects' occupied voxels spread over the levels above their bases (a round table and
+    /// a plant of one size and one colour differ there). 0: off, as in the paper.
+    #[serde(default = "one")]
+    pub profile_weight: f64,
     /// Dead zone of the area ratio in the shape term (log ratio; 0.3 tolerates 35%).
     pub area_tolerance: f64,
     /// Dead zone of the height ratio in the shape term (log ratio; 0.15 tolerates 16%).
@@ -79,6 +84,10 @@ pub struct GroupOptions {
     pub min_separation: f64,
     /// At most this many samples fit the K-means codebook (the rest are only labelled).
     pub max_samples: usize,
+    /// Cut a detection that is, in shape and colour, `k` copies of another into `k`
+    /// objects ([`crate::copies`]: identical objects in contact).
+    #[serde(default = "yes")]
+    pub split_copies: bool,
     pub seed: u64,
 }
 
@@ -90,13 +99,23 @@ impl Default for GroupOptions {
             cut: GroupCut::Silhouette,
             linkage: Linkage::Average,
             shape_weight: 1.0,
+            profile_weight: 1.0,
             area_tolerance: 0.3,
             height_tolerance: 0.15,
             min_separation: 0.12,
             max_samples: 40_000,
+            split_copies: true,
             seed: crate::kmeans::DEFAULT_SEED,
         }
     }
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// The result of [`group_samples`].
@@ -463,6 +482,26 @@ pub fn group_samples(
     shapes: &[Shape],
     opts: &GroupOptions,
 ) -> Result<Grouping> {
+    group_samples_with(samples, n, shapes, &[], opts)
+}
+
+/// [`group_samples`] with every detection's vertical profile
+/// ([`crate::copies::vertical_profile`]; empty: none): their Jensen-Shannon divergence,
+/// times [`GroupOptions::profile_weight`], joins the distance.
+pub fn group_samples_with(
+    samples: &Samples,
+    n: usize,
+    shapes: &[Shape],
+    profiles: &[Vec<f64>],
+    opts: &GroupOptions,
+) -> Result<Grouping> {
+    if !profiles.is_empty() && profiles.len() != n {
+        return Err(MiningError::SizeMismatch {
+            what: "profiles vs detections",
+            left: profiles.len(),
+            right: n,
+        });
+    }
     if shapes.len() != n {
         return Err(MiningError::SizeMismatch {
             what: "shapes vs detections",
@@ -577,6 +616,11 @@ pub fn group_samples(
         jsd.get(i, j).unwrap_or(0.0)
             + opts.shape_weight
                 * shape_distance(shapes[i], shapes[j], opts.area_tolerance, opts.height_tolerance)
+            + if profiles.is_empty() {
+                0.0
+            } else {
+                opts.profile_weight * crate::copies::profile_jsd(&profiles[i], &profiles[j])
+            }
     })?;
     let dendro = linkage(&distance, opts.linkage);
     let (cut, desc) = match opts.cut {

@@ -15,6 +15,7 @@
 
 pub mod agglomerative;
 pub mod contours;
+pub mod copies;
 pub mod detect;
 pub mod error;
 pub mod group;

@@ -17,9 +17,10 @@ use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 
+use crate::copies::{profile_jsd, split_copies, vertical_profile};
 use crate::detect::{DetectParams, Detections, FloorBand, detect};
 use crate::error::{MiningError, Result, check_interrupt};
-use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples};
+use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples_with};
 use crate::image::{Mask, PlaneImage};
 use crate::layout_out::{layout_script, script_text_checked};
 use crate::library::{
@@ -449,7 +450,51 @@ pub fn mine(
         Some(p) => Samples::from_plane(&dets, feature_plane(p, &planes, &semantic)?)?,
         None => Samples::from_voxels(field, &vol, &dets)?,
     };
-    let grouping = group_samples(&samples, dets.detections.len(), &shapes, &opts.group)?;
+    // objects on different supports are compared with their profiles blurred by the
+    // tolerance of a base (the ground tolerance, levels); copies standing on one ground are
+    // compared sharp
+    let profiles_of = |dets: &Detections, blur: usize| -> Vec<Vec<f64>> {
+        dets.detections
+            .iter()
+            .map(|d| vertical_profile(&vol, d, dets.voxel_threshold, blur))
+            .collect()
+    };
+    let blur = opts.detect.ground_tolerance_levels;
+    let profiles = profiles_of(&dets, blur);
+    let mut grouping =
+        group_samples_with(&samples, dets.detections.len(), &shapes, &profiles, &opts.group)?;
+    // identical objects in contact: a detection that is k copies of another is k objects
+    let mut dets = dets;
+    let copies = if opts.group.split_copies {
+        let g = &opts.group;
+        // alike: the same colours and the same vertical profile
+        let sharp = profiles_of(&dets, 0);
+        split_copies(
+            &mut dets,
+            |i, j| {
+                grouping
+                    .jsd
+                    .get(i, j)
+                    .unwrap_or(f64::INFINITY)
+                    .max(profile_jsd(&sharp[i], &sharp[j]))
+            },
+            g.min_separation,
+            g.height_tolerance,
+        )
+    } else {
+        Vec::new()
+    };
+    if !copies.is_empty() {
+        let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, grid.texel)).collect();
+        let samples = match opts.group_on.plane() {
+            Some(p) => Samples::from_plane(&dets, feature_plane(p, &planes, &semantic)?)?,
+            None => Samples::from_voxels(field, &vol, &dets)?,
+        };
+        let profiles = profiles_of(&dets, blur);
+        grouping =
+            group_samples_with(&samples, dets.detections.len(), &shapes, &profiles, &opts.group)?;
+    }
+    let dets = dets;
     check_interrupt()?;
 
     progress.step(4, STEPS, "matching templates (yaw)");
@@ -609,6 +654,7 @@ pub fn mine(
         "detections": dets.detections.len(),
         "removed_as_background": removed,
         "removed": dets.removed,
+        "copies_split": copies.iter().map(|c| serde_json::json!({"detection": c.detection, "copy_of": c.copy_of, "pieces": c.pieces})).collect::<Vec<_>>(),
         "detect_preset": opts.detect.preset.name(),
         "categories": grouping.n_categories,
         "cut": grouping.cut,

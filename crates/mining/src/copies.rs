@@ -1,0 +1,501 @@
+//! Objects in contact that look like one: a detection that is, in shape and colour, `k`
+//! copies of another detection side by side is `k` objects.
+//!
+//! Two identical objects pushed together (two chests end to end, desks in a row, sofas side
+//! by side) leave no seam in the field: their common face is hidden, their tops are one
+//! height, their colours one. No cue inside the region separates them. What does is the
+//! scene's repetition, the paper's premise: if the same object also stands alone elsewhere,
+//! the joined region is exactly two (or three) of it. [`split_copies`] tests every
+//! free-standing detection `R` against every other `T` that is alike: its label histogram
+//! (colours) and its vertical profile (how its occupied voxels spread over the levels above
+//! its base: a chest is solid from the floor up, a chair is a seat on legs and a back) both
+//! within the grouping's minimum separation. `R`'s minimum-area rectangle must then be `k`
+//! of `T`'s stacked along one of `T`'s sides and its footprint `k` times `T`'s, each within
+//! the grouping's tolerance of a length (the reconstruction noise between two instances of
+//! one object). `R` is cut across the stacking direction into `k` equal slabs, and each slab
+//! must again be `T`'s rectangle.
+//!
+//! No value of its own is tuned: lengths compare within
+//! [`GroupOptions::height_tolerance`](crate::group::GroupOptions::height_tolerance) (a log
+//! ratio), colours and profiles (Jensen-Shannon divergences, bits) within
+//! [`GroupOptions::min_separation`](crate::group::GroupOptions::min_separation). What it
+//! cannot tell apart is a single object that really is `k` times another (a long table
+//! beside a square one of the same height and finish): it is split.
+
+use crate::detect::{Detection, Detections};
+use crate::image::{Mask, PixelRect};
+
+/// The most copies a region is tested for.
+pub const MAX_COPIES: usize = 3;
+
+/// A minimum-area rectangle around a footprint, in texels: the unit vector of its first
+/// side, the extents along that side and across it (`len` along `axis`, `wid` across; not
+/// sorted), and the projection range along `axis` (`lo..hi`, texel corners included).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MinRect {
+    pub axis: (f64, f64),
+    pub len: f64,
+    pub wid: f64,
+    pub lo: f64,
+    pub hi: f64,
+    /// Range across the axis.
+    pub across: (f64, f64),
+}
+
+impl MinRect {
+    /// The sides, longer first.
+    pub fn sides(&self) -> (f64, f64) {
+        if self.len >= self.wid { (self.len, self.wid) } else { (self.wid, self.len) }
+    }
+}
+
+/// Corners of every set texel of `mask` placed at `(row0, col0)` on the plane, as `(x, y)` =
+/// `(col, row)`, convex hull (counter-clockwise, no repeated point).
+fn hull(mask: &Mask, row0: usize, col0: usize) -> Vec<(i64, i64)> {
+    let mut pts: Vec<(i64, i64)> = Vec::new();
+    for r in 0..mask.rows {
+        for c in 0..mask.cols {
+            if mask.get(r, c) {
+                let (x, y) = ((col0 + c) as i64, (row0 + r) as i64);
+                pts.extend_from_slice(&[(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)]);
+            }
+        }
+    }
+    pts.sort_unstable();
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let cross = |o: (i64, i64), a: (i64, i64), b: (i64, i64)| {
+        (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+    };
+    let mut h: Vec<(i64, i64)> = Vec::with_capacity(2 * pts.len());
+    for pass in 0..2 {
+        let start = h.len();
+        let ordered: Vec<(i64, i64)> =
+            if pass == 0 { pts.clone() } else { pts.iter().rev().copied().collect() };
+        for p in ordered {
+            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], p) <= 0 {
+                h.pop();
+            }
+            h.push(p);
+        }
+        h.pop();
+    }
+    h
+}
+
+/// The minimum-area rectangle around the set texels of `mask` placed at `(row0, col0)`
+/// (rotating calipers: one side of it lies on a side of the convex hull). `None` for an
+/// empty mask.
+pub fn min_area_rect(mask: &Mask, row0: usize, col0: usize) -> Option<MinRect> {
+    let h = hull(mask, row0, col0);
+    if h.len() < 3 {
+        return None;
+    }
+    let mut best: Option<(f64, MinRect)> = None;
+    for i in 0..h.len() {
+        let (a, b) = (h[i], h[(i + 1) % h.len()]);
+        let (dx, dy) = ((b.0 - a.0) as f64, (b.1 - a.1) as f64);
+        let n = (dx * dx + dy * dy).sqrt();
+        if n == 0.0 {
+            continue;
+        }
+        let (ux, uy) = (dx / n, dy / n);
+        let (mut lo, mut hi, mut alo, mut ahi) =
+            (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        for &(x, y) in &h {
+            let (x, y) = (x as f64, y as f64);
+            let u = x * ux + y * uy;
+            let v = -x * uy + y * ux;
+            lo = lo.min(u);
+            hi = hi.max(u);
+            alo = alo.min(v);
+            ahi = ahi.max(v);
+        }
+        let area = (hi - lo) * (ahi - alo);
+        if best.as_ref().is_none_or(|(b, _)| area < *b - 1e-9) {
+            best = Some((
+                area,
+                MinRect {
+                    axis: (ux, uy),
+                    len: hi - lo,
+                    wid: ahi - alo,
+                    lo,
+                    hi,
+                    across: (alo, ahi),
+                },
+            ));
+        }
+    }
+    best.map(|(_, r)| r)
+}
+
+fn log_ratio(a: f64, b: f64) -> f64 {
+    (a.max(1e-9) / b.max(1e-9)).ln().abs()
+}
+
+/// How `r` is `k` copies of `t`: `Some(along_axis)` when `r`'s rectangle is `k` of `t`'s
+/// stacked along `r`'s axis (`true`) or across it (`false`), each side within `tol` (log
+/// ratio).
+fn stacking(r: &MinRect, t: &MinRect, k: usize, tol: f64) -> Option<bool> {
+    let (tl, tw) = t.sides();
+    let kf = k as f64;
+    // k copies stacked across t's short side, or along its long side
+    for (stack, other) in [(kf * tw, tl), (kf * tl, tw)] {
+        if log_ratio(r.len, stack) <= tol && log_ratio(r.wid, other) <= tol {
+            return Some(true);
+        }
+        if log_ratio(r.wid, stack) <= tol && log_ratio(r.len, other) <= tol {
+            return Some(false);
+        }
+    }
+    None
+}
+
+/// One slab of a cut: the texels of `mask` (at `rect`) whose centre projects into
+/// `[a, b)` along `(ux, uy)`.
+fn slab(mask: &Mask, rect: PixelRect, dir: (f64, f64), a: f64, b: f64) -> Mask {
+    Mask::from_fn(mask.rows, mask.cols, |r, c| {
+        if !mask.get(r, c) {
+            return false;
+        }
+        let (x, y) = ((rect.c0 + c) as f64 + 0.5, (rect.r0 + r) as f64 + 0.5);
+        let u = x * dir.0 + y * dir.1;
+        u >= a && u < b
+    })
+}
+
+/// A piece of `d` (its `footprint` and `own` restricted to `keep`), cropped to its texels.
+fn piece(d: &Detection, keep: &Mask, det: &Detections) -> Option<Detection> {
+    let bbox = keep.bbox()?;
+    let rect = PixelRect::new(
+        d.rect.r0 + bbox.r0,
+        d.rect.c0 + bbox.c0,
+        d.rect.r0 + bbox.r1,
+        d.rect.c0 + bbox.c1,
+    );
+    let footprint = keep.crop(bbox).ok()?;
+    let own_full = Mask::from_fn(d.own.rows, d.own.cols, |r, c| d.own.get(r, c) && keep.get(r, c));
+    let own = own_full.crop(bbox).ok()?;
+    let area = footprint.count() as f32 * det.grid.texel_area();
+    Some(Detection {
+        id: d.id,
+        rect,
+        footprint,
+        own,
+        world: det.grid.rect_to_world(rect),
+        area,
+        base: d.base,
+        top: d.top,
+        shape_top: d.shape_top,
+        parent: None,
+        children: Vec::new(),
+    })
+}
+
+/// How the occupied voxels of a detection spread over the levels from its base up: per
+/// level, the number of footprint columns with a voxel above `tau` there, normalised to
+/// sum 1 (all zero for an empty footprint). Compared with the Jensen-Shannon divergence,
+/// it tells a solid block from a seat on legs of the same size.
+pub fn vertical_profile(
+    vol: &crate::planes::OpacityVolume,
+    d: &Detection,
+    tau: f32,
+    blur: usize,
+) -> Vec<f64> {
+    let base = ((d.base - vol.z0) / vol.dz).round().max(0.0) as usize;
+    let base = base.min(vol.nz);
+    let mut h = vec![0f64; vol.nz - base];
+    for r in 0..d.rect.rows() {
+        for c in 0..d.rect.cols() {
+            if d.footprint.get(r, c) {
+                let col = vol.column(d.rect.r0 + r, d.rect.c0 + c);
+                for (k, v) in col[base..].iter().enumerate() {
+                    if *v > tau {
+                        h[k] += 1.0;
+                    }
+                }
+            }
+        }
+    }
+    // a box blur of `blur` levels each way: the same object's profile shifts by a level
+    // or two with its base estimate and its blurred top
+    let mut out = vec![0f64; h.len() + 2 * blur];
+    for (k, &v) in h.iter().enumerate() {
+        for o in &mut out[k..=k + 2 * blur] {
+            *o += v;
+        }
+    }
+    let total: f64 = out.iter().sum();
+    if total > 0.0 {
+        out.iter_mut().for_each(|x| *x /= total);
+    }
+    out
+}
+
+/// Jensen-Shannon divergence (bits) of two [`vertical_profile`]s (the shorter padded with
+/// empty levels); 1 when either is empty.
+pub fn profile_jsd(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().max(b.len());
+    if n == 0 {
+        return 1.0;
+    }
+    let pad = |v: &[f64]| {
+        let mut v = v.to_vec();
+        v.resize(n, 0.0);
+        v
+    };
+    crate::histogram::jsd(&pad(a), &pad(b)).unwrap_or(1.0)
+}
+
+/// What [`split_copies`] did to one detection.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CopySplit {
+    /// The detection that was cut (its id before the cut).
+    pub detection: usize,
+    /// The detection it is copies of.
+    pub copy_of: usize,
+    /// Into how many pieces.
+    pub pieces: usize,
+}
+
+/// Split every free-standing detection that is `k` copies (`2..=MAX_COPIES`) of another
+/// (see the module docs). `unlike(i, j)` is how different two detections look (colours and
+/// vertical profile, in bits), `alike_tol` the most that counts as one object, `tol` the
+/// largest log ratio between two lengths of one object.
+/// The pieces keep the cut detection's id for the first and are appended for the others;
+/// no other detection changes id. Returns what was split.
+pub fn split_copies(
+    det: &mut Detections,
+    unlike: impl Fn(usize, usize) -> f64,
+    alike_tol: f64,
+    tol: f64,
+) -> Vec<CopySplit> {
+    let n = det.detections.len();
+    let free = |d: &Detection| d.parent.is_none() && d.children.is_empty();
+    let rects: Vec<Option<MinRect>> = det
+        .detections
+        .iter()
+        .map(|d| if free(d) { min_area_rect(&d.footprint, d.rect.r0, d.rect.c0) } else { None })
+        .collect();
+    let counts: Vec<usize> = det.detections.iter().map(|d| d.footprint.count()).collect();
+    let mut plans: Vec<(usize, usize, usize, bool)> = Vec::new();
+    for ri in 0..n {
+        let Some(rr) = rects[ri] else { continue };
+        // the best match over the other detections: the one of closest colours
+        let mut best: Option<(f64, usize, usize, bool)> = None;
+        for ti in (0..n).filter(|&t| t != ri) {
+            let Some(tr) = rects[ti] else { continue };
+            let colour = unlike(ri, ti);
+            if colour > alike_tol {
+                continue;
+            }
+            for k in 2..=MAX_COPIES {
+                if log_ratio(counts[ri] as f64, (k * counts[ti]) as f64) > tol {
+                    continue;
+                }
+                if let Some(along) = stacking(&rr, &tr, k, tol)
+                    && best.is_none_or(|(c, ..)| colour < c)
+                {
+                    best = Some((colour, ti, k, along));
+                }
+            }
+        }
+        if let Some((_, ti, k, along)) = best {
+            plans.push((ri, ti, k, along));
+        }
+    }
+    let mut done = Vec::new();
+    let mut appended: Vec<Detection> = Vec::new();
+    for (ri, ti, k, along) in plans {
+        let (Some(rr), Some(tr)) = (rects[ri], rects[ti]) else { continue };
+        let d = &det.detections[ri];
+        let (dir, lo, hi) = if along {
+            (rr.axis, rr.lo, rr.hi)
+        } else {
+            ((-rr.axis.1, rr.axis.0), rr.across.0, rr.across.1)
+        };
+        let step = (hi - lo) / k as f64;
+        let mut pieces = Vec::with_capacity(k);
+        for s in 0..k {
+            let a = lo + step * s as f64;
+            let b = if s + 1 == k { f64::INFINITY } else { a + step };
+            let a = if s == 0 { f64::NEG_INFINITY } else { a };
+            let keep = slab(&d.footprint, d.rect, dir, a, b);
+            let Some(p) = piece(d, &keep, det) else { break };
+            // every piece is t's rectangle again
+            let fits = min_area_rect(&p.footprint, p.rect.r0, p.rect.c0).is_some_and(|pr| {
+                let ((pl, pw), (tl, tw)) = (pr.sides(), tr.sides());
+                log_ratio(pl, tl) <= tol && log_ratio(pw, tw) <= tol
+            });
+            if !fits || p.own.count() == 0 {
+                break;
+            }
+            pieces.push(p);
+        }
+        if pieces.len() != k {
+            continue;
+        }
+        tracing::debug!(detection = ri, copy_of = ti, pieces = k, "copies split");
+        let mut it = pieces.into_iter();
+        if let Some(first) = it.next() {
+            det.detections[ri] = first;
+        }
+        appended.extend(it);
+        done.push(CopySplit { detection: ri, copy_of: ti, pieces: k });
+    }
+    for mut p in appended {
+        p.id = det.detections.len();
+        det.detections.push(p);
+    }
+    done
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planes::PlaneGrid;
+
+    fn rect_mask(rows: usize, cols: usize, r0: usize, c0: usize, h: usize, w: usize) -> Mask {
+        Mask::from_fn(rows, cols, |r, c| r >= r0 && r < r0 + h && c >= c0 && c < c0 + w)
+    }
+
+    #[test]
+    fn min_area_rect_of_a_turned_rectangle() {
+        // a 20 x 8 rectangle turned by about 30 degrees, rasterised
+        let (ca, sa) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let m = Mask::from_fn(40, 40, |r, c| {
+            let (x, y) = (c as f64 + 0.5 - 20.0, r as f64 + 0.5 - 20.0);
+            let (u, v) = (x * ca + y * sa, -x * sa + y * ca);
+            u.abs() <= 10.0 && v.abs() <= 4.0
+        });
+        let r = min_area_rect(&m, 0, 0).unwrap();
+        let (l, w) = r.sides();
+        assert!((l - 20.0).abs() < 2.0 && (w - 8.0).abs() < 2.0, "{l} x {w}");
+        let r = min_area_rect(&rect_mask(10, 10, 2, 3, 4, 5), 0, 0).unwrap();
+        assert_eq!(r.sides(), (5.0, 4.0));
+        assert!(min_area_rect(&Mask::from_fn(3, 3, |_, _| false), 0, 0).is_none());
+    }
+
+    fn detection(id: usize, grid: &PlaneGrid, full: &Mask) -> Detection {
+        let rect = full.bbox().unwrap();
+        let footprint = full.crop(rect).unwrap();
+        Detection {
+            id,
+            rect,
+            own: footprint.clone(),
+            area: footprint.count() as f32,
+            footprint,
+            world: grid.rect_to_world(rect),
+            base: 0.0,
+            top: 1.0,
+            shape_top: 1.0,
+            parent: None,
+            children: Vec::new(),
+        }
+    }
+
+    fn scene(masks: &[Mask]) -> Detections {
+        let (rows, cols) = (masks[0].rows, masks[0].cols);
+        let grid = PlaneGrid { rows, cols, origin: [0.0, 0.0], texel: [1.0, 1.0] };
+        Detections {
+            grid,
+            floor: None,
+            start_level: 0,
+            ground_level: 0,
+            threshold: 0.5,
+            voxel_threshold: 0.5,
+            evidence: vec![1.0; rows * cols],
+            mask: Mask::from_fn(rows, cols, |r, c| masks.iter().any(|m| m.get(r, c))),
+            detections: masks.iter().enumerate().map(|(i, m)| detection(i, &grid, m)).collect(),
+            removed: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn two_copies_end_to_end_are_cut_in_two_and_a_long_object_of_other_colours_is_not() {
+        // a single 10 x 6 chest, a pair of them end to end (20 x 6), a 20 x 6 bench
+        let single = rect_mask(60, 60, 5, 5, 6, 10);
+        let pair = rect_mask(60, 60, 20, 5, 6, 20);
+        let bench = rect_mask(60, 60, 40, 5, 6, 20);
+        let mut det = scene(&[single, pair, bench]);
+        // the bench has other colours than the chests
+        let colour = |i: usize, j: usize| if i == 2 || j == 2 { 0.8 } else { 0.02 };
+        let done = split_copies(&mut det, colour, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        assert_eq!(det.detections.len(), 4);
+        for (i, d) in det.detections.iter().enumerate() {
+            assert_eq!(d.id, i);
+        }
+        let (a, b) = (&det.detections[1], &det.detections[3]);
+        assert_eq!((a.footprint.count(), b.footprint.count()), (60, 60));
+        assert_eq!(a.rect, PixelRect::new(20, 5, 26, 15));
+        assert_eq!(b.rect, PixelRect::new(20, 15, 26, 25));
+        assert_eq!(det.detections[2].footprint.count(), 120, "the bench stays whole");
+    }
+
+    #[test]
+    fn side_by_side_copies_and_what_is_not_copies() {
+        // a 10 x 6 sofa and two side by side along their short side (10 x 12)
+        let single = rect_mask(60, 60, 5, 5, 6, 10);
+        let pair = rect_mask(60, 60, 20, 5, 12, 10);
+        // a 15 x 6 table of the same colours: 1.5 copies, no split
+        let odd = rect_mask(60, 60, 40, 5, 6, 15);
+        let mut det = scene(&[single, pair, odd]);
+        let done = split_copies(&mut det, |_, _| 0.0, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        assert_eq!(det.detections[1].rect, PixelRect::new(20, 5, 26, 15));
+        assert_eq!(det.detections[3].rect, PixelRect::new(26, 5, 32, 15));
+        // what looks different (another profile) is no copy
+        let mut det = scene(&[rect_mask(60, 60, 5, 5, 6, 10), rect_mask(60, 60, 20, 5, 12, 10)]);
+        assert!(split_copies(&mut det, |_, _| 0.5, 0.12, 0.15).is_empty());
+        // three in a row
+        let mut det = scene(&[rect_mask(60, 60, 5, 5, 6, 10), rect_mask(60, 60, 20, 5, 6, 30)]);
+        let done = split_copies(&mut det, |_, _| 0.0, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 3 }]);
+        assert_eq!(det.detections.len(), 4);
+    }
+
+    #[test]
+    fn a_block_and_a_seat_on_legs_have_different_profiles_and_a_shift_is_forgiven_blurred() {
+        use crate::planes::OpacityVolume;
+        // 10 x 10 columns, 20 levels; a block over the left half (levels 0..10), a "seat on
+        // legs" over the right half (a slab at levels 8..10 and four leg columns)
+        let (rows, cols, nz) = (10, 10, 20);
+        let mut data = vec![0f32; rows * cols * nz];
+        let mut set = |r: usize, c: usize, k: usize| data[(r * cols + c) * nz + k] = 1.0;
+        for r in 0..10 {
+            for c in 0..5 {
+                (0..10).for_each(|k| set(r, c, k));
+            }
+            for c in 5..10 {
+                (8..10).for_each(|k| set(r, c, k));
+            }
+        }
+        for (r, c) in [(0, 5), (0, 9), (9, 5), (9, 9)] {
+            (0..8).for_each(|k| set(r, c, k));
+        }
+        let vol = OpacityVolume { rows, cols, nz, z0: 0.0, dz: 1.0, data };
+        let grid = PlaneGrid { rows, cols, origin: [0.0, 0.0], texel: [1.0, 1.0] };
+        let block = detection(0, &grid, &rect_mask(rows, cols, 0, 0, 10, 5));
+        let seat = detection(1, &grid, &rect_mask(rows, cols, 0, 5, 10, 5));
+        let (pb, ps) =
+            (vertical_profile(&vol, &block, 0.5, 0), vertical_profile(&vol, &seat, 0.5, 0));
+        assert_eq!(pb.len(), nz);
+        assert!((pb.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        assert!(profile_jsd(&pb, &ps) > 0.2, "{}", profile_jsd(&pb, &ps));
+        assert_eq!(profile_jsd(&pb, &pb), 0.0);
+        // the block seen from a base one level higher: sharp profiles differ more than
+        // blurred ones
+        let mut raised = block.clone();
+        raised.base = 1.0;
+        let sharp = profile_jsd(&pb, &vertical_profile(&vol, &raised, 0.5, 0));
+        let blurred = profile_jsd(
+            &vertical_profile(&vol, &block, 0.5, 3),
+            &vertical_profile(&vol, &raised, 0.5, 3),
+        );
+        assert!(blurred < sharp && blurred < 0.05, "{blurred} vs {sharp}");
+        assert_eq!(profile_jsd(&[], &[]), 1.0);
+    }
+}
