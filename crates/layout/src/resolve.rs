@@ -17,6 +17,11 @@ pub struct AssetInfo {
     pub category: String,
     /// Footprint in the asset's local frame (unscaled).
     pub footprint: Rect2,
+    /// The convex outline of the asset's geometry seen from above, in its local frame
+    /// (unscaled), when known (the synthesiser's catalog; empty otherwise). An instance's
+    /// bird's-eye box is the box of its turned outline, so a round stool turned by 45 degrees
+    /// keeps a box its own size instead of the box of its turned square footprint.
+    pub outline: Vec<Vec2>,
     /// Height of the asset's top above its floor (unscaled); things placed `on` it stand there.
     pub height: f32,
     pub yaw_symmetry_deg: f32,
@@ -63,6 +68,7 @@ pub fn asset_info_from_bounds(name: &str, def: &AssetDef, b: Aabb3) -> AssetInfo
     AssetInfo {
         category: def.category.clone().unwrap_or_else(|| name.to_string()),
         footprint: b.bev(),
+        outline: Vec::new(),
         height: b.max.z.max(0.0),
         yaw_symmetry_deg: def.yaw_symmetry_deg,
         container: def.container,
@@ -301,10 +307,15 @@ fn footprint_corners(info: &AssetInfo, t: &GroundTransform) -> [Vec2; 4] {
 }
 
 fn bev_of(info: &AssetInfo, t: &GroundTransform) -> Rect2 {
-    footprint_corners(info, t).iter().fold(Rect2::EMPTY, |mut r, p| {
-        r.grow(*p);
+    let grow = |mut r: Rect2, p: Vec2| {
+        r.grow(p);
         r
-    })
+    };
+    if info.outline.is_empty() {
+        footprint_corners(info, t).into_iter().fold(Rect2::EMPTY, grow)
+    } else {
+        info.outline.iter().map(|&p| t.transform_point2(p)).fold(Rect2::EMPTY, grow)
+    }
 }
 
 /// Separating-axis test of two convex quadrilaterals.

@@ -399,6 +399,7 @@ impl AssetLibrary {
         AssetInfo {
             category: e.category.clone(),
             footprint: Rect2::new(centre - half, centre + half),
+            outline: Vec::new(),
             height: e.extent.2,
             yaw_symmetry_deg: 360.0,
             container: false,

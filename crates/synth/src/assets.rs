@@ -40,6 +40,7 @@ impl AssetSet {
                     info.height = size.z;
                 }
             }
+            info.outline = g.ground_outline();
             set.infos.insert(name.clone(), info);
             set.geometry.insert(name.clone(), Arc::new(g));
         }

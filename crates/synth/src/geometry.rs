@@ -326,6 +326,49 @@ impl AssetGeometry {
         self.shape_material.push(self.materials.len() as u32 - 1);
     }
 
+    /// The convex hull of the geometry seen from above (local `(x, y)`, counter-clockwise):
+    /// box corners, circles of cylinders, cones and spheres (as 64-gons through their
+    /// rim), triangle vertices. Empty for no geometry.
+    pub fn ground_outline(&self) -> Vec<Vec2> {
+        const RIM: usize = 64;
+        let mut pts: Vec<Vec2> = Vec::new();
+        let circle = |pts: &mut Vec<Vec2>, c: Vec2, r: f32| {
+            for i in 0..RIM {
+                let a = std::f32::consts::TAU * i as f32 / RIM as f32;
+                pts.push(c + r * Vec2::new(a.cos(), a.sin()));
+            }
+        };
+        for s in &self.shapes {
+            match s {
+                Shape::Box { center, half, cos, sin } => {
+                    for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                        let (x, y) = (sx * half.x, sy * half.y);
+                        pts.push(
+                            center.truncate() + Vec2::new(cos * x - sin * y, sin * x + cos * y),
+                        );
+                    }
+                }
+                Shape::Frustum { base, axis: Axis::Z, r0, r1, .. } => {
+                    circle(&mut pts, base.truncate(), r0.max(*r1));
+                }
+                Shape::Frustum { .. } => {
+                    let b = s.bounds();
+                    pts.extend([
+                        b.min.truncate(),
+                        Vec2::new(b.max.x, b.min.y),
+                        b.max.truncate(),
+                        Vec2::new(b.min.x, b.max.y),
+                    ]);
+                }
+                Shape::Sphere { center, radius } => circle(&mut pts, center.truncate(), *radius),
+                Shape::Triangle { v0, e1, e2, .. } => {
+                    pts.extend([v0.truncate(), (*v0 + *e1).truncate(), (*v0 + *e2).truncate()]);
+                }
+            }
+        }
+        convex_hull(pts)
+    }
+
     /// Build the BVH; call after adding shapes.
     pub fn finish(&mut self) {
         let boxes: Vec<Aabb3> = self.shapes.iter().map(Shape::bounds).collect();
@@ -456,4 +499,30 @@ mod tests {
             assert!((a.min - b.min).length() < 1e-5 && (a.max - b.max).length() < 1e-5, "{p:?}");
         }
     }
+}
+
+/// Convex hull of points (Andrew's monotone chain), counter-clockwise, without collinear
+/// points; fewer than three distinct points come back as they are (deduplicated).
+pub fn convex_hull(mut pts: Vec<Vec2>) -> Vec<Vec2> {
+    pts.retain(|p| p.is_finite());
+    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let cross = |o: Vec2, a: Vec2, b: Vec2| (a - o).perp_dot(b - o);
+    let mut h: Vec<Vec2> = Vec::with_capacity(2 * pts.len());
+    for pass in 0..2 {
+        let start = h.len();
+        let ordered: Box<dyn Iterator<Item = &Vec2>> =
+            if pass == 0 { Box::new(pts.iter()) } else { Box::new(pts.iter().rev()) };
+        for &p in ordered {
+            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], p) <= 0.0 {
+                h.pop();
+            }
+            h.push(p);
+        }
+        h.pop();
+    }
+    h
 }

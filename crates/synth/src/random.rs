@@ -136,6 +136,7 @@ fn curated_candidate(m: &CuratedModel) -> Candidate {
     let info = AssetInfo {
         category: name.clone(),
         footprint: Rect2::new(-half, half),
+        outline: Vec::new(),
         height: h / 100.0,
         yaw_symmetry_deg: m.yaw_symmetry_deg,
         container: false,

@@ -224,3 +224,27 @@ fn bad_settings_are_refused_before_anything_is_written() {
     assert_eq!(std::fs::read_dir(&root).unwrap().count(), 0, "no staging folder left behind");
     std::fs::remove_dir_all(&root).unwrap();
 }
+
+#[test]
+fn the_ground_truth_box_of_a_turned_round_object_is_its_own_size() {
+    // a round stool (radius 0.25) and a square crate (0.5), both turned by 45 degrees
+    let text = r#"Scene(
+        assets: {
+            "stool": Asset(parts: [Cylinder(base: (0, 0, 0), radius: 0.25, height: 0.7, color: (0.5, 0.5, 0.5))]),
+            "crate": Asset(parts: [Box(center: (0, 0, 0.25), size: (0.5, 0.5, 0.5), color: (0.6, 0.4, 0.2))]),
+        },
+        layout: [
+            Instance(asset: "stool", at: (0, 0), yaw: 45),
+            Instance(asset: "crate", at: (2, 0), yaw: 45),
+        ],
+    )"#;
+    let loaded = load_str(Path::new("round.ron"), text).unwrap();
+    let assets = AssetSet::from_script(&loaded).unwrap();
+    let layout = resolve(&loaded, &assets).unwrap();
+    let size = |i: usize| layout.instances[i].bev_aabb.size();
+    // the stool's box is its disc's (0.5), not its turned square footprint's (0.71)
+    assert!((size(0) - glam::Vec2::splat(0.5)).abs().max_element() < 0.005, "{}", size(0));
+    // the crate's turned corners do reach 0.71
+    let d = 0.5 * std::f32::consts::SQRT_2;
+    assert!((size(1) - glam::Vec2::splat(d)).abs().max_element() < 1e-3, "{}", size(1));
+}
