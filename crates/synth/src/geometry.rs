@@ -399,6 +399,32 @@ impl AssetGeometry {
     }
 }
 
+/// Convex hull of points (Andrew's monotone chain), counter-clockwise, without collinear
+/// points; fewer than three distinct points come back as they are (deduplicated).
+pub fn convex_hull(mut pts: Vec<Vec2>) -> Vec<Vec2> {
+    pts.retain(|p| p.is_finite());
+    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let cross = |o: Vec2, a: Vec2, b: Vec2| (a - o).perp_dot(b - o);
+    let mut h: Vec<Vec2> = Vec::with_capacity(2 * pts.len());
+    for pass in 0..2 {
+        let start = h.len();
+        let ordered: Box<dyn Iterator<Item = &Vec2>> =
+            if pass == 0 { Box::new(pts.iter()) } else { Box::new(pts.iter().rev()) };
+        for &p in ordered {
+            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], p) <= 0.0 {
+                h.pop();
+            }
+            h.push(p);
+        }
+        h.pop();
+    }
+    h
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -499,30 +525,4 @@ mod tests {
             assert!((a.min - b.min).length() < 1e-5 && (a.max - b.max).length() < 1e-5, "{p:?}");
         }
     }
-}
-
-/// Convex hull of points (Andrew's monotone chain), counter-clockwise, without collinear
-/// points; fewer than three distinct points come back as they are (deduplicated).
-pub fn convex_hull(mut pts: Vec<Vec2>) -> Vec<Vec2> {
-    pts.retain(|p| p.is_finite());
-    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
-    pts.dedup();
-    if pts.len() < 3 {
-        return pts;
-    }
-    let cross = |o: Vec2, a: Vec2, b: Vec2| (a - o).perp_dot(b - o);
-    let mut h: Vec<Vec2> = Vec::with_capacity(2 * pts.len());
-    for pass in 0..2 {
-        let start = h.len();
-        let ordered: Box<dyn Iterator<Item = &Vec2>> =
-            if pass == 0 { Box::new(pts.iter()) } else { Box::new(pts.iter().rev()) };
-        for &p in ordered {
-            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], p) <= 0.0 {
-                h.pop();
-            }
-            h.push(p);
-        }
-        h.pop();
-    }
-    h
 }
