@@ -9,8 +9,8 @@
 # validation seeds: run them to measure, not to adjust. MINUTES: training budget per field
 # (default 10, `--clock cpu`). SEEDS: a subset of the list (default: all of it).
 # Output under $RANDOM_OUT (default runs/random_$SET): data/random_SEED (the dataset, with
-# its scene.ron), fields/random_SEED_s.safetensors, eval/random_SEED_s, mining/random_SEED_s
-# and table.md. Finished steps are skipped (delete a file or folder to redo it).
+# its scene.ron), fields/random_SEED_s.safetensors, eval/random_SEED_s, mining/random_SEED_s,
+# mining_paper/random_SEED_s (`--preset paper`, the baseline) and table.md. Finished steps are skipped (delete a file or folder to redo it).
 # Set BIN to use another binary (default target/release/assetfield, built if missing),
 # MINE_ARGS to pass more flags to every `assetfield mine`, SYNTH_ARGS to `assetfield synth`
 # (e.g. "--res 128").
@@ -36,7 +36,7 @@ BIN=${BIN:-target/release/assetfield}
 OUT=${RANDOM_OUT:-runs/random_$SET}
 read -r -a MINE_EXTRA <<< "${MINE_ARGS:-}"
 read -r -a SYNTH_EXTRA <<< "${SYNTH_ARGS:-}"
-mkdir -p "$OUT/data" "$OUT/fields" "$OUT/eval" "$OUT/mining" "$OUT/logs"
+mkdir -p "$OUT/data" "$OUT/fields" "$OUT/eval" "$OUT/mining" "$OUT/mining_paper" "$OUT/logs"
 
 for seed in "${SEEDS[@]}"; do
   scene="random_$seed"
@@ -61,6 +61,10 @@ for seed in "${SEEDS[@]}"; do
     "$BIN" mine "$field" --out "$lib" --gt "$data/gt_layout.json" --force ${MINE_EXTRA[@]+"${MINE_EXTRA[@]}"} \
       > "$OUT/logs/$scene.mine.log" 2>&1 ||
     echo "== $scene: mining failed (see $OUT/logs/$scene.mine.log)"
+  [ -f "$OUT/mining_paper/${scene}_s/metrics.json" ] ||
+    "$BIN" mine "$field" --out "$OUT/mining_paper/${scene}_s" --gt "$data/gt_layout.json" --force --preset paper \
+      > "$OUT/logs/$scene.mine_paper.log" 2>&1 ||
+    echo "== $scene: mining with --preset paper failed (see $OUT/logs/$scene.mine_paper.log)"
 done
 
 python3 - "$OUT" "$SET" "$MINUTES" "${SEEDS[@]}" <<'PY' || echo "(python3 missing: see $OUT/eval/*/metrics.json and $OUT/mining/*/metrics.json)"
@@ -69,25 +73,40 @@ out, set_name, minutes, seeds = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[
 def load(p):
     return json.load(open(p)) if os.path.exists(p) else None
 rows = [f"Random scenes, {set_name} seeds, S-AssetField, {minutes} min per field (`--clock cpu`)", "",
-        "| scene | seed | categories | objects | units/m | field PSNR | F1 | ARI | yaw median / max (deg) |",
-        "|---|---|---|---|---|---|---|---|---|"]
+        "| scene | seed | categories | objects | units/m | field PSNR | F1 | ARI | yaw median / max (deg) | paper F1 | paper ARI |",
+        "|---|---|---|---|---|---|---|---|---|---|---|"]
+scores = []
 for seed in seeds:
     scene = f"random_{seed}"
     synth = load(os.path.join(out, "data", scene, "synth.json")) or {}
     ev = load(os.path.join(out, "eval", f"{scene}_s", "metrics.json"))
     mi = load(os.path.join(out, "mining", f"{scene}_s", "metrics.json"))
+    pa = load(os.path.join(out, "mining_paper", f"{scene}_s", "metrics.json"))
+    pf1, pari = (f"{pa['f1']:.3f}", f"{pa['ari']:.3f}") if pa else ("-", "-")
     psnr = f"{ev['psnr']:.2f}" if ev else "-"
     if mi:
         ym, yx = mi.get("yaw_median_deg"), mi.get("yaw_max_deg")
         yaw = "-" if ym is None else f"{ym:.2f} / {yx:.1f}"
         f1, ari = f"{mi['f1']:.3f}", f"{mi['ari']:.3f}"
+        scores.append((mi["f1"], mi["ari"], ym, pa["f1"] if pa else None, pa["ari"] if pa else None))
     else:
         f1 = ari = yaw = "-"
     cats = len(synth.get("categories", [])) or "-"
     objs = synth.get("instances", "-")
     upm = synth.get("units_per_metre")
     upm = "-" if upm is None else f"{upm:.3f}"
-    rows.append(f"| `{scene}` | {seed} | {cats} | {objs} | {upm} | {psnr} | {f1} | {ari} | {yaw} |")
+    rows.append(f"| `{scene}` | {seed} | {cats} | {objs} | {upm} | {psnr} | {f1} | {ari} | {yaw} | {pf1} | {pari} |")
+if scores:
+    mean = lambda xs: sum(xs) / len(xs) if xs else float("nan")
+    yaws = sorted(y for _, _, y, _, _ in scores if y is not None)
+    med = yaws[len(yaws) // 2] if yaws else float("nan")
+    pf = [p for *_, p, _ in scores if p is not None]
+    pa_ = [a for *_, a in scores if a is not None]
+    rows.append(
+        f"| **mean** ({len(scores)} scenes) | | | | | | {mean([s[0] for s in scores]):.3f} "
+        f"(worst {min(s[0] for s in scores):.3f}) | {mean([s[1] for s in scores]):.3f} | "
+        f"median of medians {med:.2f} | {mean(pf):.3f} | {mean(pa_):.3f} |"
+    )
 text = "\n".join(rows) + "\n"
 open(os.path.join(out, "table.md"), "w").write(text)
 print(text)
