@@ -277,6 +277,16 @@ fn a_frozen_trained_field_mines_with_the_defaults_and_the_paper_preset() {
     for r in v["removed_as_background"].as_array().unwrap() {
         assert!(r.as_str().unwrap().contains("(filter "), "{r}");
     }
+    // the detection values a run used, read back from its report, mine the same library
+    let values = serde_json::to_string(&v["options"]["detect"]).unwrap();
+    std::fs::write(dir.join("detect.json"), &values).unwrap();
+    ok(&dir, &["mine", field, "--out", "again", "--gt", gt, "--detect-params", "detect.json"]);
+    let again = metrics("again");
+    assert_eq!((num(&again, "f1"), num(&again, "ari")), (num(&d, "f1"), num(&d, "ari")));
+    std::fs::write(dir.join("bad.json"), values.replace("\"min_area_texels\"", "\"min_area\""))
+        .unwrap();
+    fail(&dir, &["mine", field, "--out", "bad", "--detect-params", "bad.json"], &["bad.json"]);
+    assert!(!dir.join("bad").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -297,6 +307,10 @@ fn mine_help_explains_the_flags() {
         "--distance",
         "--template",
         "--shape-weight",
+        "--profile-weight",
+        "--auto-cut",
+        "--no-copies",
+        "--detect-params",
         "--force",
         "metrics.json",
         "layout.ron",

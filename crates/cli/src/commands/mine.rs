@@ -142,6 +142,11 @@ pub struct MineArgs {
     /// connectivity, colours).
     #[arg(long)]
     pub no_split: bool,
+    /// Read every detection value from FILE (JSON: the `detect` object of a `mining.json`'s
+    /// `options`, edited), instead of the preset's; the flags above and below still apply on
+    /// top. For sensitivity studies: which value decides what on a scene.
+    #[arg(long, value_name = "FILE")]
+    pub detect_params: Option<PathBuf>,
     /// Do not cut a detection that is, in shape and colour, two or three copies of another
     /// detection into that many objects (identical objects pushed together leave no seam in
     /// the field; their repetition elsewhere in the scene tells them apart). Off with
@@ -329,7 +334,17 @@ pub fn mine(a: MineArgs) -> Result<()> {
         PresetArg::Default => Preset::Default,
         PresetArg::Paper => Preset::Paper,
     };
-    let mut o = MineOptions { detect: DetectParams::preset(preset), ..MineOptions::default() };
+    let detect = match &a.detect_params {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read --detect-params {}", path.display()))?;
+            serde_json::from_str::<DetectParams>(&text).with_context(|| {
+                format!("--detect-params {}: not the JSON of the detection values", path.display())
+            })?
+        }
+        None => DetectParams::preset(preset),
+    };
+    let mut o = MineOptions { detect, ..MineOptions::default() };
     if a.preset == PresetArg::Paper {
         o.yaw_on = YawOn::Density;
         o.group.split_copies = false;

@@ -62,6 +62,7 @@ pub enum Evidence {
 
 /// The stages that can be switched off (each is on in the default preset).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Stages {
     /// Find a floor slab and measure object evidence above it.
     pub floor: bool,
@@ -108,6 +109,7 @@ impl Stages {
 /// The filters that drop a region as background; each reports a
 /// [`super::RemovalReason`] of its own kind and can be switched off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Filters {
     /// Thin, long structures (the walls of a room shell).
     pub walls: bool,
@@ -176,6 +178,7 @@ impl Filters {
 /// Parameters of [`super::detect`]: the stages, the filters and every tuned value, each
 /// with its unit (texels, levels, a fraction, an opacity) and the reason for its value.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct DetectParams {
     /// The preset these parameters started from (recorded in `mining.json`).
     pub preset: Preset,
@@ -356,6 +359,7 @@ impl Default for DetectParams {
 
 /// When a colour piece of a part is an object of its own ([`super::colour`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ColourSplit {
     /// Clusters of the K-means on the colour principal components (3: an object, its
     /// neighbour and a shadow or trim).
@@ -402,6 +406,7 @@ impl Default for ColourSplit {
 
 /// When two parts on the ground are fragments of one object ([`super::merge`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Fragments {
     /// Their boxes overlap by at least this share of the smaller box: fragments interleave,
     /// neighbours only touch (0.25).
@@ -432,6 +437,7 @@ impl Default for Fragments {
 /// The second round's judgement of a top surface and of what stands on it
 /// ([`super::unpack`]). Shares are of the part's footprint `n` unless said otherwise.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Unpack {
     /// Parts smaller than this many times the smallest object are not unpacked (4).
     pub min_part_factor: usize,
