@@ -134,10 +134,10 @@ fn mine_a_small_scene_into_a_library_and_layout() {
     let report = std::fs::read_to_string(dir.join("paper/mining.json")).unwrap();
     assert!(report.contains("\"detect_preset\": \"paper\""), "{report}");
     assert!(report.contains("\"yaw_on\": \"Density\""), "{report}");
-    ok(&dir, &["mine", "f.safetensors", "--out", "nofilter", "--no-filter", "faint-haze"]);
+    ok(&dir, &["mine", "f.safetensors", "--out", "nofilter", "--no-filter", "ragged-haze"]);
     let report = std::fs::read_to_string(dir.join("nofilter/mining.json")).unwrap();
-    assert!(report.contains("\"faint_haze\": false"), "{report}");
-    assert!(!report.contains("filter faint-haze"), "{report}");
+    assert!(report.contains("\"ragged_haze\": false"), "{report}");
+    assert!(!report.contains("filter ragged-haze"), "{report}");
 
     // refusals: an existing output, bad flags, a template outside its category
     fail(&dir, &["mine", "f.safetensors", "--out", "lib"], &["already exists", "--force"]);

@@ -17,9 +17,8 @@
 //!    region is cut at thin bridges, then by 3D connectivity (every component standing on
 //!    the ground starts an object), then by colour (pieces of clearly different colour that
 //!    stand on the ground and straighten a concave outline).
-//! 4. **Filters** ([`filters`]). Walls, large flat background, haze (faint and low, ragged,
-//!    floating specks) and faint islands inside a solid object are dropped, each with a
-//!    typed [`RemovalReason`].
+//! 4. **Filters** ([`filters`]). Walls and ragged haze are dropped, each with a typed
+//!    [`RemovalReason`].
 //! 5. **Merging** ([`merge`]). Fragments that the colour split cut out of one object merge.
 //! 6. **Hierarchical unpacking** ([`unpack`], [`assemble`]). Inside every object, its top
 //!    surface is the background of a second round; what stands on it becomes a detection
@@ -147,10 +146,7 @@ pub fn detect(
         paper::detections(&cx, &mask)?
     } else {
         let mask = walls::remove_walls(&cx, mask, &mut removed)?;
-        let (mut parts, mut kept) = parts_of_regions(&cx, &mask, &mut removed)?;
-        for (p, reason) in filters::faint_islands(&cx, &mut parts, &mut kept) {
-            removed.push(Removed { world: grid.rect_to_world(p.rect), reason });
-        }
+        let mut parts = parts_of_regions(&cx, &mask, &mut removed)?;
         if params.stages.merge_fragments {
             merge::merge_fragments(&cx, &mut parts);
         }
@@ -195,11 +191,7 @@ fn finish(cx: Ctx, mask: Mask, detections: Vec<Detection>, removed: Vec<Removed>
 }
 
 /// Stages 3 and 4 over every first-round region: split it, smooth and judge the pieces.
-fn parts_of_regions(
-    cx: &Ctx,
-    mask: &Mask,
-    removed: &mut Vec<Removed>,
-) -> Result<(Vec<Part>, Vec<filters::Kept>)> {
+fn parts_of_regions(cx: &Ctx, mask: &Mask, removed: &mut Vec<Removed>) -> Result<Vec<Part>> {
     let (grid, p) = (cx.grid, cx.p);
     let regions = components(mask)?;
     let pcs = if p.stages.split_colour {
@@ -207,7 +199,7 @@ fn parts_of_regions(
     } else {
         Vec::new()
     };
-    let (mut parts, mut kept) = (Vec::new(), Vec::new());
+    let mut parts = Vec::new();
     for (ri, reg) in regions.iter().enumerate() {
         check_interrupt()?;
         let cols_mask = shape::region_columns(&regions, ri);
@@ -244,10 +236,7 @@ fn parts_of_regions(
                 continue;
             }
             match filters::judge(cx, &part) {
-                Ok(k) => {
-                    parts.push(part);
-                    kept.push(k);
-                }
+                Ok(()) => parts.push(part),
                 Err(reason) => {
                     removed.push(Removed { world: grid.rect_to_world(part.rect), reason })
                 }
@@ -270,5 +259,5 @@ fn parts_of_regions(
             );
         }
     }
-    Ok((parts, kept))
+    Ok(parts)
 }

@@ -17,8 +17,11 @@
 //! metric scale there: what the field resolves, not what a tape measure says.
 //!
 //! [`DetectParams::count_tuned`] counts the values that were tuned (the switches, the seed
-//! and the number of clusters are choices, not tuned values): 61 here, where the detector
-//! had about 85 (30 of them in metres) before it was one documented set.
+//! and the number of clusters are choices, not tuned values): 55 here, where the detector
+//! had about 85 (30 of them in metres) before it was one documented set (61 when it first
+//! was; four filters made for the suite's 3-minute fields went since, with their six
+//! values, for changing nothing on the dev fields and losing real objects of an unseen
+//! room).
 
 use serde::{Deserialize, Serialize};
 
@@ -113,60 +116,24 @@ impl Stages {
 pub struct Filters {
     /// Thin, long structures (the walls of a room shell).
     pub walls: bool,
-    /// Large flat areas at ground level (a rug, a floor the floor search missed).
-    pub flat_background: bool,
-    /// No solid core, and low or small (floaters near the floor).
-    pub faint_haze: bool,
     /// Ragged (low solidity), low and small (floaters streaking along camera rays).
     pub ragged_haze: bool,
-    /// Small and floating low in mid-air with nothing found under it.
-    pub floating_specks: bool,
-    /// A faint island inside another object's footprint (its translucent inside).
-    pub faint_islands: bool,
     /// An object found twice: as a piece of the ground and standing on its host.
     pub duplicates: bool,
 }
 
 impl Filters {
-    pub const ALL: Filters = Filters {
-        walls: true,
-        flat_background: true,
-        faint_haze: true,
-        ragged_haze: true,
-        floating_specks: true,
-        faint_islands: true,
-        duplicates: true,
-    };
-    pub const NONE: Filters = Filters {
-        walls: false,
-        flat_background: false,
-        faint_haze: false,
-        ragged_haze: false,
-        floating_specks: false,
-        faint_islands: false,
-        duplicates: false,
-    };
+    pub const ALL: Filters = Filters { walls: true, ragged_haze: true, duplicates: true };
+    pub const NONE: Filters = Filters { walls: false, ragged_haze: false, duplicates: false };
 
     /// The filter names as the CLI spells them, in the order of the fields.
-    pub const NAMES: [&'static str; 7] = [
-        "walls",
-        "flat-background",
-        "faint-haze",
-        "ragged-haze",
-        "floating-specks",
-        "faint-islands",
-        "duplicates",
-    ];
+    pub const NAMES: [&'static str; 3] = ["walls", "ragged-haze", "duplicates"];
 
     /// Switch one filter by its CLI name; `false` for an unknown name.
     pub fn set(&mut self, name: &str, on: bool) -> bool {
         let slot = match name {
             "walls" => &mut self.walls,
-            "flat-background" => &mut self.flat_background,
-            "faint-haze" => &mut self.faint_haze,
             "ragged-haze" => &mut self.ragged_haze,
-            "floating-specks" => &mut self.floating_specks,
-            "faint-islands" => &mut self.faint_islands,
             "duplicates" => &mut self.duplicates,
             _ => return false,
         };
@@ -245,18 +212,8 @@ pub struct DetectParams {
     pub colour_contrast: f32,
 
     // --- filters ---
-    /// Height (levels above the ground) at or below which a large part is flat background
-    /// (4: 12 cm in the suite's rooms, a rug).
-    pub flat_height_levels: usize,
-    /// ... when it covers at least this share of the plane (0.1).
-    pub flat_area_share: f32,
-    /// A part has a solid core when the 90th percentile of its evidence reaches this
-    /// opacity (0.9: real objects reach ~1 over a good part of their footprint).
-    pub solid_core_evidence: f32,
     /// A part is small below this many times `min_area_texels` (4).
     pub small_factor: usize,
-    /// A faint part lower than this many levels is haze (11: 0.3 m in the suite's rooms).
-    pub haze_low_levels: usize,
     /// Solidity (footprint over convex hull area) below which a small low part is ragged:
     /// floaters of a briefly trained field streak along the camera rays; real small, low
     /// objects are compact (0.7).
@@ -264,13 +221,6 @@ pub struct DetectParams {
     /// A ragged part lower than this many levels and small is haze (18: 0.5 m in the
     /// suite's rooms).
     pub ragged_low_levels: usize,
-    /// A small part floating off the ground with its top lower than this many levels is a
-    /// speck of haze (36: 1 m in the suite's rooms; a lamp head whose pole the field lost
-    /// hangs higher).
-    pub floating_top_levels: usize,
-    /// A faint part with at least this share of its footprint inside a solid part's is that
-    /// part's translucent inside (0.9).
-    pub island_inside_share: f32,
 
     // --- merging ---
     /// Two parts on the ground whose tops are within this many levels may be fragments of
@@ -333,15 +283,9 @@ impl Default for DetectParams {
             bridge_radius_texels: 2,
             thin_radius_texels: 3,
             colour_contrast: 1.5,
-            flat_height_levels: 4,
-            flat_area_share: 0.1,
-            solid_core_evidence: 0.9,
             small_factor: 4,
-            haze_low_levels: 11,
             ragged_solidity: 0.7,
             ragged_low_levels: 18,
-            floating_top_levels: 36,
-            island_inside_share: 0.9,
             fragment_top_levels: 2,
             surface_window_levels: 3,
             raise_levels: 2,
@@ -584,9 +528,6 @@ impl DetectParams {
         share("floor_blur_coverage", self.floor_blur_coverage)?;
         share("wall_min_length", self.wall_min_length)?;
         share("ground_min_share", self.ground_min_share)?;
-        share("flat_area_share", self.flat_area_share)?;
-        share("solid_core_evidence", self.solid_core_evidence)?;
-        share("island_inside_share", self.island_inside_share)?;
         share("walled_outline_share", self.walled_outline_share)?;
         share("duplicate_overlap", self.duplicate_overlap)?;
         share("shape_top_share", self.shape_top_share)?;
@@ -615,8 +556,8 @@ mod tests {
 
     #[test]
     fn the_tuned_values_are_counted_from_the_parameters_themselves() {
-        assert_eq!(DetectParams::default().count_tuned(), 61);
-        assert_eq!(DetectParams::paper().count_tuned(), 61);
+        assert_eq!(DetectParams::default().count_tuned(), 55);
+        assert_eq!(DetectParams::paper().count_tuned(), 55);
     }
 
     #[test]
