@@ -144,7 +144,7 @@ fn mine_a_small_scene_into_a_library_and_layout() {
     fail(&dir, &["mine", "f.safetensors", "--out", "x", "--k", "1"], &["--k"]);
     let (code, _, err) =
         run_cli(&dir, &["mine", "f.safetensors", "--out", "x", "--no-filter", "lamps"]);
-    assert!(code == 2 && err.contains("lamps") && err.contains("faint-haze"), "{err}");
+    assert!(code == 2 && err.contains("lamps") && err.contains("ragged-haze"), "{err}");
     fail(&dir, &["mine", "f.safetensors", "--out", "x", "--k", "100000"], &["clusters"]);
     fail(&dir, &["mine", "f.safetensors", "--out", "x", "--template", "cat9=0"], &["cat9"]);
     fail(&dir, &["mine", "nope.safetensors", "--out", "x"], &["nope.safetensors"]);

@@ -51,7 +51,7 @@ impl MinRect {
 
 /// Corners of every set texel of `mask` placed at `(row0, col0)` on the plane, as `(x, y)` =
 /// `(col, row)`, convex hull (counter-clockwise, no repeated point).
-fn hull(mask: &Mask, row0: usize, col0: usize) -> Vec<(i64, i64)> {
+pub(crate) fn hull(mask: &Mask, row0: usize, col0: usize) -> Vec<(i64, i64)> {
     let mut pts: Vec<(i64, i64)> = Vec::new();
     for r in 0..mask.rows {
         for c in 0..mask.cols {

@@ -158,38 +158,9 @@ impl Shape {
 
 /// Area (in texels) of the convex hull of the cells of a mask (each set texel a unit square).
 pub fn hull_area(mask: &crate::image::Mask) -> f32 {
-    let mut pts: Vec<(i64, i64)> = Vec::new();
-    for r in 0..mask.rows {
-        for c in 0..mask.cols {
-            if mask.get(r, c) {
-                let (x, y) = (c as i64, r as i64);
-                pts.extend_from_slice(&[(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)]);
-            }
-        }
-    }
-    pts.sort_unstable();
-    pts.dedup();
-    if pts.len() < 3 {
+    let hull = crate::copies::hull(mask, 0, 0);
+    if hull.len() < 3 {
         return 0.0;
-    }
-    let cross = |o: (i64, i64), a: (i64, i64), b: (i64, i64)| {
-        (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
-    };
-    // Andrew's monotone chain
-    let mut hull: Vec<(i64, i64)> = Vec::with_capacity(2 * pts.len());
-    for pass in 0..2 {
-        let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &(i64, i64)>> =
-            if pass == 0 { Box::new(pts.iter()) } else { Box::new(pts.iter().rev()) };
-        for &p in iter {
-            while hull.len() >= start + 2
-                && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0
-            {
-                hull.pop();
-            }
-            hull.push(p);
-        }
-        hull.pop();
     }
     let mut twice = 0i64;
     for i in 0..hull.len() {
