@@ -134,6 +134,10 @@ pub struct MineReport {
     pub model: String,
     pub detections: usize,
     pub supported: usize,
+    /// Detections cut as identical objects in contact ([`crate::copies`]), and the pieces
+    /// they became.
+    pub copies_cut: usize,
+    pub copies_pieces: usize,
     pub categories: usize,
     /// Regions dropped as background, with reasons.
     pub removed: Vec<String>,
@@ -688,6 +692,8 @@ pub fn mine(
         model: field.config.kind.name().to_string(),
         detections: dets.detections.len(),
         supported: dets.detections.iter().filter(|d| d.parent.is_some()).count(),
+        copies_cut: copies.len(),
+        copies_pieces: copies.iter().map(|c| c.pieces).sum(),
         categories: grouping.n_categories,
         removed,
         floor: dets.floor.map(|f| f.z_top),

@@ -424,8 +424,16 @@ pub fn mine(a: MineArgs) -> Result<()> {
     let report = run_mining(&a.field, &a.out, &o, &Bar(pb.clone()));
     pb.finish_and_clear();
     let r = report.with_context(|| format!("mining {} failed", a.field.display()))?;
+    let copies = match r.copies_cut {
+        0 => String::new(),
+        1 => format!(", {} identical objects in contact cut apart", r.copies_pieces),
+        n => format!(
+            ", {} identical objects in contact cut apart from {n} detections",
+            r.copies_pieces
+        ),
+    };
     println!(
-        "mined {} objects ({} standing on others) in {} categories from {} ({}-assetfield) in {:.1}s",
+        "mined {} objects ({} standing on others{copies}) in {} categories from {} ({}-assetfield) in {:.1}s",
         r.detections,
         r.supported,
         r.categories,
