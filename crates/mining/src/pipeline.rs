@@ -65,6 +65,22 @@ pub struct MineOptions {
     pub force: bool,
 }
 
+impl MineOptions {
+    /// The options of a preset: [`Preset::Default`] is [`MineOptions::default`];
+    /// [`Preset::Paper`] runs only the paper's steps: its detection
+    /// ([`DetectParams::paper`]), grouping by colour histograms and shape alone (no vertical
+    /// profile, no cutting of copies) and yaw on the density plane.
+    pub fn preset(p: crate::detect::Preset) -> Self {
+        let mut o = MineOptions { detect: DetectParams::preset(p), ..MineOptions::default() };
+        if p == crate::detect::Preset::Paper {
+            o.yaw_on = YawOn::Density;
+            o.group.split_copies = false;
+            o.group.profile_weight = 0.0;
+        }
+        o
+    }
+}
+
 fn default_own_patch_residual() -> f32 {
     crate::layout_out::OWN_PATCH_RESIDUAL
 }
@@ -825,6 +841,17 @@ fn build_library(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_paper_preset_runs_only_the_papers_steps() {
+        let paper = MineOptions::preset(crate::detect::Preset::Paper);
+        assert_eq!(paper.detect, DetectParams::paper());
+        assert_eq!(paper.yaw_on, YawOn::Density);
+        assert!(!paper.group.split_copies && paper.group.profile_weight == 0.0);
+        let default = MineOptions::preset(crate::detect::Preset::Default);
+        assert_eq!(default.detect, DetectParams::default());
+        assert!(default.group.split_copies && default.group.profile_weight > 0.0);
+    }
 
     #[test]
     fn background_fill_copies_the_nearest_outside_texel() {

@@ -345,11 +345,7 @@ pub fn mine(a: MineArgs) -> Result<()> {
         }
         None => DetectParams::preset(preset),
     };
-    let mut o = MineOptions { detect, ..MineOptions::default() };
-    if a.preset == PresetArg::Paper {
-        o.yaw_on = YawOn::Density;
-        o.group.split_copies = false;
-    }
+    let mut o = MineOptions { detect, ..MineOptions::preset(preset) };
     if a.no_copies {
         o.group.split_copies = false;
     }
@@ -383,9 +379,6 @@ pub fn mine(a: MineArgs) -> Result<()> {
     }
     o.group.labels = a.labels;
     o.group.shape_weight = a.shape_weight;
-    if a.preset == PresetArg::Paper {
-        o.group.profile_weight = 0.0;
-    }
     if let Some(w) = a.profile_weight {
         if !(w.is_finite() && w >= 0.0) {
             bail!("--profile-weight must be 0 or more, got {w}");
