@@ -49,47 +49,11 @@ impl MinRect {
     }
 }
 
-/// Corners of every set texel of `mask` placed at `(row0, col0)` on the plane, as `(x, y)` =
-/// `(col, row)`, convex hull (counter-clockwise, no repeated point).
-pub(crate) fn hull(mask: &Mask, row0: usize, col0: usize) -> Vec<(i64, i64)> {
-    let mut pts: Vec<(i64, i64)> = Vec::new();
-    for r in 0..mask.rows {
-        for c in 0..mask.cols {
-            if mask.get(r, c) {
-                let (x, y) = ((col0 + c) as i64, (row0 + r) as i64);
-                pts.extend_from_slice(&[(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)]);
-            }
-        }
-    }
-    pts.sort_unstable();
-    pts.dedup();
-    if pts.len() < 3 {
-        return pts;
-    }
-    let cross = |o: (i64, i64), a: (i64, i64), b: (i64, i64)| {
-        (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
-    };
-    let mut h: Vec<(i64, i64)> = Vec::with_capacity(2 * pts.len());
-    for pass in 0..2 {
-        let start = h.len();
-        let ordered: Vec<(i64, i64)> =
-            if pass == 0 { pts.clone() } else { pts.iter().rev().copied().collect() };
-        for p in ordered {
-            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], p) <= 0 {
-                h.pop();
-            }
-            h.push(p);
-        }
-        h.pop();
-    }
-    h
-}
-
 /// The minimum-area rectangle around the set texels of `mask` placed at `(row0, col0)`
 /// (rotating calipers: one side of it lies on a side of the convex hull). `None` for an
 /// empty mask.
 pub fn min_area_rect(mask: &Mask, row0: usize, col0: usize) -> Option<MinRect> {
-    let h = hull(mask, row0, col0);
+    let h = mask.corner_hull(row0, col0);
     if h.len() < 3 {
         return None;
     }
@@ -196,17 +160,12 @@ fn piece(d: &Detection, keep: &Mask, det: &Detections) -> Option<Detection> {
 
 /// How the occupied voxels of a detection spread over the levels from its base up: per
 /// level, the number of footprint columns with a voxel above `tau` there, normalised to
-/// sum 1 (all zero for an empty footprint). Compared with the Jensen-Shannon divergence,
-/// it tells a solid block from a seat on legs of the same size.
-pub fn vertical_profile(
-    vol: &crate::planes::OpacityVolume,
-    d: &Detection,
-    tau: f32,
-    blur: usize,
-) -> Vec<f64> {
-    let base = ((d.base - vol.z0) / vol.dz).round().max(0.0) as usize;
-    let base = base.min(vol.nz);
-    let mut h = vec![0f64; vol.nz - base];
+/// sum 1 (all zero for an empty footprint), `vol.nz` bins whatever the base (the levels past
+/// the top are empty), so that the profiles of one volume compare bin by bin. Compared with
+/// the Jensen-Shannon divergence, it tells a solid block from a seat on legs of the same size.
+pub fn vertical_profile(vol: &crate::planes::OpacityVolume, d: &Detection, tau: f32) -> Vec<f64> {
+    let base = (((d.base - vol.z0) / vol.dz).round().max(0.0) as usize).min(vol.nz);
+    let mut h = vec![0f64; vol.nz];
     for r in 0..d.rect.rows() {
         for c in 0..d.rect.cols() {
             if d.footprint.get(r, c) {
@@ -219,28 +178,36 @@ pub fn vertical_profile(
             }
         }
     }
-    // a box blur of `blur` levels each way: the same object's profile shifts by a level
-    // or two with its base estimate and its blurred top
-    let mut out = vec![0f64; h.len() + 2 * blur];
-    for (k, &v) in h.iter().enumerate() {
+    normalised(h)
+}
+
+/// A profile under a box blur of `blur` levels each way (`2 blur` more bins): the same
+/// object's profile shifts by a level or two with its base estimate and its blurred top.
+pub fn blurred(profile: &[f64], blur: usize) -> Vec<f64> {
+    let mut out = vec![0f64; profile.len() + 2 * blur];
+    for (k, &v) in profile.iter().enumerate() {
         for o in &mut out[k..=k + 2 * blur] {
             *o += v;
         }
     }
-    let total: f64 = out.iter().sum();
+    normalised(out)
+}
+
+fn normalised(mut h: Vec<f64>) -> Vec<f64> {
+    let total: f64 = h.iter().sum();
     if total > 0.0 {
-        out.iter_mut().for_each(|x| *x /= total);
+        h.iter_mut().for_each(|x| *x /= total);
     }
-    out
+    h
 }
 
 /// Jensen-Shannon divergence (bits) of two [`vertical_profile`]s (the shorter padded with
 /// empty levels); 1 when either is empty.
 pub fn profile_jsd(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().max(b.len());
-    if n == 0 {
-        return 1.0;
+    if a.len() == b.len() {
+        return crate::histogram::jsd(a, b).unwrap_or(1.0);
     }
+    let n = a.len().max(b.len());
     let pad = |v: &[f64]| {
         let mut v = v.to_vec();
         v.resize(n, 0.0);
@@ -250,7 +217,7 @@ pub fn profile_jsd(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// What [`split_copies`] did to one detection.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct CopySplit {
     /// The detection that was cut (its id before the cut).
     pub detection: usize,
@@ -480,8 +447,7 @@ mod tests {
         let grid = PlaneGrid { rows, cols, origin: [0.0, 0.0], texel: [1.0, 1.0] };
         let block = detection(0, &grid, &rect_mask(rows, cols, 0, 0, 10, 5));
         let seat = detection(1, &grid, &rect_mask(rows, cols, 0, 5, 10, 5));
-        let (pb, ps) =
-            (vertical_profile(&vol, &block, 0.5, 0), vertical_profile(&vol, &seat, 0.5, 0));
+        let (pb, ps) = (vertical_profile(&vol, &block, 0.5), vertical_profile(&vol, &seat, 0.5));
         assert_eq!(pb.len(), nz);
         assert!((pb.iter().sum::<f64>() - 1.0).abs() < 1e-9);
         assert!(profile_jsd(&pb, &ps) > 0.2, "{}", profile_jsd(&pb, &ps));
@@ -490,12 +456,10 @@ mod tests {
         // blurred ones
         let mut raised = block.clone();
         raised.base = 1.0;
-        let sharp = profile_jsd(&pb, &vertical_profile(&vol, &raised, 0.5, 0));
-        let blurred = profile_jsd(
-            &vertical_profile(&vol, &block, 0.5, 3),
-            &vertical_profile(&vol, &raised, 0.5, 3),
-        );
-        assert!(blurred < sharp && blurred < 0.05, "{blurred} vs {sharp}");
+        let sharp = profile_jsd(&pb, &vertical_profile(&vol, &raised, 0.5));
+        let soft =
+            profile_jsd(&blurred(&pb, 3), &blurred(&vertical_profile(&vol, &raised, 0.5), 3));
+        assert!(soft < sharp && soft < 0.05, "{soft} vs {sharp}");
         assert_eq!(profile_jsd(&[], &[]), 1.0);
     }
 }

@@ -158,7 +158,7 @@ impl Shape {
 
 /// Area (in texels) of the convex hull of the cells of a mask (each set texel a unit square).
 pub fn hull_area(mask: &crate::image::Mask) -> f32 {
-    let hull = crate::copies::hull(mask, 0, 0);
+    let hull = mask.corner_hull(0, 0);
     if hull.len() < 3 {
         return 0.0;
     }

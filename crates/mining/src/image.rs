@@ -395,6 +395,42 @@ impl Mask {
         rect
     }
 
+    /// Corners of every set texel of the mask placed at `(row0, col0)` on the plane, as `(x, y)` =
+    /// `(col, row)`, convex hull (counter-clockwise, no repeated point).
+    pub fn corner_hull(&self, row0: usize, col0: usize) -> Vec<(i64, i64)> {
+        let mut pts: Vec<(i64, i64)> = Vec::new();
+        for r in 0..self.rows {
+            for c in 0..self.cols {
+                if self.get(r, c) {
+                    let (x, y) = ((col0 + c) as i64, (row0 + r) as i64);
+                    pts.extend_from_slice(&[(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)]);
+                }
+            }
+        }
+        pts.sort_unstable();
+        pts.dedup();
+        if pts.len() < 3 {
+            return pts;
+        }
+        let cross = |o: (i64, i64), a: (i64, i64), b: (i64, i64)| {
+            (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+        };
+        let mut h: Vec<(i64, i64)> = Vec::with_capacity(2 * pts.len());
+        for pass in 0..2 {
+            let start = h.len();
+            let ordered: Vec<(i64, i64)> =
+                if pass == 0 { pts.clone() } else { pts.iter().rev().copied().collect() };
+            for p in ordered {
+                while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], p) <= 0 {
+                    h.pop();
+                }
+                h.push(p);
+            }
+            h.pop();
+        }
+        h
+    }
+
     /// The mask as `1.0` / `0.0` weights.
     pub fn to_weights(&self) -> Vec<f32> {
         self.data.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect()

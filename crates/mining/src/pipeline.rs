@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 
-use crate::copies::{profile_jsd, split_copies, vertical_profile};
+use crate::copies::{blurred, profile_jsd, split_copies, vertical_profile};
 use crate::detect::{DetectParams, Detections, FloorBand, detect};
 use crate::error::{MiningError, Result, check_interrupt};
 use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples_with};
@@ -431,7 +431,7 @@ pub fn mine(
     } else {
         None
     };
-    let dets = detect(&grid, &vol, &planes.color, det_feature, &opts.detect)?;
+    let mut dets = detect(&grid, &vol, &planes.color, det_feature, &opts.detect)?;
     if dets.detections.is_empty() {
         // what each filter took, so that the user knows which one to question
         let mut by_filter: Vec<(&str, usize)> = Vec::new();
@@ -465,30 +465,31 @@ pub fn mine(
     check_interrupt()?;
 
     progress.step(3, STEPS, "grouping into categories");
-    let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, grid.texel)).collect();
-    let samples = match opts.group_on.plane() {
-        Some(p) => Samples::from_plane(&dets, feature_plane(p, &planes, &semantic)?)?,
-        None => Samples::from_voxels(field, &vol, &dets)?,
-    };
-    // objects on different supports are compared with their profiles blurred by the
-    // tolerance of a base (the ground tolerance, levels); copies standing on one ground are
-    // compared sharp
-    let profiles_of = |dets: &Detections, blur: usize| -> Vec<Vec<f64>> {
-        dets.detections
-            .iter()
-            .map(|d| vertical_profile(&vol, d, dets.voxel_threshold, blur))
-            .collect()
-    };
+    // the grouping of a set of detections, with their sharp vertical profiles; objects on
+    // different supports are compared with their profiles blurred by the tolerance of a
+    // base (the ground tolerance, levels), copies standing on one ground sharp
     let blur = opts.detect.ground_tolerance_levels;
-    let profiles = profiles_of(&dets, blur);
-    let mut grouping =
-        group_samples_with(&samples, dets.detections.len(), &shapes, &profiles, &opts.group)?;
-    // identical objects in contact: a detection that is k copies of another is k objects
-    let mut dets = dets;
+    let group_all = |dets: &Detections| -> Result<(Grouping, Vec<Vec<f64>>)> {
+        let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, grid.texel)).collect();
+        let samples = match opts.group_on.plane() {
+            Some(p) => Samples::from_plane(dets, feature_plane(p, &planes, &semantic)?)?,
+            None => Samples::from_voxels(field, &vol, dets)?,
+        };
+        let sharp: Vec<Vec<f64>> = dets
+            .detections
+            .iter()
+            .map(|d| vertical_profile(&vol, d, dets.voxel_threshold))
+            .collect();
+        let soft: Vec<Vec<f64>> = sharp.iter().map(|p| blurred(p, blur)).collect();
+        let grouping =
+            group_samples_with(&samples, dets.detections.len(), &shapes, &soft, &opts.group)?;
+        Ok((grouping, sharp))
+    };
+    let (mut grouping, sharp) = group_all(&dets)?;
+    // identical objects in contact: a detection that is k copies of another is k objects,
+    // alike in colours and in the sharp vertical profile
     let copies = if opts.group.split_copies {
         let g = &opts.group;
-        // alike: the same colours and the same vertical profile
-        let sharp = profiles_of(&dets, 0);
         split_copies(
             &mut dets,
             |i, j| {
@@ -505,16 +506,8 @@ pub fn mine(
         Vec::new()
     };
     if !copies.is_empty() {
-        let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, grid.texel)).collect();
-        let samples = match opts.group_on.plane() {
-            Some(p) => Samples::from_plane(&dets, feature_plane(p, &planes, &semantic)?)?,
-            None => Samples::from_voxels(field, &vol, &dets)?,
-        };
-        let profiles = profiles_of(&dets, blur);
-        grouping =
-            group_samples_with(&samples, dets.detections.len(), &shapes, &profiles, &opts.group)?;
+        grouping = group_all(&dets)?.0;
     }
-    let dets = dets;
     check_interrupt()?;
 
     progress.step(4, STEPS, "matching templates (yaw)");
@@ -674,7 +667,7 @@ pub fn mine(
         "detections": dets.detections.len(),
         "removed_as_background": removed,
         "removed": dets.removed,
-        "copies_split": copies.iter().map(|c| serde_json::json!({"detection": c.detection, "copy_of": c.copy_of, "pieces": c.pieces})).collect::<Vec<_>>(),
+        "copies_split": copies,
         "detect_preset": opts.detect.preset.name(),
         "categories": grouping.n_categories,
         "cut": grouping.cut,
