@@ -468,7 +468,7 @@ pub fn mine(
     // the grouping of a set of detections, with their sharp vertical profiles; objects on
     // different supports are compared with their profiles blurred by the tolerance of a
     // base (the ground tolerance, levels), copies standing on one ground sharp
-    let blur = opts.detect.ground_tolerance_levels;
+    let blur = opts.detect.blur_levels;
     let group_all = |dets: &Detections| -> Result<(Grouping, Vec<Vec<f64>>)> {
         let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, grid.texel)).collect();
         let samples = match opts.group_on.plane() {

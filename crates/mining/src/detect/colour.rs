@@ -108,7 +108,8 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
     let (rect, f) = (part.rect, &part.footprint);
     let (h, w) = (f.rows, f.cols);
     let n = f.count();
-    if depth == 0 || n < cs.min_part_factor * min_texels.max(1) {
+    // a part splits into at least two pieces of twice the smallest object each
+    if depth == 0 || n < 4 * min_texels.max(1) {
         return vec![part];
     }
     let idx: Vec<usize> = (0..h * w).filter(|&i| f.data[i]).collect();

@@ -63,7 +63,7 @@ impl<'a> Ctx<'a> {
             return Err(MiningError::TiltedGround { degrees, coverage_pct: 100.0 * coverage });
         }
         let start = floor.map_or(0, |f| (f.hi + 2).min(vol.nz.saturating_sub(1)));
-        let evidence = vol.window_max_above(start, p.evidence_window_levels.max(2));
+        let evidence = vol.window_max_above(start, p.blur_levels.max(2));
         if evidence.iter().all(|&e| e < EMPTY_EVIDENCE) {
             return Err(MiningError::InvalidParameter {
                 name: "field",
@@ -101,7 +101,7 @@ impl<'a> Ctx<'a> {
             floor,
             start,
             ground,
-            ground_tol: p.ground_tolerance_levels,
+            ground_tol: p.blur_levels,
             evidence,
             above,
             tau_e,

@@ -16,15 +16,11 @@ use glam::Vec2;
 fn params() -> DetectParams {
     DetectParams {
         min_area_texels: 4,
-        evidence_window_levels: 2,
+        blur_levels: 2,
         wall_half_thickness_texels: 2.0,
-        ground_tolerance_levels: 2,
         bridge_radius_texels: 1,
         thin_radius_texels: 2,
         ragged_low_levels: 10,
-        fragment_top_levels: 1,
-        surface_window_levels: 3,
-        raise_levels: 2,
         low_support_levels: 5,
         seed_window_texels: 5,
         ..Default::default()
@@ -289,7 +285,7 @@ fn an_object_found_twice_keeps_the_copy_standing_on_its_host() {
     // a laptop over a chair pushed under the table: kept (the chair is much larger)
     let laptop = det(3, PixelRect::new(14, 20, 17, 24), 0.8, Some(0));
     let chair = det(4, PixelRect::new(12, 18, 24, 30), 0.8, None);
-    let kept = drop_duplicates(vec![table, lamp, twice, laptop, chair], 0.05, 0.6);
+    let kept = drop_duplicates(vec![table, lamp, twice, laptop, chair], 0.05);
     let rects: Vec<PixelRect> = kept.iter().map(|d| d.rect).collect();
     assert_eq!(rects.len(), 4, "{rects:?}");
     assert!(!rects.contains(&PixelRect::new(5, 5, 13, 12)));
@@ -635,8 +631,7 @@ fn fragments_of_one_object_merge_but_neighbours_do_not() {
     let cut = |r: usize| if r % 4 < 2 { 5 } else { 7 };
     let left = part(10, 10, 12, 8, |r, c| c < cut(r));
     let right = part(10, 15, 12, 7, |r, c| c + 5 >= cut(r));
-    let m =
-        fragments_merged(&left, &right, 1, &params::Fragments::default()).expect("fragments merge");
+    let m = fragments_merged(&left, &right, 1, 0.9).expect("fragments merge");
     assert_eq!(m.rect, PixelRect::new(10, 10, 22, 22));
     assert_eq!(m.footprint.count(), 144);
     assert_eq!((m.kmin, m.kmax), (0, 5));
@@ -648,17 +643,17 @@ fn fragments_of_one_object_merge_but_neighbours_do_not() {
     };
     let table = part(0, 0, 16, 16, inside);
     let chair = part(12, 12, 6, 6, |r, c| !inside(r + 12, c + 12));
-    assert!(fragments_merged(&table, &chair, 1, &params::Fragments::default()).is_none());
+    assert!(fragments_merged(&table, &chair, 1, 0.9).is_none());
     // overlapping footprints are nesting, not fragments
     let under = part(4, 4, 6, 6, |_, _| true);
-    assert!(fragments_merged(&table, &under, 1, &params::Fragments::default()).is_none());
+    assert!(fragments_merged(&table, &under, 1, 0.9).is_none());
     // a fragment reaching another height is another object
     let taller = Part { kmax: 9, ..right.clone() };
-    assert!(fragments_merged(&left, &taller, 1, &params::Fragments::default()).is_none());
+    assert!(fragments_merged(&left, &taller, 1, 0.9).is_none());
     // two crates side by side: their boxes touch but do not overlap
     let a = part(0, 0, 8, 8, |_, _| true);
     let b = part(0, 8, 8, 8, |_, _| true);
-    assert!(fragments_merged(&a, &b, 1, &params::Fragments::default()).is_none());
+    assert!(fragments_merged(&a, &b, 1, 0.9).is_none());
 }
 
 #[test]

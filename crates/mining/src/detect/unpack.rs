@@ -1,11 +1,11 @@
 //! Stage 4: hierarchical unpacking (the paper's "repeat the clustering to unpack the scene",
 //! Fig. 4d). Inside every object, the top surface (a table top) is treated as background: if
-//! it is a thin, flat slab with something rising above it, each raised blob away from the
+//! it is a slab (or a solid body's top) with something rising above it and enough of it free, each raised blob away from the
 //! rim seeds a background subtraction of the colour features around it (K-means on the
 //! distances to the surface's median colour), and the connected result, when enclosed by
 //! free surface, becomes a detection supported by the object (laptops on a table, a crate
-//! on a pallet, a lamp on a side table). A low support (a pallet's deck) may carry an object
-//! over most of it, and so may a support with an object held above it on a stem (a lamp
+//! on a pallet, a lamp on a side table). A low support (a pallet's deck) may have little of
+//! it free, and so may a support with an object held above it on a stem (a lamp
 //! whose shade covers most of a side table: [`held_on_a_stem`]).
 
 use super::context::Ctx;
@@ -171,7 +171,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     // and the same per window of `thin` levels (accumulated opacity): a briefly trained
     // field's soft table top spreads over a few levels, none of which covers the whole top
     let ts = up.surface_opacity * tau;
-    let thin = p.surface_window_levels.max(1);
+    let thin = p.blur_levels.max(1);
     let mut area = vec![0usize; vol.nz];
     let mut areaw = vec![0usize; vol.nz];
     for r in 0..rect.rows() {
@@ -203,7 +203,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         tops.push(start);
     }
     let low_level = |k: usize| k.saturating_sub(start) < p.low_support_levels;
-    let raise = p.raise_levels.max(1);
+    let raise = p.blur_levels.max(1);
     let (h, w) = (rect.rows(), rect.cols());
     // the footprint's outline: closed shells wall it in, seeds on it are a table's rim
     let ring = border_ring(f);
@@ -231,7 +231,8 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         }
         // a support is a thin slab (a table top, a shelf, a pallet's deck) or the top of a
         // solid body (a desk over its drawer pedestal, a side table): then only its top levels
-        // count as the surface, and the checks below are stricter (flat interior, substantial
+        // count as the surface, and the checks below are stricter (a free surface away from its
+        // fringe, substantial
         // seeds) (a body with a gap of a faint level or two is solid too: most levels below
         // the slab cover half of it, where a table's legs and ghost layers cover less)
         let below = lo.saturating_sub(start);
@@ -286,39 +287,19 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         return (Vec::new(), Some(hi));
     }
     let above = hi + raise;
-    // ... and flat: away from what rises above it, most columns end at the slab (a dome, the
-    // top of a sphere, has no flat rim)
+    // the free surface: the footprint away from what rises above it (a solid body's top is
+    // judged away from its blurred fringe, which fades over many levels; a thin slab has
+    // none)
     let near_raised = crate::morphology::dilate(&raised, 3).unwrap_or_else(|_| raised.clone());
-    // a solid body's top is judged away from its blurred fringe, and its faint patches count
-    // (the fringe of a solid block fades over many levels; a thin slab has none)
-    let (judged, there_tau) = if solid {
+    let judged = if solid {
         let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
         let e = erode(&padded, 2).unwrap_or(padded);
-        (Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1)), 0.25 * tau)
+        Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1))
     } else {
-        (f.clone(), 0.5 * tau)
+        f.clone()
     };
-    let (mut free_n, mut flat_n) = (0usize, 0usize);
-    for r in 0..h {
-        for c in 0..w {
-            if !judged.get(r, c) || near_raised.get(r, c) {
-                continue;
-            }
-            free_n += 1;
-            let col = vol.column(rect.r0 + r, rect.c0 + c);
-            // nothing rises above the slab and the slab is there (perhaps faintly: NeRF
-            // table tops have thin patches)
-            let clear = !(hi + 1..vol.nz).any(|k| col[k] >= tau);
-            let there = (kstar.saturating_sub(1)..=hi).any(|k| col[k] >= there_tau);
-            flat_n += usize::from(clear && there);
-        }
-    }
-    tracing::debug!(?rect, lo, hi, kstar, solid, flat_n, free_n, n, "surface");
-    // free surface: 30% of a slab, 45% of a solid body's top (a chair's seat under its back
-    // is no table); flat: 70% of the free surface of a slab, 60% of a solid body's (its
-    // blurred top has more haze above it)
-    let pick = |(slab, body): (f32, f32)| if solid { body } else { slab };
-    let (free_share, flat_share) = (pick(up.free_share), pick(up.flat_share));
+    let free_n = (0..h * w).filter(|&i| judged.data[i] && !near_raised.data[i]).count();
+    tracing::debug!(?rect, lo, hi, kstar, solid, free_n, n, "surface");
     // a low support (a pallet's deck, within `low_support_levels` of the ground) carries an
     // object over most of it: its free surface is a margin, too narrow to judge away from the object; the
     // rim and ring checks below still apply
@@ -330,8 +311,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     if waist {
         tracing::debug!(?rect, "an object held on a stem above the slab");
     }
-    if !low && !waist && (!at_least(free_n, free_share, n) || !at_least(flat_n, flat_share, free_n))
-    {
+    if !low && !waist && !at_least(free_n, up.free_share, n) {
         return (Vec::new(), Some(hi));
     }
     // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
@@ -444,10 +424,10 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
             .max()
             .unwrap_or(hi);
         tracing::trace!(?sb, count, touches, "seed grown");
-        // an object on a support leaves most of it free: a piece covering more than half of
-        // it (a car's cabin over its bonnet and boot) belongs to the body
-        // (on a low support up to 80% of it: a crate on a pallet)
-        let most = more_than(count, if low { up.max_cover.1 } else { up.max_cover.0 }, n);
+        // an object on a support leaves some of it free: a piece covering more (a car's
+        // cabin over its bonnet and boot) belongs to the body (a crate on a pallet covers
+        // most of it)
+        let most = more_than(count, up.max_cover, n);
         if touches || count < min_texels || most {
             continue;
         }
