@@ -199,8 +199,14 @@ pub fn auto_cut(merges: &[Merge], min_separation: f64) -> usize {
 
 /// Mean silhouette of a labelling under a distance matrix: for every item `i` of a
 /// category with other members, `(b - a) / max(a, b)` with `a` its mean distance to the other
-/// members and `b` its mean distance to the nearest other category; items alone in their
-/// category count 0 (Rousseeuw 1987). `None` with fewer than two categories.
+/// members and `b` its mean distance to the nearest other category of two or more; items
+/// alone in their category count 0 (Rousseeuw 1987), and so do all items when no second
+/// category of two or more exists. `None` with fewer than two categories.
+///
+/// The nearest other category is looked for among categories of two or more because a lone
+/// item far from everything (a speck, a mis-cut piece) would otherwise be every item's
+/// nearest other category: against its distance every category looks tight, and the cut
+/// that keeps only it apart (two categories: the speck and the rest) scores highest.
 pub fn mean_silhouette(dist: &DistanceMatrix, labels: &[usize]) -> Option<f64> {
     let n = labels.len();
     let k = labels.iter().max().map_or(0, |&m| m + 1);
@@ -222,11 +228,11 @@ pub fn mean_silhouette(dist: &DistanceMatrix, labels: &[usize]) -> Option<f64> {
         }
         let a = sum[own] / (count[own] - 1) as f64;
         let b = (0..k)
-            .filter(|&c| c != own && count[c] > 0)
+            .filter(|&c| c != own && count[c] > 1)
             .map(|c| sum[c] / count[c] as f64)
             .fold(f64::INFINITY, f64::min);
         let m = a.max(b);
-        if m > 0.0 {
+        if m > 0.0 && b.is_finite() {
             total += (b - a) / m;
         }
     }
@@ -689,6 +695,22 @@ mod tests {
         let d = line(&x);
         let dendro = linkage(&d, Linkage::Average);
         assert_eq!(x.len() - auto_cut(&dendro.merges, 0.12), 2);
+        assert_eq!(silhouette_categories(&x), 5);
+    }
+
+    #[test]
+    fn a_far_lone_item_is_nobody_s_nearest_category() {
+        // four loose categories of three (members 0.12 apart, categories 1.0 apart) and one
+        // speck 20 away: were the speck a candidate nearest category, every category would
+        // look tight against it and the cut keeping only the speck apart would score highest
+        let mut x: Vec<f64> =
+            (0..4).flat_map(|c| (0..3).map(move |i| f64::from(c) + f64::from(i) * 0.12)).collect();
+        x.push(20.0);
+        let d = line(&x);
+        let speck_alone: Vec<usize> = (0..13).map(|i| usize::from(i == 12)).collect();
+        assert_eq!(mean_silhouette(&d, &speck_alone), Some(0.0));
+        let categories: Vec<usize> = (0..13).map(|i| i / 3).collect();
+        assert!(mean_silhouette(&d, &categories).unwrap() > 0.7);
         assert_eq!(silhouette_categories(&x), 5);
     }
 
