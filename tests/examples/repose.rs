@@ -45,7 +45,9 @@ fn main() {
             println!("wrote {out}");
         }
         _ => {
-            eprintln!("usage: repose pose DATA OUT SCALE TILT TURN | repose gt GT FIELD SCALE TILT TURN OUT");
+            eprintln!(
+                "usage: repose pose DATA OUT SCALE TILT TURN | repose gt GT FIELD SCALE TILT TURN OUT"
+            );
             std::process::exit(2);
         }
     }

@@ -17,14 +17,15 @@
 //! metric scale there: what the field resolves, not what a tape measure says.
 //!
 //! [`DetectParams::count_tuned`] counts the values that were tuned (the switches, the seed
-//! and the number of clusters are choices, not tuned values): 40 here, where the detector
+//! and the number of clusters are choices, not tuned values): 39 here, where the detector
 //! had about 85 (30 of them in metres) before it was one documented set (61 when it first
 //! was). Four filters made for the suite's 3-minute fields went since, with their six
 //! values, for changing nothing on the dev fields and losing real objects of an unseen
 //! room; then five vertical tolerances became one ([`DetectParams::blur_levels`]), the
 //! fragment merge lost the four values that its one convexity test made redundant, and the
 //! second round lost its flatness test and its values per kind of support (15 values, the
-//! dev fields mined the same or better without each).
+//! dev fields mined the same or better without each), and its colour window grew with the
+//! seed instead of a fixed radius (one more).
 
 use serde::{Deserialize, Serialize};
 
@@ -234,9 +235,6 @@ pub struct DetectParams {
     /// A surface within this many levels of the ground is a low support (a pallet's deck)
     /// that may carry an object over most of it (9: 0.25 m in the suite's rooms).
     pub low_support_levels: usize,
-    /// Radius of the window around a raised seed for the second K-means, texels (9: 0.25 m
-    /// in the suite's rooms, the reach of a laptop from its screen).
-    pub seed_window_texels: usize,
     /// Share of a footprint's outline that every level of a closed shell walls in (0.95: a
     /// car's body all of it, a table's legs at most a third).
     pub walled_outline_share: f32,
@@ -278,7 +276,6 @@ impl Default for DetectParams {
             ragged_solidity: 0.7,
             ragged_low_levels: 18,
             low_support_levels: 9,
-            seed_window_texels: 9,
             walled_outline_share: 0.95,
             colour: ColourSplit::default(),
             unpack: Unpack::default(),
@@ -511,8 +508,8 @@ mod tests {
 
     #[test]
     fn the_tuned_values_are_counted_from_the_parameters_themselves() {
-        assert_eq!(DetectParams::default().count_tuned(), 40);
-        assert_eq!(DetectParams::paper().count_tuned(), 40);
+        assert_eq!(DetectParams::default().count_tuned(), 39);
+        assert_eq!(DetectParams::paper().count_tuned(), 39);
     }
 
     #[test]

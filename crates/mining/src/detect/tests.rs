@@ -22,7 +22,6 @@ fn params() -> DetectParams {
         thin_radius_texels: 2,
         ragged_low_levels: 10,
         low_support_levels: 5,
-        seed_window_texels: 5,
         ..Default::default()
     }
 }

@@ -321,7 +321,6 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         Ok(r) => r,
         Err(_) => return (Vec::new(), Some(hi)),
     };
-    let grow = p.seed_window_texels.max(1);
     // the window never reaches the rim band (edges of a table have colours of their own)
     let interior = {
         let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
@@ -354,7 +353,10 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
             tracing::trace!(?sb, texels = seed_px.len(), voxels, "seed too small");
             continue;
         }
-        let win = sb.expand(grow, h, w);
+        // the window: the seed's box grown on every side by the seed's larger side (the
+        // second K-means sees as much surface as object, whatever the object's size: a
+        // laptop's keyboard from its screen, a lamp's base from its shade)
+        let win = sb.expand(sb.rows().max(sb.cols()), h, w);
         let mut idx = Vec::new();
         let mut pts = Vec::new();
         for r in win.r0..win.r1 {
