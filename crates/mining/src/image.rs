@@ -395,8 +395,8 @@ impl Mask {
         rect
     }
 
-    /// Corners of every set texel of the mask placed at `(row0, col0)` on the plane, as `(x, y)` =
-    /// `(col, row)`, convex hull (counter-clockwise, no repeated point).
+    /// Convex hull of the corners of every set texel of the mask placed at `(row0, col0)` on
+    /// the plane, as `(x, y)` = `(col, row)` (counter-clockwise, no repeated point).
     pub fn corner_hull(&self, row0: usize, col0: usize) -> Vec<(i64, i64)> {
         let mut pts: Vec<(i64, i64)> = Vec::new();
         for r in 0..self.rows {
@@ -415,12 +415,13 @@ impl Mask {
         let cross = |o: (i64, i64), a: (i64, i64), b: (i64, i64)| {
             (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
         };
-        let mut h: Vec<(i64, i64)> = Vec::with_capacity(2 * pts.len());
+        // Andrew's monotone chain: the lower hull left to right, the upper one back
+        let n = pts.len();
+        let mut h: Vec<(i64, i64)> = Vec::with_capacity(2 * n);
         for pass in 0..2 {
             let start = h.len();
-            let ordered: Vec<(i64, i64)> =
-                if pass == 0 { pts.clone() } else { pts.iter().rev().copied().collect() };
-            for p in ordered {
+            for i in 0..n {
+                let p = if pass == 0 { pts[i] } else { pts[n - 1 - i] };
                 while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], p) <= 0 {
                     h.pop();
                 }

@@ -466,8 +466,9 @@ pub fn mine(
 
     progress.step(3, STEPS, "grouping into categories");
     // the grouping of a set of detections, with their sharp vertical profiles; objects on
-    // different supports are compared with their profiles blurred by the tolerance of a
-    // base (the ground tolerance, levels), copies standing on one ground sharp
+    // different supports are compared with their profiles blurred by the field's vertical
+    // blur (`blur_levels`: a base is estimated within it), copies standing on one ground
+    // sharp
     let blur = opts.detect.blur_levels;
     let group_all = |dets: &Detections| -> Result<(Grouping, Vec<Vec<f64>>)> {
         let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, grid.texel)).collect();

@@ -108,8 +108,10 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
     let (rect, f) = (part.rect, &part.footprint);
     let (h, w) = (f.rows, f.cols);
     let n = f.count();
-    // a part splits into at least two pieces of twice the smallest object each
-    if depth == 0 || n < 4 * min_texels.max(1) {
+    // a piece is at least twice the smallest object, and a part splits into two pieces or
+    // more
+    let smallest_piece = 2 * min_texels;
+    if depth == 0 || n < 2 * smallest_piece {
         return vec![part];
     }
     let idx: Vec<usize> = (0..h * w).filter(|&i| f.data[i]).collect();
@@ -128,7 +130,7 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
         label[i] = km.labels[t];
     }
     // connected pieces of each label; small ones go to their geodesic neighbours
-    let min_piece = share_of(cs.min_piece_share, n).max(2 * min_texels);
+    let min_piece = share_of(cs.min_piece_share, n).max(smallest_piece);
     let mut seeds: Vec<Mask> = Vec::new();
     for l in 0..km.k as u32 {
         // cut thin strips of one colour joining separate objects (an opening, padded so the

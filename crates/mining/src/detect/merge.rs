@@ -7,12 +7,12 @@
 
 use super::Detection;
 use super::context::Ctx;
-use super::shape::{Part, fill_holes};
+use super::shape::{Part, fill_holes, overlap};
 use crate::image::Mask;
 
 /// Whether two parts on the ground are fragments of one object, and if so the merged part:
-/// their boxes overlap and their footprints touch without a texel in common, they reach the same height (tops within
-/// `top_tol` levels, the field's blur), and together they are as convex as one object
+/// their boxes overlap and their footprints touch without a texel in common, they reach the
+/// same height (tops within `top_tol` levels, the field's blur), and together they are as convex as one object
 /// (solidity at least `one_object_solidity`, the colour split's bound for a part that is one
 /// object whatever its colours) and complete each other (the union at least as convex as
 /// the less convex fragment: two objects side by side make a union less convex than
@@ -45,7 +45,7 @@ pub(super) fn fragments_merged(
     };
     let (ma, mb) = (place(a), place(b));
     // a texel in common is nesting (a stool under a table), not two fragments
-    if ma.data.iter().zip(&mb.data).any(|(x, y)| *x && *y) {
+    if overlap(&ma, &mb) > 0 {
         return None;
     }
     let touching = (0..h).any(|r| {
@@ -90,23 +90,25 @@ pub(super) fn footprint_overlap(a: &Detection, b: &Detection) -> usize {
     n
 }
 
+/// Share of each other's footprint that an object found twice covers: a majority, not a tuned
+/// value (0.3 and 0.8 mined every dev field the same).
+const DUPLICATE_OVERLAP: f32 = 0.5;
+
 /// Drop every object found twice, as a piece of the ground (a colour split of its host's
 /// column) and standing on its host: a ground detection without children whose footprint
-/// and a supported detection's each cover the majority of the other (not a tuned value: at
-/// least half; 0.3 and 0.8 mined every dev field the same), with tops within two levels
-/// (`dz` apart). Ids, parents and children are renumbered (ids must equal the
+/// and a supported detection's each cover [`DUPLICATE_OVERLAP`] of the other, with tops
+/// within two levels (`dz` apart). Ids, parents and children are renumbered (ids must equal the
 /// indices). The dropped copy's texels lie within its host's footprint, which the container
 /// fills anyway.
 pub fn drop_duplicates(detections: Vec<Detection>, dz: f32) -> Vec<Detection> {
-    let overlap_share = 0.5;
     debug_assert!(detections.iter().enumerate().all(|(i, d)| d.id == i));
     let duplicate = |g: &Detection, s: &Detection| {
         let overlap = footprint_overlap(g, s) as f32;
         g.parent.is_none()
             && g.children.is_empty()
             && s.parent.is_some()
-            && overlap >= overlap_share * g.footprint.count() as f32
-            && overlap >= overlap_share * s.footprint.count() as f32
+            && overlap >= DUPLICATE_OVERLAP * g.footprint.count() as f32
+            && overlap >= DUPLICATE_OVERLAP * s.footprint.count() as f32
             && (g.top - s.top).abs() <= 2.0 * dz
     };
     let dropped: Vec<bool> =

@@ -233,7 +233,8 @@ pub struct DetectParams {
 
     // --- unpacking ---
     /// A surface within this many levels of the ground is a low support (a pallet's deck)
-    /// that may carry an object over most of it (9: 0.25 m in the suite's rooms).
+    /// whose free surface is not judged: it may carry an object over most of it (9: 0.25 m
+    /// in the suite's rooms).
     pub low_support_levels: usize,
     /// Share of a footprint's outline that every level of a closed shell walls in (0.95: a
     /// car's body all of it, a table's legs at most a third).

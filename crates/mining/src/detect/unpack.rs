@@ -1,7 +1,7 @@
 //! Stage 4: hierarchical unpacking (the paper's "repeat the clustering to unpack the scene",
 //! Fig. 4d). Inside every object, the top surface (a table top) is treated as background: if
-//! it is a slab (or a solid body's top) with something rising above it and enough of it free, each raised blob away from the
-//! rim seeds a background subtraction of the colour features around it (K-means on the
+//! it is a slab (or a solid body's top) with something rising above it and enough of it
+//! free, each raised blob away from the rim seeds a background subtraction of the colour features around it (K-means on the
 //! distances to the surface's median colour), and the connected result, when enclosed by
 //! free surface, becomes a detection supported by the object (laptops on a table, a crate
 //! on a pallet, a lamp on a side table). A low support (a pallet's deck) may have little of
@@ -231,9 +231,8 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         }
         // a support is a thin slab (a table top, a shelf, a pallet's deck) or the top of a
         // solid body (a desk over its drawer pedestal, a side table): then only its top levels
-        // count as the surface, and the checks below are stricter (a free surface away from its
-        // fringe, substantial
-        // seeds) (a body with a gap of a faint level or two is solid too: most levels below
+        // count as the surface, and the checks below are stricter (a free surface away from
+        // its fringe, substantial seeds) (a body with a gap of a faint level or two is solid too: most levels below
         // the slab cover half of it, where a table's legs and ghost layers cover less)
         let below = lo.saturating_sub(start);
         let dense_below =
@@ -301,8 +300,8 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     let free_n = (0..h * w).filter(|&i| judged.data[i] && !near_raised.data[i]).count();
     tracing::debug!(?rect, lo, hi, kstar, solid, free_n, n, "surface");
     // a low support (a pallet's deck, within `low_support_levels` of the ground) carries an
-    // object over most of it: its free surface is a margin, too narrow to judge away from the object; the
-    // rim and ring checks below still apply
+    // object over most of it: its free surface is a margin, too narrow to judge away from
+    // the object; the rim and ring checks below still apply
     let low = low_level(hi);
     // an object held above the surface on a stem (a table lamp: its shade covers most of a
     // side table, leaving no free surface to judge): above the slab a run of levels that
