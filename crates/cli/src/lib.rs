@@ -90,8 +90,9 @@ pub enum Command {
     /// floaters dropped, and a second round inside every object treats its top surface as
     /// background to find objects standing on it. Grouping: K-means labels of the colour
     /// plane (--labels), label histograms, Jensen-Shannon divergence plus a size term and
-    /// the divergence of the objects' vertical profiles, average-linkage clustering cut at
-    /// the highest mean silhouette (or --categories / --distance). Identical objects pushed
+    /// the divergence of the objects' vertical profiles, average-linkage clustering cut where
+    /// groups are at least the minimum separation apart (or --auto-cut, --categories,
+    /// --distance). Identical objects pushed
     /// together are cut apart when the same object stands alone elsewhere (--no-copies).
     /// Templates: medoids (--template to choose); every instance's yaw and position come
     /// from rotating the template patch onto it. Writes LIB_DIR/index.ron,

@@ -17,14 +17,13 @@
 //! with `A` the footprint area, `H` the height above the object's base, `w` the shape weight
 //! and `tol` a dead zone for reconstruction noise. Average-linkage agglomerative clustering
 //! follows; the dendrogram is cut at a given number of categories, at a distance, or
-//! automatically where the categories are best separated: among the cuts whose next merge
-//! is at least [`GroupOptions::min_separation`] high, the one of highest mean *silhouette*
-//! (see [`silhouette_cut`]). The silhouette weighs every object's distance to its own
-//! category against its distance to the nearest other one, so fine categories (red vs blue
-//! chairs) stay apart when coarse ones (chairs vs tables) are much further, and one far
-//! outlier (a haze speck) stays alone instead of deciding the cut for everyone, as it does
-//! with the largest ratio of consecutive merge heights ([`auto_cut`], kept as
-//! [`GroupCut::LargestRatio`]).
+//! automatically at [`GroupOptions::min_separation`] ([`separation_cut`]): two groups of
+//! objects further apart than the reconstruction noise between copies of one object are two
+//! categories, however far other groups lie. The cut of highest mean *silhouette* among
+//! those separated by the minimum ([`silhouette_cut`], [`GroupCut::Silhouette`]) and the
+//! largest ratio of consecutive merge heights ([`auto_cut`], [`GroupCut::LargestRatio`])
+//! are kept: both compare merge heights with each other, so one far group can decide them
+//! for everyone.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -43,9 +42,13 @@ use glam::Vec3;
 /// Where to cut the dendrogram.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub enum GroupCut {
+    /// Every merge below [`GroupOptions::min_separation`] applied, none above: groups of
+    /// objects further apart than the reconstruction noise between copies of one object
+    /// are categories.
+    #[default]
+    Separation,
     /// The cut of highest mean silhouette among those separated by at least
     /// [`GroupOptions::min_separation`] ([`silhouette_cut`]).
-    #[default]
     Silhouette,
     /// The largest ratio between consecutive merge heights ([`auto_cut`]).
     LargestRatio,
@@ -96,7 +99,7 @@ impl Default for GroupOptions {
         GroupOptions {
             labels: 24,
             soft: true,
-            cut: GroupCut::Silhouette,
+            cut: GroupCut::Separation,
             linkage: Linkage::Average,
             shape_weight: 1.0,
             profile_weight: 1.0,
@@ -256,6 +259,16 @@ pub fn silhouette_cut(dendro: &Dendrogram, dist: &DistanceMatrix, min_separation
         }
     }
     best.map_or(n.saturating_sub(1), |(m, _)| m)
+}
+
+/// Number of merges to apply: those below `min_separation` (merge heights only grow along
+/// an average-linkage dendrogram), so that every two groups of objects further apart than
+/// the reconstruction noise between copies of one object stay two categories, however far
+/// other groups are. (The silhouette compares distances: one group of objects far from
+/// every other, such as several large vehicles joined into one detection, makes all the
+/// others look alike and the silhouette's best cut keeps only that group apart.)
+pub fn separation_cut(dendro: &Dendrogram, min_separation: f64) -> usize {
+    dendro.merges.iter().take_while(|m| m.distance < min_separation).count()
 }
 
 /// What the label histograms are built from: feature vectors (`[len][dim]`), each with a
@@ -603,6 +616,14 @@ pub fn group_samples_with(
     let (cut, desc) = match opts.cut {
         GroupCut::Categories(c) => (Cut::Clusters(c), format!("{c} categories (given)")),
         GroupCut::Distance(t) => (Cut::Distance(t), format!("distance {t} (given)")),
+        GroupCut::Separation => {
+            let t = opts.min_separation;
+            let k = n - separation_cut(&dendro, t);
+            let desc = format!(
+                "automatic: groups of objects at least {t} apart are categories, {k} categories"
+            );
+            (Cut::Clusters(k), desc)
+        }
         GroupCut::Silhouette => {
             let m = silhouette_cut(&dendro, &distance, opts.min_separation);
             let k = n - m;
@@ -712,6 +733,25 @@ mod tests {
         let categories: Vec<usize> = (0..13).map(|i| i / 3).collect();
         assert!(mean_silhouette(&d, &categories).unwrap() > 0.7);
         assert_eq!(silhouette_categories(&x), 5);
+    }
+
+    #[test]
+    fn a_far_group_keeps_nobody_else_together_with_the_separation_cut() {
+        // four categories of three (0.5 apart) and, 20 away, a pair of unlike large objects
+        // (1.5 apart): the silhouette's best cut keeps only the far pair apart, the
+        // separation cut keeps every category
+        let mut x: Vec<f64> = (0..4)
+            .flat_map(|c| (0..3).map(move |i| f64::from(c) * 0.5 + f64::from(i) * 0.01))
+            .collect();
+        x.extend([20.0, 21.5]);
+        let d = line(&x);
+        let dendro = linkage(&d, Linkage::Average);
+        assert_eq!(silhouette_categories(&x), 2);
+        assert_eq!(x.len() - separation_cut(&dendro, 0.12), 6);
+        // and groups within the minimum separation are one category
+        let x = [0.0, 0.02, 0.05, 0.03, 0.9];
+        let dendro = linkage(&line(&x), Linkage::Average);
+        assert_eq!(x.len() - separation_cut(&dendro, 0.12), 2);
     }
 
     #[test]

@@ -76,6 +76,8 @@ impl MineOptions {
             o.yaw_on = YawOn::Density;
             o.group.split_copies = false;
             o.group.profile_weight = 0.0;
+            // the cut its baseline tables were measured with
+            o.group.cut = crate::group::GroupCut::Silhouette;
         }
         o
     }

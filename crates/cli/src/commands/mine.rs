@@ -162,12 +162,14 @@ pub struct MineArgs {
     #[arg(long, conflicts_with = "distance")]
     pub categories: Option<usize>,
     /// How the number of categories is chosen when neither --categories nor --distance is
-    /// given: silhouette (the cut of highest mean silhouette: each object's distance to its
-    /// own category against the nearest other one) or largest-ratio (where the next merge
-    /// height is largest relative to the previous one). Either way, groups closer than the
-    /// minimum separation (0.12) are one category.
-    #[arg(long, value_enum, default_value_t = AutoCutArg::Silhouette)]
-    pub auto_cut: AutoCutArg,
+    /// given: separation (every group of objects at least the minimum separation, 0.12,
+    /// apart is a category), silhouette (among those cuts, the one of highest mean
+    /// silhouette: each object's distance to its own category against the nearest other one)
+    /// or largest-ratio (where the next merge height is largest relative to the previous
+    /// one). Either way, groups closer than the minimum separation are one category.
+    /// [default: separation; silhouette with --preset paper, as its tables were measured]
+    #[arg(long, value_enum)]
+    pub auto_cut: Option<AutoCutArg>,
     /// Cut the dendrogram at this distance (JSD in bits plus the shape term) instead.
     #[arg(long, value_name = "T")]
     pub distance: Option<f64>,
@@ -256,6 +258,8 @@ pub enum LinkageArg {
 /// `--auto-cut`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum AutoCutArg {
+    /// Every group of objects at least the minimum separation (0.12) apart.
+    Separation,
     /// The cut of highest mean silhouette.
     Silhouette,
     /// The largest ratio between consecutive merge heights.
@@ -394,8 +398,10 @@ pub fn mine(a: MineArgs) -> Result<()> {
         (Some(n), _) => GroupCut::Categories(n),
         (None, Some(t)) => GroupCut::Distance(t),
         (None, None) => match a.auto_cut {
-            AutoCutArg::Silhouette => GroupCut::Silhouette,
-            AutoCutArg::LargestRatio => GroupCut::LargestRatio,
+            None => o.group.cut,
+            Some(AutoCutArg::Separation) => GroupCut::Separation,
+            Some(AutoCutArg::Silhouette) => GroupCut::Silhouette,
+            Some(AutoCutArg::LargestRatio) => GroupCut::LargestRatio,
         },
     };
     o.group_on = a.group_on.choice();

@@ -199,12 +199,20 @@ fn parts_of_regions(cx: &Ctx, mask: &Mask, removed: &mut Vec<Removed>) -> Result
     } else {
         Vec::new()
     };
+    let enclosed = shape::fill_empty_holes(mask);
     let mut parts = Vec::new();
     for (ri, reg) in regions.iter().enumerate() {
         check_interrupt()?;
         let cols_mask = shape::region_columns(&regions, ri);
-        // a wall ring around the room: judge its own pixels, not the filled footprint
-        if let Some(reason) = filters::wall(cx, &reg.pixels, reg.bbox) {
+        // a wall ring around the room: judge its own pixels, not the filled footprint, but
+        // with its empty holes filled (a hollow object's sides are not a wall)
+        let own = Mask::from_fn(reg.bbox.rows(), reg.bbox.cols(), |r, c| {
+            let (gr, gc) = (reg.bbox.r0 + r, reg.bbox.c0 + c);
+            reg.pixels.get(r, c)
+                || (reg.footprint.get(r, c) && enclosed.get(gr, gc) && !mask.get(gr, gc))
+        });
+        let judged = if walls::hollow(cx, &reg.pixels, &own)? { &own } else { &reg.pixels };
+        if let Some(reason) = filters::wall(cx, judged, reg.bbox) {
             removed.push(Removed { world: grid.rect_to_world(reg.bbox), reason });
             continue;
         }

@@ -55,6 +55,57 @@ pub fn fill_holes(mask: &Mask) -> Mask {
     Mask { rows, cols, data: outside.iter().map(|&o| !o).collect() }
 }
 
+/// Fill the *empty* holes of a mask: the holes (background not 4-connected to the image
+/// border) that enclose no texel of the mask. An enclosure with nothing inside is the shell of
+/// one object whose inside the field left empty (a van's sides with no roof learnt); an
+/// enclosure holding objects is a container (a room's walls) and keeps its hole.
+pub(super) fn fill_empty_holes(mask: &Mask) -> Mask {
+    let (rows, cols) = (mask.rows, mask.cols);
+    let filled = fill_holes(mask);
+    let mut seen = vec![false; rows * cols];
+    let mut out = mask.clone();
+    let mut queue = VecDeque::new();
+    let mut hole = Vec::new();
+    for start in 0..rows * cols {
+        if seen[start] || mask.data[start] || !filled.data[start] {
+            continue;
+        }
+        // one hole: 4-connected background inside the mask
+        hole.clear();
+        seen[start] = true;
+        queue.push_back(start);
+        while let Some(i) = queue.pop_front() {
+            hole.push(i);
+            let (r, c) = (i / cols, i % cols);
+            for (dr, dc) in [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)] {
+                let (nr, nc) = (r.wrapping_add_signed(dr), c.wrapping_add_signed(dc));
+                if nr < rows && nc < cols {
+                    let j = nr * cols + nc;
+                    if !seen[j] && !mask.data[j] {
+                        seen[j] = true;
+                        queue.push_back(j);
+                    }
+                }
+            }
+        }
+        let bb = hole.iter().fold(PixelRect::new(rows, cols, 0, 0), |b, &i| {
+            let (r, c) = (i / cols, i % cols);
+            PixelRect::new(b.r0.min(r), b.c0.min(c), b.r1.max(r + 1), b.c1.max(c + 1))
+        });
+        let mut own = Mask { rows: bb.rows(), cols: bb.cols(), data: vec![false; bb.area()] };
+        for &i in &hole {
+            own.set(i / cols - bb.r0, i % cols - bb.c0, true);
+        }
+        // a hole encloses an island when it has a hole of its own
+        if fill_holes(&own).count() == hole.len() {
+            for &i in &hole {
+                out.data[i] = true;
+            }
+        }
+    }
+    out
+}
+
 /// Pixels of `mask` with an 8-neighbour outside it (or on the image edge).
 pub(super) fn border_ring(mask: &Mask) -> Mask {
     let (rows, cols) = (mask.rows, mask.cols);

@@ -768,3 +768,66 @@ fn a_tilted_ground_is_refused_with_advice_and_a_level_one_is_measured() {
     assert!(floor::ground_tilt(&level, &params()).unwrap().0 < 0.01);
     assert!(floor::ground_tilt(&OpacityVolume::empty(rows, cols, nz, 0.05), &params()).is_none());
 }
+
+#[test]
+fn empty_enclosures_fill_and_enclosures_holding_something_do_not() {
+    // a ring with nothing inside, a ring around an island, a U open to the outside
+    let m = Mask::from_fn(20, 40, |r, c| {
+        let ring = |r0: usize, c0: usize| {
+            (r0..r0 + 8).contains(&r)
+                && (c0..c0 + 8).contains(&c)
+                && (r == r0 || r == r0 + 7 || c == c0 || c == c0 + 7)
+        };
+        let island = (5..7).contains(&r) && (15..17).contains(&c);
+        let u = (2..10).contains(&r) && (26..34).contains(&c) && (c == 26 || c == 33 || r == 9);
+        ring(2, 2) || ring(2, 12) || island || u
+    });
+    let f = shape::fill_empty_holes(&m);
+    assert!(f.get(5, 5), "the empty ring is filled");
+    assert_eq!(f.count() - m.count(), 36, "only the empty ring's inside is added");
+    assert!(!f.get(4, 14), "the ring around an island keeps its hole");
+    assert!(!f.get(5, 30), "an open U has no hole");
+}
+
+#[test]
+fn a_roofless_shell_is_one_object_and_the_room_s_walls_around_it_are_walls() {
+    // a room's walls (two texels thick all round) holding a box and the sides of a long
+    // object whose top the field did not learn (a white van roof under a white sky): its
+    // sides are thin and as long as the room's walls, but nothing stands inside them
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 30);
+    fill(&mut v, (0, rows), (0, cols), (2, 20), 0.95);
+    fill(&mut v, (2, rows - 2), (2, cols - 2), (2, 20), 0.0);
+    fill(&mut v, (40, 50), (30, 40), (2, 10), 0.95); // the box
+    fill(&mut v, (8, 26), (10, 60), (2, 16), 0.95); // the shell, 18 x 50 texels
+    fill(&mut v, (10, 24), (12, 58), (2, 16), 0.0);
+    let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
+    let boxes = rects(&d);
+    assert!(boxes.iter().any(|&r| within_a_texel(r, PixelRect::new(8, 10, 26, 60))), "{boxes:?}");
+    assert!(boxes.iter().any(|&r| within_a_texel(r, PixelRect::new(40, 30, 50, 40))), "{boxes:?}");
+    assert_eq!(boxes.len(), 2, "{boxes:?} removed {:?}", d.removed);
+    assert!(
+        d.removed.iter().any(|r| matches!(r.reason, RemovalReason::Wall { .. })),
+        "{:?}",
+        d.removed
+    );
+}
+
+#[test]
+fn a_wall_corner_closed_off_by_a_streak_is_still_a_wall() {
+    // walls along two sides (an L, two texels thick) and a one-texel streak of haze across
+    // the corner: the streak closes an empty triangle, which is no hollow object, for most
+    // of the L stays thin with the triangle filled
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 30);
+    fill(&mut v, (0, 2), (0, cols), (2, 20), 0.95);
+    fill(&mut v, (0, rows), (0, 2), (2, 20), 0.95);
+    for i in 2..14 {
+        fill(&mut v, (i, i + 1), (15 - i, 16 - i), (2, 4), 0.95);
+    }
+    fill(&mut v, (40, 50), (30, 40), (2, 10), 0.95); // a box
+    let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
+    let boxes = rects(&d);
+    assert_eq!(boxes.len(), 1, "{boxes:?} removed {:?}", d.removed);
+    assert!(within_a_texel(boxes[0], PixelRect::new(40, 30, 50, 40)), "{boxes:?}");
+}

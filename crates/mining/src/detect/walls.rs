@@ -1,10 +1,12 @@
 //! Stage 2b: walls, even where objects lean on them. A wall is a thin structure that an
 //! opening of its half thickness removes and that runs a long way; it is cut out of the
 //! first-round mask before regions are formed, so that a chair against a wall stays a chair.
+//! An enclosure with nothing inside it is not a wall but the sides of one hollow object.
 
 use super::Removed;
 use super::context::Ctx;
 use super::filters::RemovalReason;
+use super::shape::fill_empty_holes;
 use crate::contours::components;
 use crate::error::Result;
 use crate::image::Mask;
@@ -17,10 +19,27 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
         return Ok(mask);
     }
     let (rows, cols) = (mask.rows, mask.cols);
-    let r = (p.wall_half_thickness_texels.round() as usize).max(1);
-    let core = crate::morphology::open(&mask, r)?;
-    let near_core = crate::morphology::dilate(&core, 1)?;
-    let thin = Mask::from_fn(rows, cols, |rr, cc| mask.get(rr, cc) && !near_core.get(rr, cc));
+    let r = half_thickness(cx);
+    let near_core_plain = near_core(&mask, r)?;
+    let near_core_filled = near_core(&fill_empty_holes(&mask), r)?;
+    // per component, the judgement with its empty holes filled when that makes it mostly
+    // solid (a hollow object), else the plain one (a wall whose corner a streak of haze
+    // closes off is still a wall)
+    let (labels, sizes) = crate::contours::label_components(&mask)?;
+    let mut solid_when_filled = vec![0usize; sizes.len()];
+    for (i, &l) in labels.iter().enumerate() {
+        if l != u32::MAX && near_core_filled.data[i] {
+            solid_when_filled[l as usize] += 1;
+        }
+    }
+    let hollow: Vec<bool> =
+        sizes.iter().zip(&solid_when_filled).map(|(&n, &s)| 2 * s > n).collect();
+    let thin = Mask::from_fn(rows, cols, |rr, cc| {
+        let i = rr * cols + cc;
+        mask.data[i]
+            && !(if hollow[labels[i] as usize] { &near_core_filled } else { &near_core_plain }).data
+                [i]
+    });
     let mut walls = Mask::empty(rows, cols)?;
     let longest = rows.max(cols) as f32;
     for reg in components(&thin)? {
@@ -44,4 +63,22 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
     }
     let cleaned = Mask::from_fn(rows, cols, |rr, cc| mask.get(rr, cc) && !walls.get(rr, cc));
     remove_small(&cleaned, cx.min_texels)
+}
+
+/// The opening radius that removes a wall, texels.
+fn half_thickness(cx: &Ctx) -> usize {
+    (cx.p.wall_half_thickness_texels.round() as usize).max(1)
+}
+
+/// The texels of `mask` within one texel of what survives an opening of radius `r`: its
+/// solid parts.
+fn near_core(mask: &Mask, r: usize) -> Result<Mask> {
+    crate::morphology::dilate(&crate::morphology::open(mask, r)?, 1)
+}
+
+/// Whether a region is a hollow object's sides rather than a wall: with its empty holes
+/// filled (`filled`, over the same box), most of its own `pixels` are solid.
+pub(super) fn hollow(cx: &Ctx, pixels: &Mask, filled: &Mask) -> Result<bool> {
+    let solid = near_core(filled, half_thickness(cx))?;
+    Ok(2 * super::shape::overlap(pixels, &solid) > pixels.count())
 }
