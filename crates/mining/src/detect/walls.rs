@@ -79,6 +79,17 @@ fn near_core(mask: &Mask, r: usize) -> Result<Mask> {
 /// Whether a region is a hollow object's sides rather than a wall: with its empty holes
 /// filled (`filled`, over the same box), most of its own `pixels` are solid.
 pub(super) fn hollow(cx: &Ctx, pixels: &Mask, filled: &Mask) -> Result<bool> {
-    let solid = near_core(filled, half_thickness(cx))?;
-    Ok(2 * super::shape::overlap(pixels, &solid) > pixels.count())
+    let r = half_thickness(cx);
+    // padded, so that the box edge does not protect texels from the opening
+    let pad = |m: &Mask| {
+        Mask::from_fn(m.rows + 2 * r + 2, m.cols + 2 * r + 2, |rr, cc| {
+            rr > r
+                && cc > r
+                && rr - r - 1 < m.rows
+                && cc - r - 1 < m.cols
+                && m.get(rr - r - 1, cc - r - 1)
+        })
+    };
+    let solid = near_core(&pad(filled), r)?;
+    Ok(2 * super::shape::overlap(&pad(pixels), &solid) > pixels.count())
 }
