@@ -21,7 +21,10 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
     let (rows, cols) = (mask.rows, mask.cols);
     let r = half_thickness(cx);
     let near_core_plain = near_core(&mask, r)?;
-    let near_core_filled = near_core(&fill_empty_holes(&mask), r)?;
+    let filled = fill_empty_holes(&mask);
+    // no empty hole: the filled judgement is the plain one
+    let near_core_filled =
+        if filled == mask { near_core_plain.clone() } else { near_core(&filled, r)? };
     // per component, the judgement with its empty holes filled when that makes it mostly
     // solid (a hollow object), else the plain one (a wall whose corner a streak of haze
     // closes off is still a wall)
@@ -33,7 +36,7 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
         }
     }
     let hollow: Vec<bool> =
-        sizes.iter().zip(&solid_when_filled).map(|(&n, &s)| 2 * s > n).collect();
+        sizes.iter().zip(&solid_when_filled).map(|(&n, &s)| mostly(s, n)).collect();
     let thin = Mask::from_fn(rows, cols, |rr, cc| {
         let i = rr * cols + cc;
         mask.data[i]
@@ -91,5 +94,10 @@ pub(super) fn hollow(cx: &Ctx, pixels: &Mask, filled: &Mask) -> Result<bool> {
         })
     };
     let solid = near_core(&pad(filled), r)?;
-    Ok(2 * super::shape::overlap(&pad(pixels), &solid) > pixels.count())
+    Ok(mostly(super::shape::overlap(&pad(pixels), &solid), pixels.count()))
+}
+
+/// The hollow test's majority: `part` is more than half of `of`.
+fn mostly(part: usize, of: usize) -> bool {
+    2 * part > of
 }
