@@ -23,14 +23,38 @@ pub(super) struct Blob {
     proj_count: usize,
 }
 
-/// 6-connected (face-neighbour) components of the voxels `>= tau` in levels `start..`, in the columns set in
-/// `cols_mask` (over `rect`).
+/// Whether level `k` of an opacity column is opaque at threshold `tau`: its own opacity
+/// reaches `tau`, or it is the peak of a thin surface whose opacity, spread over the
+/// `window` levels centred on it, reaches `tau` together (`1 - prod (1 - o)`). The
+/// first-round evidence counts such a surface (a desk top, a shelf board the field spreads
+/// over a few levels) in its column; the 3D components must count it too, or an object
+/// falls apart into the parts its thin surface joins. Only the peak level is added, so
+/// nothing solid grows thicker.
+pub(super) fn opaque(col: &[f32], k: usize, tau: f32, window: usize) -> bool {
+    let o = col[k];
+    if o >= tau {
+        return true;
+    }
+    let below = k.checked_sub(1).map_or(0.0, |j| col[j]);
+    let above = col.get(k + 1).copied().unwrap_or(0.0);
+    if o < below || o < above || window < 2 {
+        return false;
+    }
+    let a = k.saturating_sub((window - 1) / 2);
+    let b = (a + window).min(col.len());
+    1.0 - col[a..b].iter().fold(1f32, |t, &v| t * (1.0 - v)) >= tau
+}
+
+/// 6-connected (face-neighbour) components of the [`opaque`] voxels (threshold `tau`, thin
+/// surfaces over `window` levels) in levels `start..`, in the columns set in `cols_mask`
+/// (over `rect`).
 pub(super) fn blobs(
     vol: &OpacityVolume,
     rect: PixelRect,
     cols_mask: &Mask,
     start: usize,
     tau: f32,
+    window: usize,
 ) -> Vec<Blob> {
     let (h, w) = (rect.rows(), rect.cols());
     let nzl = vol.nz.saturating_sub(start);
@@ -46,7 +70,7 @@ pub(super) fn blobs(
             }
             let col = vol.column(rect.r0 + r, rect.c0 + c);
             for k in 0..nzl {
-                occ[idx(r, c, k)] = col[start + k] >= tau;
+                occ[idx(r, c, k)] = opaque(col, start + k, tau, window);
             }
         }
     }
@@ -140,7 +164,7 @@ pub(super) fn split_region(cx: &Ctx, rect: PixelRect, cols: &Mask) -> Vec<Part> 
     let (vol, start, ground, ground_tol, tau) =
         (cx.vol, cx.start, cx.ground, cx.ground_tol, cx.tau);
     let (min_texels, split_3d) = (cx.min_texels, cx.p.stages.split_3d);
-    let bl = blobs(vol, rect, cols, start, tau);
+    let bl = blobs(vol, rect, cols, start, tau, cx.p.blur_levels);
     let whole = |kmin: usize, kmax: usize| Part { rect, footprint: cols.clone(), kmin, kmax };
     let (kmin, kmax) = bl.iter().fold((usize::MAX, 0), |(a, b), x| (a.min(x.kmin), b.max(x.kmax)));
     let (kmin, kmax) = if kmin == usize::MAX { (start, start) } else { (kmin, kmax) };
@@ -271,8 +295,9 @@ pub(super) fn stands(
     start: usize,
     ground: usize,
     tau: f32,
+    window: usize,
 ) -> bool {
-    let bl = blobs(vol, rect, m, start, tau);
+    let bl = blobs(vol, rect, m, start, tau, window);
     // the bottom of the largest floating component (a table top over legs the field lost in
     // part); none: standing when anything reaches the ground
     let top = bl.iter().filter(|b| b.kmin > ground).max_by_key(|b| b.proj_count).map(|b| b.kmin);
@@ -320,8 +345,10 @@ pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mas
         .collect();
     // floating pieces join their longest-bordering neighbour
     loop {
-        let grounded: Vec<bool> =
-            pieces.iter().map(|p| stands(vol, rect, p, start, ground + ground_tol, tau)).collect();
+        let grounded: Vec<bool> = pieces
+            .iter()
+            .map(|p| stands(vol, rect, p, start, ground + ground_tol, tau, cx.p.blur_levels))
+            .collect();
         let Some(f) = (0..pieces.len()).find(|&i| !grounded[i]) else { break };
         let mut border = vec![0usize; pieces.len()];
         for r in 0..h {

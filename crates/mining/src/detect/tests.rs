@@ -730,17 +730,17 @@ fn floating_heads_do_not_stand_on_specks() {
         (1..5).contains(&r) && (1..5).contains(&c) && (30..=33).contains(&k)
             || (r, c) == (2, 2) && k <= 3
     });
-    assert!(!stands(&head, rect, &all, 0, 2, 0.5));
+    assert!(!stands(&head, rect, &all, 0, 2, 0.5, 3));
     // a table top at levels 10..=11 over legs the field kept up to level 6
     let table = vol(&|r, c, k| {
         (10..=11).contains(&k) || [(0, 0), (0, 5), (5, 0), (5, 5)].contains(&(r, c)) && k <= 6
     });
-    assert!(stands(&table, rect, &all, 0, 2, 0.5));
+    assert!(stands(&table, rect, &all, 0, 2, 0.5, 3));
     // a post from the ground up
     let post = vol(&|r, c, _| (r, c) == (3, 3));
-    assert!(stands(&post, rect, &all, 0, 2, 0.5));
+    assert!(stands(&post, rect, &all, 0, 2, 0.5, 3));
     // nothing at all
-    assert!(!stands(&vol(&|_, _, _| false), rect, &all, 0, 2, 0.5));
+    assert!(!stands(&vol(&|_, _, _| false), rect, &all, 0, 2, 0.5, 3));
 }
 
 #[test]
@@ -830,4 +830,40 @@ fn a_wall_corner_closed_off_by_a_streak_is_still_a_wall() {
     let boxes = rects(&d);
     assert_eq!(boxes.len(), 1, "{boxes:?} removed {:?}", d.removed);
     assert!(within_a_texel(boxes[0], PixelRect::new(40, 30, 50, 40)), "{boxes:?}");
+}
+
+#[test]
+fn a_thin_surface_is_opaque_at_its_peak_only() {
+    use super::split::opaque;
+    let tau = 0.4;
+    // a solid voxel; a surface spread over two levels (0.35 each: 0.58 together) is one
+    // voxel thick (the first peak level whose window holds it); the same surface spread over
+    // four levels (0.15 each) is fog
+    let col = [0.0, 0.95, 0.0, 0.0, 0.35, 0.35, 0.0, 0.0, 0.15, 0.15, 0.15, 0.15, 0.0];
+    let occupied: Vec<usize> = (0..col.len()).filter(|&k| opaque(&col, k, tau, 2)).collect();
+    assert_eq!(occupied, vec![1, 4]);
+    // nothing solid grows: the blur tail next to a solid voxel is below its neighbour
+    let col = [0.0, 0.3, 0.95, 0.3, 0.0];
+    let occupied: Vec<usize> = (0..col.len()).filter(|&k| opaque(&col, k, tau, 3)).collect();
+    assert_eq!(occupied, vec![2]);
+    // a window of one level is the plain threshold
+    assert!(!opaque(&[0.0, 0.35, 0.35, 0.0], 1, tau, 1));
+}
+
+#[test]
+fn a_desk_whose_thin_top_joins_its_drawer_blocks_is_one_object() {
+    // two drawer blocks (levels 2..10) under a desk top the field spread thin over levels
+    // 8..10 (0.35 a level: below the voxel threshold, above it over the two levels)
+    let (rows, cols) = (30, 50);
+    let mut v = floor_volume(rows, cols, 16);
+    fill(&mut v, (5, 17), (5, 13), (2, 10), 0.95);
+    fill(&mut v, (5, 17), (32, 40), (2, 10), 0.95);
+    fill(&mut v, (5, 17), (13, 32), (8, 10), 0.35);
+    let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
+    assert!(
+        d.voxel_threshold > 0.35 && d.voxel_threshold < 0.5,
+        "the premise: one level of the top is below the threshold, two are above ({})",
+        d.voxel_threshold
+    );
+    assert_eq!(rects(&d), vec![PixelRect::new(5, 5, 17, 40)], "{:?}", d.removed);
 }
