@@ -454,7 +454,9 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
             }
         }
         tracing::trace!(ring_s, ring_n, "ring of free surface");
-        if ring_n == 0 || !at_least(ring_s, up.ring_free_share, ring_n) {
+        // (a majority, not a tuned share: a monitor at a desk's back edge has a third of its
+        // ring over the edge; 0.6 lost three of the suite office's six)
+        if ring_n == 0 || !more_than(ring_s, 0.5, ring_n) {
             continue;
         }
         or_into(&mut taken, &comp);
