@@ -25,7 +25,8 @@ pub(super) struct Blob {
 
 /// Whether level `k` of an opacity column is opaque at threshold `tau`: its own opacity
 /// reaches `tau`, or it is the peak of a thin surface whose opacity, spread over the
-/// `window` levels centred on it, reaches `tau` together (`1 - prod (1 - o)`). The
+/// `window` levels around it (from `(window - 1) / 2` below it up), reaches `tau` together
+/// (`1 - prod (1 - o)`). The
 /// first-round evidence counts such a surface (a desk top, a shelf board the field spreads
 /// over a few levels) in its column; the 3D components must count it too, or an object
 /// falls apart into the parts its thin surface joins. Only the peak level is added, so

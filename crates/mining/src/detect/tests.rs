@@ -867,3 +867,19 @@ fn a_desk_whose_thin_top_joins_its_drawer_blocks_is_one_object() {
     );
     assert_eq!(rects(&d), vec![PixelRect::new(5, 5, 17, 40)], "{:?}", d.removed);
 }
+
+#[test]
+fn a_monitor_along_a_desk_s_faded_back_edge_unpacks() {
+    // a desk-like solid body (levels 2..=12) whose top fades along its back edge (rows 5..8:
+    // the field's blurred fringe), and a monitor standing along that edge: the side of its
+    // ring over the fringe is no free surface, the rest is, a majority but not 60%
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 24);
+    fill(&mut v, (5, 29), (10, 50), (2, 13), 0.95);
+    fill(&mut v, (5, 8), (10, 50), (10, 13), 0.1);
+    fill(&mut v, (8, 12), (20, 36), (13, 20), 0.95);
+    let color = painted(rows, cols, (8..12, 20..36), [0.1, 0.1, 0.1], [0.9, 0.9, 0.85]);
+    let d = detect_small(&v, &color);
+    let child = only_child(&d);
+    assert!(within_a_texel(child.rect, PixelRect::new(8, 20, 12, 36)), "{:?}", child.rect);
+}
