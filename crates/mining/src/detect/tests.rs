@@ -446,17 +446,26 @@ fn empty_fields_and_bad_options_are_errors() {
     assert!(detect(&grid, &v2, &wrong, None, &params()).is_err());
 }
 
+/// A 60 x 80 floor with a desk-like solid body (rows 5..29, columns 10..50, levels 2..=12)
+/// and a monitor on its top over `rows` x `cols` (levels 13..20), dark on a light plane.
+fn desk_with_a_dark_monitor(
+    rows: (usize, usize),
+    cols: (usize, usize),
+) -> (OpacityVolume, PlaneImage) {
+    let mut v = floor_volume(60, 80, 24);
+    fill(&mut v, (5, 29), (10, 50), (2, 13), 0.95);
+    fill(&mut v, rows, cols, (13, 20), 0.95);
+    let color = painted(60, 80, (rows.0..rows.1, cols.0..cols.1), [0.1; 3], [0.9, 0.9, 0.85]);
+    (v, color)
+}
+
 #[test]
 fn objects_on_a_solid_body_unpack_but_specks_do_not() {
     // a desk-like solid body (levels 2..=12 over its whole footprint) with a dark monitor
     // standing on its top away from the rim, and a one-texel speck of haze above it
     let (rows, cols) = (60, 80);
-    let mut v = floor_volume(rows, cols, 24);
-    fill(&mut v, (5, 29), (10, 50), (2, 13), 0.95);
-    fill(&mut v, (12, 22), (25, 29), (13, 20), 0.95);
+    let (mut v, color) = desk_with_a_dark_monitor((12, 22), (25, 29));
     fill(&mut v, (8, 9), (45, 46), (14, 16), 0.95);
-    // the dark in one colour, the rest in another
-    let color = painted(rows, cols, (12..22, 25..29), [0.1, 0.1, 0.1], [0.9, 0.9, 0.85]);
     let d = detect_small(&v, &color);
     let child = only_child(&d);
     assert_eq!(child.rect, PixelRect::new(12, 25, 22, 29));
@@ -873,12 +882,8 @@ fn a_monitor_along_a_desk_s_faded_back_edge_unpacks() {
     // a desk-like solid body (levels 2..=12) whose top fades along its back edge (rows 5..8:
     // the field's blurred fringe), and a monitor standing along that edge: the side of its
     // ring over the fringe is no free surface, the rest is, a majority but not 60%
-    let (rows, cols) = (60, 80);
-    let mut v = floor_volume(rows, cols, 24);
-    fill(&mut v, (5, 29), (10, 50), (2, 13), 0.95);
+    let (mut v, color) = desk_with_a_dark_monitor((8, 12), (20, 36));
     fill(&mut v, (5, 8), (10, 50), (10, 13), 0.1);
-    fill(&mut v, (8, 12), (20, 36), (13, 20), 0.95);
-    let color = painted(rows, cols, (8..12, 20..36), [0.1, 0.1, 0.1], [0.9, 0.9, 0.85]);
     let d = detect_small(&v, &color);
     let child = only_child(&d);
     assert!(within_a_texel(child.rect, PixelRect::new(8, 20, 12, 36)), "{:?}", child.rect);
