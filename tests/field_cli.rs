@@ -221,36 +221,73 @@ fn resume_continues_the_run() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Start an endless `train` in `dir` (dataset `d`), send it `signal` once it runs, and check
+/// that it stops with status 130, a checkpoint and no field file.
 #[cfg(unix)]
-#[test]
-fn ctrl_c_saves_a_checkpoint_and_no_field() {
+fn signal_stops_training_with_a_checkpoint(dir: &Path, signal: &str) {
     use std::process::{Command, Stdio};
-    let dir = scratch("field-ctrlc");
-    synth_tiny(&dir);
     let child = Command::new(assetfield_tests::assetfield_bin())
         .args(["train", "d", "--out", "f.safetensors", "--iters", "1000000", "--res", "32"])
-        .args(["--batch", "256"])
-        .current_dir(&dir)
+        .args(["--batch", "256", "--force"])
+        .current_dir(dir)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     // wait until training runs (the box is printed just before the first step)
     std::thread::sleep(std::time::Duration::from_millis(1500));
-    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
-    assert!(status.success());
+    let status =
+        Command::new("kill").args([&format!("-{signal}"), &child.id().to_string()]).status();
+    assert!(status.unwrap().success());
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(130), "{err}");
-    assert!(err.contains("f.ckpt.safetensors") && err.contains("--resume"), "{err}");
-    assert!(dir.join("f.ckpt.safetensors").exists());
-    assert!(!dir.join("f.safetensors").exists(), "no half-trained field file");
+    assert_eq!(out.status.code(), Some(130), "SIG{signal}: {err}");
+    assert!(err.contains("f.ckpt.safetensors") && err.contains("--resume"), "SIG{signal}: {err}");
+    assert!(dir.join("f.ckpt.safetensors").exists(), "SIG{signal}: no checkpoint");
+    assert!(!dir.join("f.safetensors").exists(), "SIG{signal}: a half-trained field file");
+}
+
+#[cfg(unix)]
+#[test]
+fn ctrl_c_term_and_hup_save_a_checkpoint_and_no_field() {
+    let dir = scratch("field-ctrlc");
+    synth_tiny(&dir);
+    // SIGTERM (kill, a batch system's time limit) and SIGHUP (the terminal closing) stop a
+    // run as Ctrl-C does
+    for signal in ["TERM", "HUP", "INT"] {
+        signal_stops_training_with_a_checkpoint(&dir, signal);
+    }
     // and the run goes on from there
     let state: serde_json::Value =
         TensorFile::load(&dir.join("f.ckpt.safetensors")).unwrap().meta_json("train").unwrap();
     assert!(state["iter"].as_u64().is_some(), "{state}");
     let out = ok(&dir, &["train", "d", "--out", "f.safetensors", "--resume", "--iters", "5"]);
     assert!(out.contains("wrote f.safetensors"), "{out}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_run_killed_while_writing_its_field_finishes_from_its_checkpoint() {
+    let dir = scratch("field-killed-write");
+    synth_tiny(&dir);
+    let args = ["train", "d", "--out", "f.safetensors", "--iters", "12", "--res", "32"];
+    let small = ["--batch", "512", "--checkpoint-every-minutes", "0"];
+    ok(&dir, &[&args[..], &small[..]].concat());
+    // train saves its final checkpoint before the field file, so a kill -9 during the field
+    // write leaves that checkpoint and the field as a hidden temporary: made here by hand
+    assert!(dir.join("f.ckpt.safetensors").exists());
+    std::fs::rename(dir.join("f.safetensors"), dir.join(".f.safetensors.tmp-4194305")).unwrap();
+    let resume = ["--resume", "--discard-checkpoint"];
+    let out = ok(&dir, &[&args[..], &small[..], &resume[..]].concat());
+    assert!(out.contains("wrote f.safetensors"), "{out}");
+    assert_eq!(meta_u64(&dir.join("f.safetensors"), "iterations"), 12, "no iteration lost");
+    let hidden: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(hidden.is_empty(), "the killed run's temporary must be gone: {hidden:?}");
+    assert!(!dir.join("f.ckpt.safetensors").exists(), "--discard-checkpoint removes it");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

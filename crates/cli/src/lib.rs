@@ -150,6 +150,7 @@ pub fn main_with_args(args: impl IntoIterator<Item = impl Into<OsString> + Clone
         }
     };
     install_ctrlc();
+    install_broken_pipe_exit();
     install_logging();
     match run(cli) {
         Ok(()) => 0,
@@ -192,10 +193,13 @@ fn install_logging() {
     });
 }
 
+/// Ctrl-C (SIGINT), SIGTERM (`kill`, a container stopping, a batch system's time limit) and
+/// SIGHUP (the terminal closing) all ask the running job to stop cleanly: `train` saves a
+/// checkpoint, other jobs discard their staged output.
 fn install_ctrlc() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
-        // A second Ctrl-C while a job winds down exits at once; outputs are staged, so
+        // A second signal while a job winds down exits at once; outputs are staged, so
         // nothing half-written is left in place either way.
         let _ = ctrlc::set_handler(|| {
             if assetfield_core::interrupt::requested() {
@@ -205,6 +209,34 @@ fn install_ctrlc() {
             assetfield_core::interrupt::request();
         });
     });
+}
+
+/// A reader that stops early (`assetfield layout X | head -1`) closes the pipe; Rust ignores
+/// SIGPIPE, so the next `println!` panics. That is no failure of ours: the reader has what it
+/// wanted, so the process ends quietly with status 0, as it would have if the output had fit.
+/// Every other panic keeps the default report.
+fn install_broken_pipe_exit() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let default = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            let message = info
+                .payload()
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| info.payload().downcast_ref::<&str>().copied())
+                .unwrap_or("");
+            if is_broken_stdout(message) {
+                std::process::exit(0);
+            }
+            default(info);
+        }));
+    });
+}
+
+/// Whether a panic message is the standard library's report of a closed standard output.
+fn is_broken_stdout(message: &str) -> bool {
+    message.starts_with("failed printing to stdout") && message.contains("Broken pipe")
 }
 
 /// Run a parsed command.
@@ -229,6 +261,13 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 mod tests {
     use super::*;
     use clap::CommandFactory;
+
+    #[test]
+    fn only_a_closed_stdout_counts_as_a_broken_pipe() {
+        assert!(is_broken_stdout("failed printing to stdout: Broken pipe (os error 32)"));
+        assert!(!is_broken_stdout("failed printing to stdout: No space left on device"));
+        assert!(!is_broken_stdout("index out of bounds: Broken pipe"));
+    }
 
     #[test]
     fn cli_definition_is_consistent() {

@@ -1,7 +1,9 @@
 //! Atomic output: every file and folder the tools write appears complete or not at all.
 //! Files are written to a temporary sibling and renamed; folders are assembled in a staging
 //! sibling and renamed into place when complete. An interrupted run leaves only a hidden
-//! `.NAME.tmp-PID` sibling, which the staging guard removes when it is dropped.
+//! `.NAME.tmp-PID` sibling, which the staging guard removes when it is dropped; a run killed
+//! outright (kill -9, power loss) cannot clean up, so the next write of the same NAME removes
+//! the siblings whose process is gone ([`clean_stale`]).
 
 use crate::CoreError;
 use std::path::{Path, PathBuf};
@@ -11,11 +13,86 @@ fn sibling(path: &Path, tag: &str) -> PathBuf {
     path.with_file_name(format!(".{name}.{tag}-{}", std::process::id()))
 }
 
-/// Write `bytes` to `path` atomically (temporary sibling, then rename).
+/// The process id in a sibling's name `.NAME.TAG-PID`, for `NAME` and one of our tags.
+fn sibling_pid(file_name: &str, name: &str) -> Option<u32> {
+    let rest = file_name.strip_prefix('.')?.strip_prefix(name)?;
+    let pid = rest.strip_prefix(".tmp-").or_else(|| rest.strip_prefix(".old-"))?;
+    if pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    pid.parse().ok()
+}
+
+/// Whether process `pid` may still be running. Linux answers through `/proc`; elsewhere
+/// nothing is known, so every process counts as running and nothing is removed.
+fn process_may_run(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    if cfg!(target_os = "linux") && Path::new("/proc/self").exists() {
+        Path::new("/proc").join(pid.to_string()).exists()
+    } else {
+        true
+    }
+}
+
+/// Remove what killed runs left beside `path`: the hidden `.NAME.tmp-PID` (a file or folder
+/// being written) and `.NAME.old-PID` (the previous output during a replacement) of every
+/// process that is gone. When `path` itself is missing and a stale `.NAME.old-PID` exists, the
+/// run was killed between the two renames of a replacement: that previous output is put back
+/// first, so a kill never loses what was there before. Siblings of running processes (another
+/// run writing the same output now) are left alone.
+pub fn clean_stale(path: &Path) -> Result<(), CoreError> {
+    let Some(name) = path.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+        return Ok(());
+    };
+    let parent = match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        Some(p) => p.to_path_buf(),
+        None => PathBuf::from("."),
+    };
+    let Ok(entries) = std::fs::read_dir(&parent) else { return Ok(()) };
+    let mut stale: Vec<(PathBuf, bool)> = Vec::new();
+    for entry in entries.flatten() {
+        let file_name = entry.file_name().to_string_lossy().into_owned();
+        if let Some(pid) = sibling_pid(&file_name, &name)
+            && !process_may_run(pid)
+        {
+            let is_old = file_name.ends_with(&format!(".old-{pid}"));
+            stale.push((entry.path(), is_old));
+        }
+    }
+    let mut restored = path.symlink_metadata().is_ok();
+    for (p, is_old) in &stale {
+        if *is_old && !restored {
+            std::fs::rename(p, path).map_err(|e| CoreError::io(path, e))?;
+            tracing::info!(
+                "{}: put back the output that a killed run was replacing",
+                path.display()
+            );
+            restored = true;
+            continue;
+        }
+        let removed = if p.is_dir() && !p.is_symlink() {
+            std::fs::remove_dir_all(p)
+        } else {
+            std::fs::remove_file(p)
+        };
+        match removed {
+            Ok(()) => tracing::info!("removed {}, left by a killed run", p.display()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(CoreError::io(p, e)),
+        }
+    }
+    Ok(())
+}
+
+/// Write `bytes` to `path` atomically (temporary sibling, then rename). Temporaries that a
+/// killed run left for the same path are removed first ([`clean_stale`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CoreError> {
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| CoreError::io(parent, e))?;
     }
+    clean_stale(path)?;
     let tmp = sibling(path, "tmp");
     if let Err(e) = std::fs::write(&tmp, bytes) {
         // a disk that fills up part way leaves no half-written temporary behind
@@ -47,8 +124,10 @@ pub struct StagingDir {
 
 impl StagingDir {
     /// Start assembling `target`. Fails if `target` exists and `overwrite` is false, so that a
-    /// mistyped path never destroys earlier results.
+    /// mistyped path never destroys earlier results. What a killed run left for `target` is
+    /// cleaned up first ([`clean_stale`]).
     pub fn new(target: &Path, overwrite: bool) -> Result<Self, CoreError> {
+        clean_stale(target)?;
         if target.exists() && !overwrite {
             return Err(CoreError::io(
                 target,
@@ -142,6 +221,59 @@ mod tests {
         std::fs::write(s.path().join("b.txt"), "new").unwrap();
         s.commit().unwrap();
         assert!(!target.join("a.txt").exists() && target.join("b.txt").exists());
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    /// A file name beside `path` as a run of process `pid` names its temporaries.
+    fn left_by(path: &Path, tag: &str, pid: u32) -> PathBuf {
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        path.with_file_name(format!(".{name}.{tag}-{pid}"))
+    }
+
+    /// A process id that no running process has (the highest id Linux hands out, plus one).
+    const GONE: u32 = 4_194_305;
+
+    #[test]
+    fn what_a_killed_run_left_is_removed_by_the_next_write() {
+        let root = scratch("stale");
+        let field = root.join("field.safetensors");
+        let dead_tmp = left_by(&field, "tmp", GONE);
+        std::fs::write(&dead_tmp, b"half a tensor").unwrap();
+        // a temporary of a running process (this one's parent, say) is someone's write now
+        let live = left_by(&field, "tmp", std::os::unix::process::parent_id());
+        std::fs::write(&live, b"being written").unwrap();
+        // look-alikes that are not ours stay
+        let other = root.join(".field.safetensors.tmp-12x");
+        std::fs::write(&other, b"not ours").unwrap();
+        write_atomic(&field, b"whole").unwrap();
+        assert!(!dead_tmp.exists(), "the killed run's temporary must go");
+        assert!(live.exists() && other.exists());
+        // a staging folder of a killed run goes when the folder is next made
+        let out = root.join("render");
+        let dead_dir = left_by(&out, "tmp", GONE);
+        std::fs::create_dir_all(dead_dir.join("views")).unwrap();
+        std::fs::write(dead_dir.join("views/0.png"), b"png").unwrap();
+        let s = StagingDir::new(&out, false).unwrap();
+        assert!(!dead_dir.exists());
+        s.commit().unwrap();
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn a_replacement_killed_between_its_renames_gets_the_old_output_back() {
+        let root = scratch("killed-commit");
+        let out = root.join("lib");
+        // killed after `lib` became `.lib.old-PID` and before the staged folder took its place
+        let old = left_by(&out, "old", GONE);
+        std::fs::create_dir_all(&old).unwrap();
+        std::fs::write(old.join("index.ron"), "earlier").unwrap();
+        let staged = left_by(&out, "tmp", GONE);
+        std::fs::create_dir_all(&staged).unwrap();
+        clean_stale(&out).unwrap();
+        assert_eq!(std::fs::read_to_string(out.join("index.ron")).unwrap(), "earlier");
+        assert!(!old.exists() && !staged.exists());
+        // and the usual rule holds again: it exists, so it is not replaced without --force
+        assert!(StagingDir::new(&out, false).is_err());
         std::fs::remove_dir_all(&root).unwrap();
     }
 

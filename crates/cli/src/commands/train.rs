@@ -554,7 +554,9 @@ pub fn train(a: TrainArgs) -> Result<()> {
     let session_s = session.elapsed().as_secs_f64();
     let done = trainer.iter - start_iter;
 
-    // the field file, then the final checkpoint (or its removal)
+    // the final checkpoint first, then the field file, then (with --discard-checkpoint) the
+    // checkpoint's removal: a kill at any moment leaves a checkpoint or the field, never neither
+    run.save_checkpoint(&trainer)?;
     let mut file = trainer.field.to_tensor_file(trainer.occupancy.as_ref())?;
     let mut info = run.info.clone();
     info.history = Some(trainer.history.clone());
@@ -564,12 +566,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
     info.write(&mut file)?;
     file.set_meta_json(keys::TRAIN_CONFIG, &trainer.config)?;
     file.save(&a.out).with_context(|| format!("writing {}", a.out.display()))?;
-    if a.discard_checkpoint {
-        if ckpt.exists() {
-            std::fs::remove_file(&ckpt).with_context(|| format!("removing {}", ckpt.display()))?;
-        }
-    } else {
-        run.save_checkpoint(&trainer)?;
+    if a.discard_checkpoint && ckpt.exists() {
+        std::fs::remove_file(&ckpt).with_context(|| format!("removing {}", ckpt.display()))?;
     }
 
     let cfg = &trainer.field.config;

@@ -1,0 +1,54 @@
+//! What the CLI does when its surroundings misbehave: a reader that closes the pipe early, a
+//! run killed outright that left its temporaries behind.
+
+use assetfield_tests::{repo, run_cli, scratch};
+use std::io::Read;
+use std::process::{Command, Stdio};
+
+#[test]
+fn a_reader_that_stops_early_is_no_failure() {
+    let dir = scratch("robust-pipe");
+    // 2500 instances: the table is far more than a pipe holds (64 KiB), so the writer is
+    // still writing when the reader leaves
+    let script = "Scene(\n  assets: {\n    \"a\": Asset(parts: [Box(center: (0, 0, 0.5), size: (0.5, 0.5, 1), color: (1, 0, 0))]),\n  },\n  layout: [Grid(asset: \"a\", center: (0, 0), rows: 50, cols: 50, spacing: (1, 1))],\n)\n";
+    std::fs::write(dir.join("big.ron"), script).unwrap();
+    // `assetfield layout big.ron | head -c 1`
+    let mut child = Command::new(assetfield_tests::assetfield_bin())
+        .args(["layout", "big.ron"])
+        .current_dir(&dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = child.stdout.take().unwrap();
+    let mut first = [0u8; 1];
+    stdout.read_exact(&mut first).unwrap();
+    drop(stdout);
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_killed_synth_s_staging_folder_goes_with_the_next_run() {
+    let dir = scratch("robust-stale-synth");
+    // what `synth --out d` leaves when killed by SIGKILL half way: a hidden staging folder
+    // named after a process that is gone
+    let stale = dir.join(".d.tmp-4194305");
+    std::fs::create_dir_all(stale.join("train")).unwrap();
+    std::fs::write(stale.join("train/r_0.png"), b"half").unwrap();
+    let scene = repo().join("scenes/plaza.ron");
+    let args = ["synth", scene.to_str().unwrap(), "--out", "d", "--views", "3"];
+    let (code, _, err) =
+        run_cli(&dir, &[&args[..], &["--test-views", "1", "--res", "16"]].concat());
+    assert_eq!(code, 0, "{err}");
+    assert!(dir.join("d/transforms_train.json").is_file());
+    let names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, ["d"], "only the finished output stays");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
