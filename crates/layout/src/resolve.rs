@@ -1063,7 +1063,12 @@ impl<'a> Resolver<'a> {
         let info = self.info(asset, node)?;
         let mut rng = Rng::stream(seed, full);
         let mut points = PointGrid::new(&bounds, min_distance);
-        let mut quads = self.scatter_obstacles(&info, &frame, &bounds, scale, vary, supporter);
+        // with `overlap: true` footprints are not tested: no grid to fill
+        let mut quads = if overlap {
+            QuadGrid::new(bounds.min, 1.0)
+        } else {
+            self.scatter_obstacles(&info, &frame, &bounds, scale, vary, supporter)
+        };
         let own_budget = 500u64.saturating_mul(u64::from(count));
         let budget = own_budget.min(self.tries_left);
         let (mut tries, mut placed) = (0u64, 0u32);
@@ -1087,7 +1092,9 @@ impl<'a> Resolver<'a> {
             }
             placed += 1;
             points.insert(p);
-            quads.insert(quad);
+            if !overlap {
+                quads.insert(quad);
+            }
             self.push(key, asset, &info, world, supporter, loc);
         }
         self.tries_left -= tries;

@@ -220,9 +220,10 @@ fn edit(edit: &Edit, location: &Location) -> Result<(), LayoutError> {
             finite("to", to)?;
             finite("by", by)
         }
+        // named as before this pass existed ("scale must be positive")
         Edit::Scale { to, by, .. } => {
-            positive("to", to)?;
-            positive("by", by)
+            positive("scale", to)?;
+            positive("scale factor", by)
         }
         Edit::Duplicate { at, by, yaw, .. } => {
             point("at", at)?;

@@ -389,7 +389,7 @@ fn non_finite_and_nonsense_numbers_are_refused_with_their_place() {
     for (edit, expected) in [
         (r#"        Move(target: "x", by: (inf, 0)),"#, "Move: by must be"),
         (r#"        Rotate(target: "x", to: NaN),"#, "Rotate: to must be a finite number, got NaN"),
-        (r#"        Scale(target: "x", by: 0),"#, "Scale: by must be positive, got 0"),
+        (r#"        Scale(target: "x", by: 0),"#, "Scale: scale factor must be positive, got 0"),
         (r#"        Duplicate(target: "x", at: (0, NaN)),"#, "Duplicate: at must be"),
         (
             r#"        Override(target: "x", base: -inf),"#,
