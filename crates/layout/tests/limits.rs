@@ -472,3 +472,14 @@ fn bad_assets_and_settings_are_refused_with_their_place() {
         "yaw_symmetry_deg must be between 0 and 360",
     );
 }
+
+#[test]
+fn deeply_nested_groups_are_refused_by_the_parser_not_the_stack() {
+    let depth = 2000;
+    let open = "Group(children: [".repeat(depth);
+    let close = "])".repeat(depth);
+    let text = scene(&format!("        {open}Instance(asset: \"a\", at: (0, 0)){close},"), "");
+    let e = within(20, move || resolve_text(&text, &Limits::default()).unwrap_err());
+    assert!(matches!(e, LayoutError::Syntax { .. }), "{e}");
+    assert!(e.to_string().starts_with("test.ron:6:"), "{e}");
+}
