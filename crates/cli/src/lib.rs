@@ -55,6 +55,12 @@ pub enum Command {
     Inspect(InspectArgs),
     /// Check a layout script without rendering: resolve it and list every instance with its
     /// id, key, category and world transform; optionally draw it from above.
+    ///
+    /// Every command that reads a script holds it to limits: instances per script
+    /// (ASSETFIELD_MAX_INSTANCES, default 1000000), scatter tries (ASSETFIELD_MAX_SCATTER_TRIES),
+    /// points of a scatter region (ASSETFIELD_MAX_REGION_POINTS), base/include nesting
+    /// (ASSETFIELD_MAX_INCLUDE_DEPTH) and file loads (ASSETFIELD_MAX_FILE_LOADS), and bytes per
+    /// file (ASSETFIELD_MAX_SCRIPT_BYTES); set the variable to raise one.
     Layout(LayoutArgs),
     /// Train a radiance field on ground feature planes from a dataset.
     ///

@@ -1,3 +1,4 @@
+use crate::limits::Limit;
 use std::fmt;
 use std::path::PathBuf;
 
@@ -12,6 +13,28 @@ pub struct Location {
 impl fmt::Display for Location {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}:{}:{}", self.file.display(), self.line, self.col)
+    }
+}
+
+/// A value of a script out of its range (see [`LayoutError::Invalid`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct InvalidValue {
+    pub location: Location,
+    /// The item, edit, asset part or setting that holds the value (`Instance`,
+    /// `asset "chair", part 2`, `views`).
+    pub item: String,
+    /// The field, as written in the script (`at`, `vary.scale_jitter`, `Box size`).
+    pub field: String,
+    /// The value, as read.
+    pub value: String,
+    /// What the field must be ("a finite number", "positive").
+    pub expected: String,
+}
+
+impl fmt::Display for InvalidValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let InvalidValue { location, item, field, value, expected } = self;
+        write!(f, "{location}: {item}: {field} must be {expected}, got {value}")
     }
 }
 
@@ -33,8 +56,49 @@ pub enum LayoutError {
     Semantic { location: Location, message: String },
     #[error("{}: script includes itself (cycle: {cycle})", path.display())]
     Cycle { path: PathBuf, cycle: String },
+    /// A number the script gives is not finite or out of its range (a position of NaN, a
+    /// negative size, a resolution of 0).
+    #[error("{0}")]
+    Invalid(Box<InvalidValue>),
+    /// The script asks for more than one of the [`crate::Limits`] allows.
+    #[error(
+        "{location}: {what}: more than the limit of {value} {limit} (raise it with the environment variable {}=N)",
+        limit.env_var()
+    )]
+    Limit {
+        location: Location,
+        limit: Limit,
+        /// The limit in effect.
+        value: u64,
+        /// What the script asked for.
+        what: String,
+    },
+    /// An environment variable meant to set a limit does not hold a number.
+    #[error("environment variable {variable}={value:?} is not a limit (a whole number >= 0)")]
+    LimitSetting { variable: &'static str, value: String },
+    /// A script, `base` or `include` that is not a regular file (a FIFO, a device, a
+    /// folder): reading it could block or never end.
+    #[error(
+        "{}{}: not a regular file ({kind}); a script, `base` or `include` must be a regular file",
+        at_prefix(referenced_at),
+        path.display()
+    )]
+    NotAFile { path: PathBuf, kind: &'static str, referenced_at: Option<Location> },
+    /// A script file larger than [`crate::Limits::max_file_bytes`].
+    #[error(
+        "{}{}: {size} bytes or more, over the limit of {limit} bytes per script file (raise it with the environment variable {}=N)",
+        at_prefix(referenced_at),
+        path.display(),
+        Limit::FileBytes.env_var()
+    )]
+    TooLarge { path: PathBuf, size: u64, limit: u64, referenced_at: Option<Location> },
     #[error("cannot write layout: {0}")]
     Write(String),
     #[error("{}: {message}", path.display())]
     GtFormat { path: PathBuf, message: String },
+}
+
+/// `"file:line:col: "` for a reference's place, or nothing.
+fn at_prefix(location: &Option<Location>) -> String {
+    location.as_ref().map(|l| format!("{l}: ")).unwrap_or_default()
 }

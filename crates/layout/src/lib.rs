@@ -17,18 +17,24 @@
 
 pub mod error;
 pub mod gt;
+pub mod limits;
 pub mod resolve;
 pub mod rng;
 pub mod script;
 pub mod source;
+mod spatial;
+pub mod validate;
 
-pub use error::{LayoutError, Location};
+pub use error::{InvalidValue, LayoutError, Location};
 pub use gt::{GtInstance, GtLayout, GtSource};
+pub use limits::{Limit, Limits};
 pub use resolve::{
-    AssetCatalog, AssetInfo, PartsCatalog, ResolvedInstance, ResolvedLayout, resolve,
+    AssetCatalog, AssetInfo, PartsCatalog, ResolvedInstance, ResolvedLayout, resolve, resolve_with,
 };
 pub use script::{
     AssetDef, Axis, Edit, Facing, Item, LibraryRef, Lighting, ObjSource, Part, Region, Script,
     Variation, ViewSettings,
 };
-pub use source::{LoadedScript, append_edits, load, load_str};
+pub use source::{
+    LoadedScript, append_edits, load, load_str, load_str_with, load_with, read_script_file,
+};

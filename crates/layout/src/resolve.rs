@@ -3,13 +3,16 @@
 //! come after) and a human-readable key (`dining/chairs[3]`).
 
 use crate::error::{LayoutError, Location};
+use crate::limits::{Limit, Limits};
 use crate::rng::Rng;
 use crate::script::{AssetDef, Axis, Edit, Facing, Item, Part, Region, V2, Variation};
 use crate::source::{ItemNode, LoadedScript};
+use crate::spatial::{self, PointGrid, QuadGrid};
 use assetfield_core::ground::wrap_degrees;
 use assetfield_core::{Aabb3, GroundTransform, Rect2};
 use glam::{Vec2, Vec3};
 use std::collections::BTreeMap;
+use std::ops::Bound;
 
 /// What resolution needs to know about an asset.
 #[derive(Debug, Clone, PartialEq)]
@@ -206,33 +209,37 @@ impl ResolvedLayout {
     }
 }
 
-/// Resolve a loaded script against an asset catalog.
+/// Resolve a loaded script against an asset catalog, under the limits it was loaded with
+/// ([`LoadedScript::limits`]).
 pub fn resolve(
     script: &LoadedScript,
     catalog: &dyn AssetCatalog,
 ) -> Result<ResolvedLayout, LayoutError> {
-    let mut r = Resolver { script, catalog, out: Vec::new(), next_id: 0 };
+    resolve_with(script, catalog, &script.limits)
+}
+
+/// [`resolve()`] under the given limits.
+///
+/// Resolution takes time about linear in the number of instances: targets and `on` patterns
+/// are looked up in an index of keys (by their literal prefix), what stands on what is kept
+/// as lists, an edit re-derives only the instances it moves, and scatters test only nearby
+/// points and footprints.
+pub fn resolve_with(
+    script: &LoadedScript,
+    catalog: &dyn AssetCatalog,
+    limits: &Limits,
+) -> Result<ResolvedLayout, LayoutError> {
+    let mut r = Resolver::new(script, catalog, limits);
     for (k, node) in script.items.iter().enumerate() {
         r.item(node, GroundTransform::IDENTITY, "", None, k)?;
     }
-    let mut removed = vec![false; r.out.len()];
     for e in &script.edits {
-        let before: Vec<(GroundTransform, String)> =
-            r.out.iter().map(|i| (i.transform, i.asset.clone())).collect();
-        r.edit(e, &mut removed)?;
-        removed.resize(r.out.len(), false);
-        for (k, inst) in r.out.iter_mut().enumerate() {
-            let same = before.get(k).is_some_and(|(t, a)| *t == inst.transform && *a == inst.asset);
-            if !same {
-                if k >= before.len() {
-                    inst.placed_at = e.location.clone();
-                }
-                inst.edited_at = Some(e.location.clone());
-            }
-        }
+        r.begin_edit();
+        r.edit(e)?;
+        r.end_edit(&e.location);
     }
     let instances: Vec<ResolvedInstance> =
-        r.out.into_iter().zip(removed).filter(|(_, gone)| !gone).map(|(i, _)| i).collect();
+        r.out.into_iter().zip(r.removed).filter(|(_, gone)| !gone).map(|(i, _)| i).collect();
     let extent = match script.extent {
         Some((a, b)) => Rect2::new(Vec2::from(a).min(b.into()), Vec2::from(a).max(b.into())),
         None => {
@@ -246,15 +253,60 @@ pub fn resolve(
     Ok(ResolvedLayout { name: script.name.clone(), instances, extent })
 }
 
+/// What the edit being applied changed: each instance's transform and asset before its
+/// first change (compared afterwards to set `edited_at`).
+#[derive(Debug, Default)]
+struct Changes {
+    /// Number of the edit being applied (1 for the first; 0 before any).
+    serial: u32,
+    /// Instances that existed before the edit (later ones are its copies).
+    existing: usize,
+    /// Per instance, the serial of the last edit that recorded it.
+    recorded: Vec<u32>,
+    before: Vec<(usize, GroundTransform, String)>,
+}
+
 struct Resolver<'a> {
     script: &'a LoadedScript,
     catalog: &'a dyn AssetCatalog,
+    limits: &'a Limits,
+    /// Every instance made, removed ones included; `out[k].id == k`.
     out: Vec<ResolvedInstance>,
-    next_id: u32,
+    removed: Vec<bool>,
+    /// Indices of the instances by key (keys need not be unique), ordered so that the keys
+    /// starting with a pattern's literal prefix form one range.
+    keys: BTreeMap<String, Vec<usize>>,
+    /// Per instance, the indices of the instances standing directly on it.
+    supported: Vec<Vec<usize>>,
+    /// Frames of `on`/`around` groups made so far (one per matching instance), bounded like
+    /// instances: a group over many hosts does work even when it places nothing.
+    host_frames: u64,
+    /// Scatter tries the script has left ([`Limits::max_scatter_tries`]).
+    tries_left: u64,
+    /// Whether every world transform has been re-derived from its local transform (the first
+    /// edit that moves something does it for all; later edits only for what they move).
+    derived: bool,
+    changes: Changes,
 }
 
 fn semantic(location: &Location, message: String) -> LayoutError {
     LayoutError::Semantic { location: location.clone(), message }
+}
+
+/// `n` as a `u64` (saturating; counts of this crate fit).
+fn wide(n: usize) -> u64 {
+    u64::try_from(n).unwrap_or(u64::MAX)
+}
+
+/// The characters of a key pattern before its first wildcard.
+fn literal_prefix(pattern: &str) -> &str {
+    pattern.find(['*', '?']).map_or(pattern, |k| &pattern[..k])
+}
+
+/// The instance id a `#ID` pattern names (exactly as ids are written: `#12`, not `#012`).
+fn id_pattern(pattern: &str) -> Option<usize> {
+    let id: u32 = pattern.strip_prefix('#')?.parse().ok()?;
+    (format!("#{id}") == pattern).then_some(id as usize)
 }
 
 /// The closest known name (at most 3 edits away), for "did you mean" hints.
@@ -302,7 +354,12 @@ pub fn glob_match(pattern: &str, text: &str) -> bool {
 
 /// Corners of an instance's footprint in world coordinates.
 fn footprint_corners(info: &AssetInfo, t: &GroundTransform) -> [Vec2; 4] {
-    let (a, b) = (info.footprint.min, info.footprint.max);
+    footprint_corners_of(&info.footprint, t)
+}
+
+/// Corners of a footprint rectangle (in the asset's frame) in world coordinates.
+fn footprint_corners_of(footprint: &Rect2, t: &GroundTransform) -> [Vec2; 4] {
+    let (a, b) = (footprint.min, footprint.max);
     [a, Vec2::new(b.x, a.y), b, Vec2::new(a.x, b.y)].map(|p| t.transform_point2(p))
 }
 
@@ -384,9 +441,25 @@ struct Spot {
     yaw: f32,
 }
 
-impl Resolver<'_> {
+impl<'a> Resolver<'a> {
+    fn new(script: &'a LoadedScript, catalog: &'a dyn AssetCatalog, limits: &'a Limits) -> Self {
+        Resolver {
+            script,
+            catalog,
+            limits,
+            out: Vec::new(),
+            removed: Vec::new(),
+            keys: BTreeMap::new(),
+            supported: Vec::new(),
+            host_frames: 0,
+            tries_left: limits.max_scatter_tries,
+            derived: false,
+            changes: Changes::default(),
+        }
+    }
+
     fn info(&self, asset: &str, node: &ItemNode) -> Result<AssetInfo, LayoutError> {
-        self.info_at(asset, &self.script.files[node.file].find_string_after(asset, &node.location))
+        self.info_at(asset, &self.script.files[node.file].find_string_after(asset, node.offset))
     }
 
     fn info_at(&self, asset: &str, location: &Location) -> Result<AssetInfo, LayoutError> {
@@ -402,11 +475,48 @@ impl Resolver<'_> {
         ))
     }
 
+    /// Refuse, before making them, `n` more instances than [`Limits::max_instances`]
+    /// allows; `what` says what asks for them ("Row(count: 5) would place 5 instances").
+    fn reserve(
+        &self,
+        n: u64,
+        location: &Location,
+        what: impl FnOnce() -> String,
+    ) -> Result<(), LayoutError> {
+        let have = wide(self.out.len());
+        if have.saturating_add(n) > self.limits.get(Limit::Instances) {
+            let what = format!("{} ({have} placed before it)", what());
+            return Err(self.limits.exceeded(Limit::Instances, location, what));
+        }
+        Ok(())
+    }
+
     fn top_frame(&self, supporter: Option<u32>) -> GroundTransform {
-        match supporter.and_then(|id| self.out.iter().find(|i| i.id == id)) {
+        match supporter.and_then(|id| self.out.get(id as usize)) {
             None => GroundTransform::IDENTITY,
             Some(s) => GroundTransform { base: s.top, ..s.transform },
         }
+    }
+
+    /// Add an instance (its id becomes its index) to the indexes.
+    fn add(&mut self, mut inst: ResolvedInstance) -> usize {
+        let k = self.out.len();
+        debug_assert!(k < u32::MAX as usize, "the instance limit keeps ids in u32");
+        inst.id = k as u32;
+        match self.keys.get_mut(&inst.key) {
+            Some(v) => v.push(k),
+            None => {
+                self.keys.insert(inst.key.clone(), vec![k]);
+            }
+        }
+        if let Some(p) = inst.supported_by {
+            self.supported[p as usize].push(k);
+        }
+        self.supported.push(Vec::new());
+        self.removed.push(false);
+        self.changes.recorded.push(0);
+        self.out.push(inst);
+        k
     }
 
     fn push(
@@ -419,10 +529,8 @@ impl Resolver<'_> {
         placed_at: &Location,
     ) -> u32 {
         let local = relative_to(&world, &self.top_frame(supporter));
-        let id = self.next_id;
-        self.next_id += 1;
-        self.out.push(ResolvedInstance {
-            id,
+        let k = self.add(ResolvedInstance {
+            id: 0,
             key,
             asset: asset.to_string(),
             category: info.category.clone(),
@@ -437,7 +545,147 @@ impl Resolver<'_> {
             placed_at: placed_at.clone(),
             edited_at: None,
         });
-        id
+        k as u32
+    }
+
+    /// Indices of the instances (removed ones too) whose key matches `pattern`, or whose id
+    /// it names (`#ID`), ascending. Only keys starting with the pattern's literal prefix are
+    /// tested.
+    fn candidates(&self, pattern: &str) -> Vec<usize> {
+        let prefix = literal_prefix(pattern);
+        let mut hits: Vec<usize> = if prefix.len() == pattern.len() {
+            self.keys.get(pattern).cloned().unwrap_or_default()
+        } else {
+            self.keys
+                .range::<str, _>((Bound::Included(prefix), Bound::Unbounded))
+                .take_while(|(k, _)| k.starts_with(prefix))
+                .filter(|(k, _)| glob_match(pattern, k))
+                .flat_map(|(_, v)| v.iter().copied())
+                .collect()
+        };
+        if let Some(id) = id_pattern(pattern)
+            && id < self.out.len()
+        {
+            hits.push(id);
+        }
+        hits.sort_unstable();
+        hits.dedup();
+        hits
+    }
+
+    /// Indices of the instances left that `pattern` matches; none is an error.
+    fn matches(&self, pattern: &str, loc: &Location) -> Result<Vec<usize>, LayoutError> {
+        let mut hits = self.candidates(pattern);
+        hits.retain(|&k| !self.removed[k]);
+        if hits.is_empty() {
+            let sample: Vec<&str> = self
+                .out
+                .iter()
+                .zip(&self.removed)
+                .filter(|(_, gone)| !**gone)
+                .take(6)
+                .map(|(i, _)| i.key.as_str())
+                .collect();
+            return Err(semantic(
+                loc,
+                format!(
+                    "\"{pattern}\" matches no instance (keys look like: {}, ...; or use #ID)",
+                    sample.join(", ")
+                ),
+            ));
+        }
+        Ok(hits)
+    }
+
+    /// Indices of `roots` and everything standing on them (transitively), in id order;
+    /// `skip_removed` leaves out removed instances (and what stands on them).
+    fn family(&self, roots: &[usize], skip_removed: bool) -> Vec<usize> {
+        let mut seen = vec![];
+        let mut stack: Vec<usize> = roots.to_vec();
+        let mut visited = std::collections::HashSet::new();
+        while let Some(k) = stack.pop() {
+            if !visited.insert(k) {
+                continue;
+            }
+            seen.push(k);
+            stack.extend(
+                self.supported[k].iter().copied().filter(|&c| !(skip_removed && self.removed[c])),
+            );
+        }
+        seen.sort_unstable();
+        seen
+    }
+
+    /// Indices of `roots` and everything left standing on them, in id order.
+    fn with_dependents(&self, roots: &[usize]) -> Vec<usize> {
+        self.family(roots, true)
+    }
+
+    /// Remember the state of instance `k` before the current edit first changes it.
+    fn record(&mut self, k: usize) {
+        let c = &mut self.changes;
+        if k < c.existing && c.recorded[k] != c.serial {
+            c.recorded[k] = c.serial;
+            c.before.push((k, self.out[k].transform, self.out[k].asset.clone()));
+        }
+    }
+
+    fn begin_edit(&mut self) {
+        let c = &mut self.changes;
+        c.serial += 1;
+        c.existing = self.out.len();
+        c.before.clear();
+    }
+
+    /// Mark what the edit at `loc` changed (and placed) with its location.
+    fn end_edit(&mut self, loc: &Location) {
+        let before = std::mem::take(&mut self.changes.before);
+        for (k, t, a) in before {
+            let inst = &mut self.out[k];
+            if inst.transform != t || inst.asset != a {
+                inst.edited_at = Some(loc.clone());
+            }
+        }
+        for inst in &mut self.out[self.changes.existing..] {
+            inst.placed_at = loc.clone();
+            inst.edited_at = Some(loc.clone());
+        }
+    }
+
+    /// Re-derive the world transform (and boxes) of instance `k` from its local transform
+    /// and the top of what it stands on.
+    fn rederive(&mut self, k: usize) {
+        let frame = self.top_frame(self.out[k].supported_by);
+        let world = frame.compose(&self.out[k].local);
+        let info = self.catalog.asset_info(&self.out[k].asset);
+        self.record(k);
+        let inst = &mut self.out[k];
+        inst.transform = world;
+        if let Some(info) = info {
+            inst.footprint = info.footprint;
+            inst.bev_aabb = bev_of(&info, &world);
+            inst.top = world.base + world.scale * info.height;
+        }
+    }
+
+    /// Re-derive world transforms of `roots` and everything standing on them, parents first
+    /// (a parent's index is below its children's). The first time, every instance is
+    /// re-derived, so that every edit sees the same rounding of transforms.
+    fn refresh(&mut self, roots: &[usize]) {
+        let order = if self.derived {
+            self.family(roots, false)
+        } else {
+            self.derived = true;
+            (0..self.out.len()).collect()
+        };
+        for k in order {
+            self.rederive(k);
+        }
+    }
+
+    fn set_world(&mut self, k: usize, world: GroundTransform) {
+        let frame = self.top_frame(self.out[k].supported_by);
+        self.out[k].local = relative_to(&world, &frame);
     }
 
     fn item(
@@ -468,60 +716,17 @@ impl Resolver<'_> {
         match &node.item {
             Item::Instance { asset, at, yaw, scale, base, .. } => {
                 check_scale(*scale)?;
+                self.reserve(1, loc, || "Instance would place 1 instance".into())?;
                 let info = self.info(asset, node)?;
                 let local = GroundTransform::new((*at).into(), *yaw, *scale, *base);
                 self.push(full, asset, &info, frame.compose(&local), supporter, loc);
             }
-            Item::Group { at, yaw, scale, base, on, around, .. } => {
-                check_scale(*scale)?;
-                let own = GroundTransform::new((*at).into(), *yaw, *scale, *base);
-                let (pattern, stand_on) = match (on, around) {
-                    (None, None) => {
-                        let f = frame.compose(&own);
-                        for (k, c) in node.children.iter().enumerate() {
-                            self.item(c, f, &format!("{full}/"), supporter, k)?;
-                        }
-                        return Ok(());
-                    }
-                    (Some(p), None) => (p, true),
-                    (None, Some(p)) => (p, false),
-                    (Some(_), Some(_)) => {
-                        return Err(semantic(
-                            loc,
-                            "a Group takes `on` or `around`, not both".into(),
-                        ));
-                    }
-                };
-                let hosts: Vec<(u32, String, GroundTransform, Option<u32>)> = self
-                    .out
-                    .iter()
-                    .filter(|i| glob_match(pattern, &i.key) || pattern == &format!("#{}", i.id))
-                    .map(|i| (i.id, i.key.clone(), i.transform, i.supported_by))
-                    .collect();
-                if hosts.is_empty() {
-                    let field = if stand_on { "on" } else { "around" };
-                    return Err(semantic(
-                        loc,
-                        format!(
-                            "`{field}: \"{pattern}\"` matches no instance placed before this group \
-                             (instances are matched in script order: place them earlier)"
-                        ),
-                    ));
-                }
-                let named = node.item.name().map(|n| format!("{n}/")).unwrap_or_default();
-                for (host, host_key, host_t, host_support) in hosts {
-                    let (f, sup) = if stand_on {
-                        (self.top_frame(Some(host)).compose(&own), Some(host))
-                    } else {
-                        (host_t.compose(&own), host_support)
-                    };
-                    for (k, c) in node.children.iter().enumerate() {
-                        self.item(c, f, &format!("{host_key}/{named}"), sup, k)?;
-                    }
-                }
-            }
+            Item::Group { .. } => self.group(node, frame, &full, supporter)?,
             Item::Row { asset, from, to, count, yaw, face, scale, vary, .. } => {
                 check_count(*count, "count")?;
+                self.reserve(u64::from(*count), loc, || {
+                    format!("Row(count: {count}) would place {count} instances")
+                })?;
                 let (a, b) = (Vec2::from(*from), Vec2::from(*to));
                 let mid = (a + b) * 0.5;
                 let spots = (0..*count)
@@ -546,6 +751,10 @@ impl Resolver<'_> {
             Item::Grid { asset, center, rows, cols, spacing, yaw, scale, vary, .. } => {
                 check_count(*rows, "rows")?;
                 check_count(*cols, "cols")?;
+                let n = u64::from(*rows) * u64::from(*cols);
+                self.reserve(n, loc, || {
+                    format!("Grid(rows: {rows}, cols: {cols}) would place {n} instances")
+                })?;
                 let c = Vec2::from(*center);
                 let mut spots = Vec::new();
                 for r in 0..*rows {
@@ -573,6 +782,9 @@ impl Resolver<'_> {
                 asset, center, radius, count, start_deg, face, yaw, scale, vary, ..
             } => {
                 check_count(*count, "count")?;
+                self.reserve(u64::from(*count), loc, || {
+                    format!("Ring(count: {count}) would place {count} instances")
+                })?;
                 let c = Vec2::from(*center);
                 let spots = (0..*count)
                     .map(|i| {
@@ -594,8 +806,11 @@ impl Resolver<'_> {
                 )?;
             }
             Item::Along { asset, path, count, spacing, offset, face, yaw, scale, vary, .. } => {
-                let spots = along_spots(path, *count, *spacing, *offset, *face)
-                    .map_err(|m| semantic(loc, m))?;
+                let plan = along_plan(path, *count, *spacing).map_err(|m| semantic(loc, m))?;
+                self.reserve(plan.count, loc, || {
+                    format!("Along would place {} instances", plan.count)
+                })?;
+                let spots = along_spots(path, &plan, *offset, *face);
                 self.place(
                     node,
                     frame,
@@ -642,6 +857,74 @@ impl Resolver<'_> {
         Ok(())
     }
 
+    /// A group: its children in its own frame, or once per instance its `on` or `around`
+    /// pattern matches.
+    fn group(
+        &mut self,
+        node: &ItemNode,
+        frame: GroundTransform,
+        full: &str,
+        supporter: Option<u32>,
+    ) -> Result<(), LayoutError> {
+        let loc = &node.location;
+        let Item::Group { at, yaw, scale, base, on, around, .. } = &node.item else {
+            return Ok(());
+        };
+        if !(scale.is_finite() && *scale > 0.0) {
+            return Err(semantic(loc, format!("scale must be positive, got {scale}")));
+        }
+        let own = GroundTransform::new((*at).into(), *yaw, *scale, *base);
+        let (pattern, stand_on) = match (on, around) {
+            (None, None) => {
+                let f = frame.compose(&own);
+                for (k, c) in node.children.iter().enumerate() {
+                    self.item(c, f, &format!("{full}/"), supporter, k)?;
+                }
+                return Ok(());
+            }
+            (Some(p), None) => (p, true),
+            (None, Some(p)) => (p, false),
+            (Some(_), Some(_)) => {
+                return Err(semantic(loc, "a Group takes `on` or `around`, not both".into()));
+            }
+        };
+        let field = if stand_on { "on" } else { "around" };
+        let hosts = self.candidates(pattern);
+        if hosts.is_empty() {
+            return Err(semantic(
+                loc,
+                format!(
+                    "`{field}: \"{pattern}\"` matches no instance placed before this group \
+                     (instances are matched in script order: place them earlier)"
+                ),
+            ));
+        }
+        self.host_frames = self.host_frames.saturating_add(wide(hosts.len()));
+        if self.host_frames > self.limits.get(Limit::Instances) {
+            let what = format!(
+                "Group({field}: \"{pattern}\") would repeat its children on {} instances \
+                 ({} such frames in all)",
+                hosts.len(),
+                self.host_frames
+            );
+            return Err(self.limits.exceeded(Limit::Instances, loc, what));
+        }
+        let named = node.item.name().map(|n| format!("{n}/")).unwrap_or_default();
+        for host in hosts {
+            let h = &self.out[host];
+            let (host_key, host_t, host_support) = (h.key.clone(), h.transform, h.supported_by);
+            let (f, sup) = if stand_on {
+                (self.top_frame(Some(host as u32)).compose(&own), Some(host as u32))
+            } else {
+                (host_t.compose(&own), host_support)
+            };
+            for (k, c) in node.children.iter().enumerate() {
+                self.item(c, f, &format!("{host_key}/{named}"), sup, k)?;
+            }
+        }
+        Ok(())
+    }
+
     /// Place generated spots (in the item's frame) with variation.
     fn place(
         &mut self,
@@ -667,6 +950,97 @@ impl Resolver<'_> {
         Ok(())
     }
 
+    /// Check a scatter against the limits and what its region can hold, before any try.
+    fn check_scatter(
+        &self,
+        loc: &Location,
+        asset: &str,
+        region: &Region,
+        bounds: &Rect2,
+        count: u32,
+        min_distance: f32,
+    ) -> Result<(), LayoutError> {
+        if let Region::Polygon(p) = region {
+            if p.len() < 3 {
+                return Err(semantic(
+                    loc,
+                    format!("a polygon region needs at least 3 points, got {}", p.len()),
+                ));
+            }
+            if wide(p.len()) > self.limits.get(Limit::RegionPoints) {
+                let what = format!("a Scatter region of {} points", p.len());
+                return Err(self.limits.exceeded(Limit::RegionPoints, loc, what));
+            }
+        }
+        self.reserve(u64::from(count), loc, || {
+            format!("Scatter(count: {count}) would place {count} instances")
+        })?;
+        if min_distance > 0.0 {
+            let fit = spatial::max_points(region, bounds, min_distance).floor();
+            if f64::from(count) > fit {
+                return Err(semantic(
+                    loc,
+                    format!(
+                        "Scatter could place only {fit} of {count} instances of \"{asset}\" at \
+                         most: a region of {:.2} x {:.2} holds no more than {fit} points \
+                         min_distance {min_distance} apart (known before any try); enlarge the \
+                         region, or lower count or min_distance",
+                        bounds.size().x,
+                        bounds.size().y,
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The footprints a scatter must keep clear of (those that can meet one of its own),
+    /// in a grid with cells about the size of its own footprints.
+    fn scatter_obstacles(
+        &self,
+        info: &AssetInfo,
+        frame: &GroundTransform,
+        bounds: &Rect2,
+        scale: f32,
+        vary: Option<&Variation>,
+        supporter: Option<u32>,
+    ) -> QuadGrid {
+        // how far an own footprint reaches from its instance's position, and how far the
+        // position can leave the region (position jitter)
+        let (scale_jitter, position_jitter) =
+            vary.map_or((0.0, 0.0), |v| (v.scale_jitter, v.position_jitter));
+        let fp = &info.footprint;
+        let corner_reach =
+            [fp.min, fp.max, Vec2::new(fp.min.x, fp.max.y), Vec2::new(fp.max.x, fp.min.y)]
+                .iter()
+                .map(|c| c.length())
+                .fold(0.0, f32::max);
+        let reach = corner_reach * scale * (1.0 + scale_jitter) * frame.scale;
+        let mut area = Rect2::EMPTY;
+        for p in [
+            bounds.min,
+            Vec2::new(bounds.max.x, bounds.min.y),
+            bounds.max,
+            Vec2::new(bounds.min.x, bounds.max.y),
+        ] {
+            area.grow(frame.transform_point2(p));
+        }
+        let margin = Vec2::splat(reach + 2.0 * position_jitter * frame.scale);
+        let area = Rect2::new(area.min - margin, area.max + margin);
+        let cell = (2.0 * reach).max(area.size().max_element() / 1024.0);
+        let mut grid = QuadGrid::new(area.min, cell);
+        for i in &self.out {
+            if i.container || Some(i.id) == supporter {
+                continue;
+            }
+            let corners = footprint_corners_of(&i.footprint, &i.transform);
+            if spatial::boxes_meet(&spatial::quad_box(&corners, 0.0), &area) {
+                grid.insert(corners);
+            }
+        }
+        grid
+    }
+
     fn scatter(
         &mut self,
         node: &ItemNode,
@@ -684,152 +1058,70 @@ impl Resolver<'_> {
         vary: Option<&Variation>,
     ) -> Result<(), LayoutError> {
         let loc = &node.location;
-        if let Region::Polygon(p) = region
-            && p.len() < 3
-        {
-            return Err(semantic(
-                loc,
-                format!("a polygon region needs at least 3 points, got {}", p.len()),
-            ));
-        }
-        let info = self.info(asset, node)?;
         let bounds = region_bounds(region);
+        self.check_scatter(loc, asset, region, &bounds, count, min_distance)?;
+        let info = self.info(asset, node)?;
         let mut rng = Rng::stream(seed, full);
-        let mut placed: Vec<Vec2> = Vec::new();
-        let obstacles: Vec<[Vec2; 4]> = if overlap {
-            Vec::new()
+        let mut points = PointGrid::new(&bounds, min_distance);
+        // with `overlap: true` footprints are not tested: no grid to fill
+        let mut quads = if overlap {
+            QuadGrid::new(bounds.min, 1.0)
         } else {
-            self.out
-                .iter()
-                .filter(|i| !i.container && Some(i.id) != supporter)
-                .filter_map(|i| {
-                    self.catalog
-                        .asset_info(&i.asset)
-                        .map(|inf| footprint_corners(&inf, &i.transform))
-                })
-                .collect()
+            self.scatter_obstacles(&info, &frame, &bounds, scale, vary, supporter)
         };
-        let mut mine: Vec<[Vec2; 4]> = Vec::new();
-        let budget = 500 * count as usize;
-        let mut tries = 0;
-        while placed.len() < count as usize && tries < budget {
+        let own_budget = 500u64.saturating_mul(u64::from(count));
+        let budget = own_budget.min(self.tries_left);
+        let (mut tries, mut placed) = (0u64, 0u32);
+        while placed < count && tries < budget {
             tries += 1;
             let p = Vec2::new(
                 rng.range(bounds.min.x, bounds.max.x),
                 rng.range(bounds.min.y, bounds.max.y),
             );
-            if !region_contains(region, p) || placed.iter().any(|q| q.distance(p) < min_distance) {
+            if !region_contains(region, p)
+                || (min_distance > 0.0 && points.any_closer(p, min_distance))
+            {
                 continue;
             }
-            let key = format!("{full}[{}]", placed.len());
+            let key = format!("{full}[{placed}]");
             let local = varied(&key, p, yaw, scale, vary);
             let world = frame.compose(&local);
             let quad = footprint_corners(&info, &world);
-            if !overlap && obstacles.iter().chain(mine.iter()).any(|o| quads_overlap(o, &quad)) {
+            if !overlap && quads.any_overlap(&quad, quads_overlap) {
                 continue;
             }
-            placed.push(p);
-            mine.push(quad);
+            placed += 1;
+            points.insert(p);
+            if !overlap {
+                quads.insert(quad);
+            }
             self.push(key, asset, &info, world, supporter, loc);
         }
-        if placed.len() < count as usize {
-            return Err(semantic(
-                loc,
-                format!(
-                    "Scatter could place only {} of {count} instances of \"{asset}\" in a region of \
-                     {:.2} x {:.2} with min_distance {min_distance} after {tries} tries; \
-                     enlarge the region, or lower count or min_distance{}",
-                    placed.len(),
-                    bounds.size().x,
-                    bounds.size().y,
-                    if overlap { "" } else { " (or allow `overlap: true`)" }
-                ),
-            ));
+        self.tries_left -= tries;
+        if placed == count {
+            return Ok(());
         }
-        Ok(())
+        if budget < own_budget {
+            let what = format!(
+                "Scatter(count: {count}) placed {placed} instances when the script's scatters \
+                 had used up their tries"
+            );
+            return Err(self.limits.exceeded(Limit::ScatterTries, loc, what));
+        }
+        Err(semantic(
+            loc,
+            format!(
+                "Scatter could place only {placed} of {count} instances of \"{asset}\" in a region of \
+                 {:.2} x {:.2} with min_distance {min_distance} after {tries} tries; \
+                 enlarge the region, or lower count or min_distance{}",
+                bounds.size().x,
+                bounds.size().y,
+                if overlap { "" } else { " (or allow `overlap: true`)" }
+            ),
+        ))
     }
 
-    fn matches(
-        &self,
-        pattern: &str,
-        removed: &[bool],
-        loc: &Location,
-    ) -> Result<Vec<usize>, LayoutError> {
-        let hits: Vec<usize> = self
-            .out
-            .iter()
-            .enumerate()
-            .filter(|(k, i)| {
-                !removed[*k] && (glob_match(pattern, &i.key) || pattern == format!("#{}", i.id))
-            })
-            .map(|(k, _)| k)
-            .collect();
-        if hits.is_empty() {
-            let sample: Vec<&str> = self
-                .out
-                .iter()
-                .enumerate()
-                .filter(|(k, _)| !removed[*k])
-                .take(6)
-                .map(|(_, i)| i.key.as_str())
-                .collect();
-            return Err(semantic(
-                loc,
-                format!(
-                    "\"{pattern}\" matches no instance (keys look like: {}, ...; or use #ID)",
-                    sample.join(", ")
-                ),
-            ));
-        }
-        Ok(hits)
-    }
-
-    /// Indices of `roots` and everything standing on them (transitively), in id order.
-    fn with_dependents(&self, roots: &[usize], removed: &[bool]) -> Vec<usize> {
-        let mut keep = vec![false; self.out.len()];
-        for &r in roots {
-            keep[r] = true;
-        }
-        for k in 0..self.out.len() {
-            if removed[k] {
-                continue;
-            }
-            if let Some(p) = self.out[k].supported_by
-                && let Some(pk) = self.out.iter().position(|i| i.id == p)
-                && keep[pk]
-            {
-                keep[k] = true;
-            }
-        }
-        (0..self.out.len()).filter(|k| keep[*k]).collect()
-    }
-
-    /// Re-derive world transforms (and boxes) of everything from locals, parents first.
-    fn refresh(&mut self) {
-        for k in 0..self.out.len() {
-            let frame = self.top_frame(self.out[k].supported_by);
-            let world = frame.compose(&self.out[k].local);
-            let info = self.catalog.asset_info(&self.out[k].asset);
-            let inst = &mut self.out[k];
-            inst.transform = world;
-            if let Some(info) = info {
-                inst.footprint = info.footprint;
-                inst.bev_aabb = bev_of(&info, &world);
-                inst.top = world.base + world.scale * info.height;
-            }
-        }
-    }
-
-    fn set_world(&mut self, k: usize, world: GroundTransform) {
-        let frame = self.top_frame(self.out[k].supported_by);
-        self.out[k].local = relative_to(&world, &frame);
-    }
-
-    fn edit(
-        &mut self,
-        node: &crate::source::EditNode,
-        removed: &mut Vec<bool>,
-    ) -> Result<(), LayoutError> {
+    fn edit(&mut self, node: &crate::source::EditNode) -> Result<(), LayoutError> {
         let loc = &node.location;
         let one_of = |to: bool, by: bool| {
             if to == by {
@@ -843,51 +1135,29 @@ impl Resolver<'_> {
         };
         match &node.edit {
             Edit::Remove(target) => {
-                let hits = self.matches(target, removed, loc)?;
-                for k in self.with_dependents(&hits, removed) {
-                    removed[k] = true;
+                let hits = self.matches(target, loc)?;
+                for k in self.with_dependents(&hits) {
+                    self.removed[k] = true;
                 }
             }
             Edit::RemoveCategory(cat) => {
-                let hits: Vec<usize> = (0..self.out.len())
-                    .filter(|k| !removed[*k] && &self.out[*k].category == cat)
-                    .collect();
-                if hits.is_empty() {
-                    return Err(semantic(
-                        loc,
-                        format!(
-                            "no instance of category \"{cat}\" ({})",
-                            self.category_list(removed)
-                        ),
-                    ));
-                }
-                for k in self.with_dependents(&hits, removed) {
-                    removed[k] = true;
+                let hits = self.of_category(cat, loc)?;
+                for k in self.with_dependents(&hits) {
+                    self.removed[k] = true;
                 }
             }
             Edit::ReplaceAsset { category, with } => {
                 let src = &self.script.files[node.file];
-                let info = self.info_at(with, &src.find_string_after(with, loc))?;
-                let hits: Vec<usize> = (0..self.out.len())
-                    .filter(|k| !removed[*k] && &self.out[*k].category == category)
-                    .collect();
-                if hits.is_empty() {
-                    return Err(semantic(
-                        loc,
-                        format!(
-                            "no instance of category \"{category}\" ({})",
-                            self.category_list(removed)
-                        ),
-                    ));
-                }
-                for k in hits {
+                let info = self.info_at(with, &src.find_string_after(with, node.offset))?;
+                let hits = self.of_category(category, loc)?;
+                for &k in &hits {
                     self.retarget(k, with, &info);
                 }
-                self.refresh();
+                self.refresh(&hits);
             }
             Edit::Move { target, to, by } => {
                 one_of(to.is_some(), by.is_some())?;
-                self.update_world(target, removed, loc, |w| {
+                self.update_world(target, loc, |w| {
                     w.position = match (to, by) {
                         (Some(t), _) => (*t).into(),
                         _ => w.position + Vec2::from(by.unwrap_or_default()),
@@ -897,14 +1167,14 @@ impl Resolver<'_> {
             }
             Edit::Rotate { target, to, by } => {
                 one_of(to.is_some(), by.is_some())?;
-                self.update_world(target, removed, loc, |w| {
+                self.update_world(target, loc, |w| {
                     w.yaw_deg = wrap_degrees(to.unwrap_or(w.yaw_deg + by.unwrap_or(0.0)));
                     Ok(())
                 })?;
             }
             Edit::Scale { target, to, by } => {
                 one_of(to.is_some(), by.is_some())?;
-                self.update_world(target, removed, loc, |w| {
+                self.update_world(target, loc, |w| {
                     w.scale = to.unwrap_or(w.scale * by.unwrap_or(1.0));
                     if w.scale.is_finite() && w.scale > 0.0 {
                         Ok(())
@@ -920,12 +1190,13 @@ impl Resolver<'_> {
                     return Err(semantic(loc, format!("scale must be positive, got {s}")));
                 }
                 let new_info = match asset {
-                    Some(a) => Some(
-                        self.info_at(a, &self.script.files[node.file].find_string_after(a, loc))?,
-                    ),
+                    Some(a) => Some(self.info_at(
+                        a,
+                        &self.script.files[node.file].find_string_after(a, node.offset),
+                    )?),
                     None => None,
                 };
-                for k in self.matches(target, removed, loc)? {
+                for k in self.matches(target, loc)? {
                     if let (Some(a), Some(info)) = (asset, &new_info) {
                         self.retarget(k, a, info);
                     }
@@ -943,59 +1214,94 @@ impl Resolver<'_> {
                         w.base = self.top_frame(self.out[k].supported_by).base + b;
                     }
                     self.set_world(k, w);
-                    self.refresh();
+                    self.refresh(&[k]);
                 }
             }
             Edit::Duplicate { target, at, by, yaw, name } => {
                 if at.is_some() && by.is_some() {
                     return Err(semantic(loc, "Duplicate takes `at` or `by`, not both".into()));
                 }
-                let roots = self.matches(target, removed, loc)?;
+                let roots = self.matches(target, loc)?;
+                let copies: u64 =
+                    roots.iter().map(|&r| wide(self.with_dependents(&[r]).len())).sum();
+                self.reserve(copies, loc, || {
+                    format!("Duplicate(target: \"{target}\") would copy {copies} instances")
+                })?;
                 let many = roots.len() > 1;
                 for (n, &root) in roots.iter().enumerate() {
-                    let family = self.with_dependents(&[root], removed);
-                    let root_key = self.out[root].key.clone();
                     let new_root_key = match name {
                         Some(nm) if many => format!("{nm}[{n}]"),
                         Some(nm) => nm.clone(),
-                        None => self.unique_copy_key(&root_key),
+                        None => self.unique_copy_key(&self.out[root].key),
                     };
-                    let mut id_map: BTreeMap<u32, u32> = BTreeMap::new();
-                    for &k in &family {
-                        let mut copy = self.out[k].clone();
-                        let new_id = self.next_id;
-                        self.next_id += 1;
-                        id_map.insert(copy.id, new_id);
-                        copy.id = new_id;
-                        copy.supported_by =
-                            copy.supported_by.map(|p| *id_map.get(&p).unwrap_or(&p));
-                        copy.key = if k == root {
-                            new_root_key.clone()
-                        } else {
-                            copy.key.replacen(root_key.as_str(), &new_root_key, 1)
-                        };
-                        self.out.push(copy);
-                        removed.push(false);
-                        if k == root {
-                            let last = self.out.len() - 1;
-                            let mut w = self.out[last].transform;
-                            if let Some(p) = at {
-                                w.position = (*p).into();
-                            }
-                            if let Some(b) = by {
-                                w.position += Vec2::from(*b);
-                            }
-                            if let Some(y) = yaw {
-                                w.yaw_deg = wrap_degrees(*y);
-                            }
-                            self.set_world(last, w);
-                        }
-                    }
-                    self.refresh();
+                    self.duplicate(root, new_root_key, loc, *at, *by, *yaw)?;
                 }
             }
         }
         Ok(())
+    }
+
+    /// Copy `root` with everything standing on it; the copy of `root` gets `new_root_key`
+    /// and is placed `at`, shifted `by` and turned to `yaw`.
+    fn duplicate(
+        &mut self,
+        root: usize,
+        new_root_key: String,
+        loc: &Location,
+        at: Option<V2>,
+        by: Option<V2>,
+        yaw: Option<f32>,
+    ) -> Result<(), LayoutError> {
+        let family = self.with_dependents(&[root]);
+        let n = wide(family.len());
+        self.reserve(n, loc, || format!("Duplicate would copy {n} instances"))?;
+        let root_key = self.out[root].key.clone();
+        let mut id_map: BTreeMap<u32, u32> = BTreeMap::new();
+        let mut root_copy = None;
+        for &k in &family {
+            let mut copy = self.out[k].clone();
+            let new_id = wide(self.out.len()) as u32;
+            id_map.insert(copy.id, new_id);
+            copy.supported_by = copy.supported_by.map(|p| *id_map.get(&p).unwrap_or(&p));
+            copy.key = if k == root {
+                new_root_key.clone()
+            } else {
+                copy.key.replacen(root_key.as_str(), &new_root_key, 1)
+            };
+            let c = self.add(copy);
+            if k == root {
+                root_copy = Some(c);
+                let mut w = self.out[c].transform;
+                if let Some(p) = at {
+                    w.position = p.into();
+                }
+                if let Some(b) = by {
+                    w.position += Vec2::from(b);
+                }
+                if let Some(y) = yaw {
+                    w.yaw_deg = wrap_degrees(y);
+                }
+                self.set_world(c, w);
+            }
+        }
+        if let Some(c) = root_copy {
+            self.refresh(&[c]);
+        }
+        Ok(())
+    }
+
+    /// Indices of the instances left of category `cat`; none is an error.
+    fn of_category(&self, cat: &str, loc: &Location) -> Result<Vec<usize>, LayoutError> {
+        let hits: Vec<usize> = (0..self.out.len())
+            .filter(|&k| !self.removed[k] && self.out[k].category == cat)
+            .collect();
+        if hits.is_empty() {
+            return Err(semantic(
+                loc,
+                format!("no instance of category \"{cat}\" ({})", self.category_list()),
+            ));
+        }
+        Ok(hits)
     }
 
     /// Apply `f` to the world transform of every instance matching `target` (what stands on
@@ -1003,20 +1309,20 @@ impl Resolver<'_> {
     fn update_world(
         &mut self,
         target: &str,
-        removed: &[bool],
         loc: &Location,
         mut f: impl FnMut(&mut GroundTransform) -> Result<(), String>,
     ) -> Result<(), LayoutError> {
-        for k in self.matches(target, removed, loc)? {
+        for k in self.matches(target, loc)? {
             let mut w = self.out[k].transform;
             f(&mut w).map_err(|m| semantic(loc, m))?;
             self.set_world(k, w);
-            self.refresh();
+            self.refresh(&[k]);
         }
         Ok(())
     }
 
     fn retarget(&mut self, k: usize, asset: &str, info: &AssetInfo) {
+        self.record(k);
         let inst = &mut self.out[k];
         inst.asset = asset.to_string();
         inst.category = info.category.clone();
@@ -1025,19 +1331,19 @@ impl Resolver<'_> {
     }
 
     fn unique_copy_key(&self, key: &str) -> String {
-        (1..)
+        (1u64..)
             .map(|n| format!("{key}+copy{n}"))
-            .find(|k| !self.out.iter().any(|i| &i.key == k))
-            .unwrap()
+            .find(|k| !self.keys.contains_key(k))
+            .unwrap_or_else(|| format!("{key}+copy"))
     }
 
-    fn category_list(&self, removed: &[bool]) -> String {
+    fn category_list(&self) -> String {
         let mut cats: Vec<&str> = self
             .out
             .iter()
-            .enumerate()
-            .filter(|(k, _)| !removed[*k])
-            .map(|(_, i)| i.category.as_str())
+            .zip(&self.removed)
+            .filter(|(_, gone)| !**gone)
+            .map(|(i, _)| i.category.as_str())
             .collect();
         cats.sort();
         cats.dedup();
@@ -1077,33 +1383,34 @@ fn varied(key: &str, pos: Vec2, yaw: f32, scale: f32, vary: Option<&Variation>) 
     t
 }
 
-fn along_spots(
-    path: &[V2],
-    count: Option<u32>,
+/// Where an `Along` puts its instances: how many, at which distances along the path.
+struct AlongPlan {
+    /// Segment lengths of the path, and their sum.
+    lens: Vec<f32>,
+    total: f32,
+    /// Number of instances (checked against the limits before any is made).
+    count: u64,
+    /// One every `spacing`, else `count` spread over the whole length.
     spacing: Option<f32>,
-    offset: f32,
-    face: Facing,
-) -> Result<Vec<Spot>, String> {
+}
+
+/// Plan an `Along` (without making its instances: a tiny spacing is refused by count).
+fn along_plan(path: &[V2], count: Option<u32>, spacing: Option<f32>) -> Result<AlongPlan, String> {
     if path.len() < 2 {
         return Err(format!("Along needs a path of at least 2 points, got {}", path.len()));
     }
-    let pts: Vec<Vec2> = path.iter().map(|p| Vec2::from(*p)).collect();
-    let lens: Vec<f32> = pts.windows(2).map(|w| w[0].distance(w[1])).collect();
+    let lens: Vec<f32> =
+        path.windows(2).map(|w| Vec2::from(w[0]).distance(Vec2::from(w[1]))).collect();
     let total: f32 = lens.iter().sum();
     if total <= 0.0 {
         return Err("Along path has zero length".into());
     }
-    let stations: Vec<f32> = match (count, spacing) {
-        (Some(n), None) if n >= 1 => {
-            if n == 1 {
-                vec![total * 0.5]
-            } else {
-                (0..n).map(|i| total * i as f32 / (n - 1) as f32).collect()
-            }
-        }
+    let (count, spacing) = match (count, spacing) {
+        (Some(n), None) if n >= 1 => (u64::from(n), None),
         (None, Some(s)) if s > 0.0 => {
-            let n = (total / s + 1e-4).floor() as u32 + 1;
-            (0..n).map(|i| i as f32 * s).collect()
+            let steps = (total / s + 1e-4).floor();
+            let n = if steps.is_finite() { (steps as u64).saturating_add(1) } else { u64::MAX };
+            (n, Some(s))
         }
         _ => {
             return Err(
@@ -1111,18 +1418,28 @@ fn along_spots(
             );
         }
     };
+    Ok(AlongPlan { lens, total, count, spacing })
+}
+
+/// The spots of a planned `Along`, walking the path once (distances only grow).
+fn along_spots(path: &[V2], plan: &AlongPlan, offset: f32, face: Facing) -> Vec<Spot> {
+    let pts: Vec<Vec2> = path.iter().map(|p| Vec2::from(*p)).collect();
+    let (lens, total) = (&plan.lens, plan.total);
+    let n = plan.count;
+    let station = |i: u64| match plan.spacing {
+        Some(s) => i as f32 * s,
+        None if n == 1 => total * 0.5,
+        None => total * i as f32 / (n - 1) as f32,
+    };
     let centre = pts.iter().copied().sum::<Vec2>() / pts.len() as f32;
-    Ok(stations
-        .into_iter()
-        .map(|s| {
-            let mut acc = 0.0;
-            let mut seg = lens.len() - 1;
-            for (k, l) in lens.iter().enumerate() {
-                if s <= acc + l || k == lens.len() - 1 {
-                    seg = k;
-                    break;
-                }
-                acc += l;
+    let last = lens.len() - 1;
+    let (mut seg, mut acc) = (0, 0.0);
+    (0..n)
+        .map(|i| {
+            let s = station(i);
+            while !(s <= acc + lens[seg] || seg == last) {
+                acc += lens[seg];
+                seg += 1;
             }
             let (a, b) = (pts[seg], pts[seg + 1]);
             let dir = (b - a).normalize_or_zero();
@@ -1130,7 +1447,7 @@ fn along_spots(
             let pos = a.lerp(b, t) + Vec2::new(-dir.y, dir.x) * offset;
             Spot { pos, yaw: facing(face, pos, centre, dir.y.atan2(dir.x).to_degrees()) }
         })
-        .collect())
+        .collect()
 }
 
 /// The transform `local` such that `parent.compose(local) == world`.

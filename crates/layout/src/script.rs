@@ -17,6 +17,7 @@
 
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::ops::RangeInclusive;
 
 /// A 2D point or vector on the ground plane, `(x, y)`.
 pub type V2 = (f32, f32);
@@ -576,6 +577,18 @@ pub struct ViewSettings {
     pub elevation_deg: Option<(f32, f32)>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fov_deg: Option<f32>,
+}
+
+impl ViewSettings {
+    /// Allowed total numbers of views (train + test): at least one train and one test view;
+    /// at most 10,000 (a day of rendering at the default resolution).
+    pub const COUNT: RangeInclusive<u32> = 2..=10_000;
+    /// Allowed image resolutions, pixels per side.
+    pub const RESOLUTION_PX: RangeInclusive<u32> = 8..=8192;
+    /// Allowed camera elevations above the ground, degrees.
+    pub const ELEVATION_DEG: RangeInclusive<f32> = 0.0..=90.0;
+    /// Allowed fields of view, degrees.
+    pub const FOV_DEG: RangeInclusive<f32> = 5.0..=150.0;
 }
 
 /// A fixed directional light with Lambert shading and some ambient light.

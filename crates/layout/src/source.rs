@@ -2,25 +2,51 @@
 //! references, and a source map that locates items and edits for later error messages.
 
 use crate::error::{LayoutError, Location};
+use crate::limits::{Limit, Limits};
 use crate::script::{AssetDef, Edit, Item, Lighting, Script, V2, ViewSettings};
+use crate::validate;
 use std::collections::{BTreeMap, HashMap};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
+/// Bytes per block of the character-count index of a [`SourceFile`] (columns are counted in
+/// characters: a column costs at most one block of counting, however long the line).
+const CHAR_BLOCK: usize = 1024;
+
 /// One script file's text, indexed for locating identifiers and string literals outside
-/// comments.
+/// comments. Every lookup is a hash lookup plus a binary search: locating all items of a
+/// file takes time linear in its size.
 #[derive(Debug, Clone)]
 pub struct SourceFile {
     pub path: PathBuf,
     pub text: String,
+    /// Byte offsets of every identifier, by identifier, ascending.
     idents: HashMap<String, Vec<usize>>,
-    strings: Vec<(String, usize)>,
+    /// Byte offsets of the opening quote of every string literal, by value, ascending.
+    strings: HashMap<String, Vec<usize>>,
     line_starts: Vec<usize>,
+    /// Characters before byte `k * CHAR_BLOCK`, for every block.
+    chars_before_block: Vec<usize>,
+}
+
+fn push_offset(map: &mut HashMap<String, Vec<usize>>, key: &str, offset: usize) {
+    match map.get_mut(key) {
+        Some(v) => v.push(offset),
+        None => {
+            map.insert(key.to_string(), vec![offset]);
+        }
+    }
+}
+
+/// Characters in `bytes` (UTF-8): the bytes that do not continue a character.
+fn count_chars(bytes: &[u8]) -> usize {
+    bytes.iter().filter(|&&b| (b & 0xC0) != 0x80).count()
 }
 
 impl SourceFile {
     pub fn new(path: PathBuf, text: String) -> Self {
         let mut idents: HashMap<String, Vec<usize>> = HashMap::new();
-        let mut strings = Vec::new();
+        let mut strings: HashMap<String, Vec<usize>> = HashMap::new();
         let b = text.as_bytes();
         let mut i = 0;
         while i < b.len() {
@@ -47,49 +73,63 @@ impl SourceFile {
                     i += 1;
                 }
                 i += 1;
-                strings.push((String::from_utf8_lossy(&s).into_owned(), start));
+                push_offset(&mut strings, &String::from_utf8_lossy(&s), start);
             } else if c.is_ascii_alphabetic() || c == b'_' {
                 let start = i;
                 while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_') {
                     i += 1;
                 }
-                idents.entry(text[start..i].to_string()).or_default().push(start);
+                push_offset(&mut idents, &text[start..i], start);
             } else {
                 i += 1;
             }
         }
         let mut line_starts = vec![0];
         line_starts.extend(text.match_indices('\n').map(|(k, _)| k + 1));
-        SourceFile { path, text, idents, strings, line_starts }
+        let mut chars_before_block = vec![0];
+        for block in b.chunks(CHAR_BLOCK) {
+            let before = chars_before_block.last().copied().unwrap_or(0);
+            chars_before_block.push(before + count_chars(block));
+        }
+        SourceFile { path, text, idents, strings, line_starts, chars_before_block }
+    }
+
+    /// Characters before byte `offset` (at most the text's length).
+    fn chars_before(&self, offset: usize) -> usize {
+        let offset = offset.min(self.text.len());
+        let block = offset / CHAR_BLOCK;
+        self.chars_before_block[block]
+            + count_chars(&self.text.as_bytes()[block * CHAR_BLOCK..offset])
     }
 
     /// Line and column (1-based, columns in characters) of a byte offset.
     pub fn location(&self, offset: usize) -> Location {
         let line = self.line_starts.partition_point(|&s| s <= offset);
         let start = self.line_starts[line - 1];
-        let col = self.text[start..offset.min(self.text.len())].chars().count() + 1;
+        let col = self.chars_before(offset) - self.chars_before(start) + 1;
         Location { file: self.path.clone(), line, col }
+    }
+
+    /// Byte offset of the `nth` (0-based) occurrence of identifier `ident` (0 if none).
+    pub fn ident_offset(&self, ident: &str, nth: usize) -> usize {
+        self.idents.get(ident).and_then(|v| v.get(nth)).copied().unwrap_or(0)
     }
 
     /// Where the `nth` (0-based) occurrence of identifier `ident` stands.
     pub fn find_ident(&self, ident: &str, nth: usize) -> Location {
-        let off = self.idents.get(ident).and_then(|v| v.get(nth)).copied().unwrap_or(0);
-        self.location(off)
+        self.location(self.ident_offset(ident, nth))
     }
 
     /// Where the first string literal equal to `s` stands, if any.
     pub fn find_string(&self, s: &str) -> Option<Location> {
-        self.strings.iter().find(|(v, _)| v == s).map(|(_, off)| self.location(*off))
+        self.strings.get(s).and_then(|v| v.first()).map(|&off| self.location(off))
     }
 
-    /// The place of the first string literal `s` at or after `after`, else `after` itself.
-    pub fn find_string_after(&self, s: &str, after: &Location) -> Location {
-        self.strings
-            .iter()
-            .map(|(v, off)| (v, self.location(*off)))
-            .find(|(v, l)| *v == s && (l.line, l.col) >= (after.line, after.col))
-            .map(|(_, l)| l)
-            .unwrap_or_else(|| after.clone())
+    /// The place of the first string literal `s` at or after the byte offset `after`, else
+    /// the place of `after` itself.
+    pub fn find_string_after(&self, s: &str, after: usize) -> Location {
+        let found = self.strings.get(s).and_then(|v| v.get(v.partition_point(|&o| o < after)));
+        self.location(found.copied().unwrap_or(after))
     }
 }
 
@@ -98,6 +138,8 @@ impl SourceFile {
 pub struct ItemNode {
     pub item: Item,
     pub location: Location,
+    /// Byte offset of [`Self::location`] in its file.
+    pub offset: usize,
     pub file: usize,
     pub children: Vec<ItemNode>,
 }
@@ -107,6 +149,8 @@ pub struct ItemNode {
 pub struct EditNode {
     pub edit: Edit,
     pub location: Location,
+    /// Byte offset of [`Self::location`] in its file.
+    pub offset: usize,
     pub file: usize,
 }
 
@@ -136,9 +180,14 @@ pub struct LoadedScript {
     pub edits: Vec<EditNode>,
     pub extent: Option<(V2, V2)>,
     pub views: Option<ViewSettings>,
+    /// Where the `views` in effect were written (for messages about them).
+    pub views_at: Option<Location>,
     pub lighting: Option<Lighting>,
     /// Scene units per metre, as the script (or its base) records it.
     pub units_per_metre: Option<f32>,
+    /// The limits the script was loaded with; [`crate::resolve()`] and [`append_edits`]
+    /// apply them too.
+    pub limits: Limits,
 }
 
 fn ron_options() -> ron::Options {
@@ -166,16 +215,105 @@ pub fn write_script(script: &Script) -> Result<String, LayoutError> {
     Ok(format!("#![enable(implicit_some)]\n{body}\n"))
 }
 
-/// Read a script file and everything it refers to.
+/// What a file that is not a regular file is, in words.
+fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+    let t = meta.file_type();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    if t.is_dir() { "a folder" } else { "not a regular file" }
+}
+
+/// Read a script file: it must be a regular file (a FIFO could block forever, a device never
+/// end) of at most [`Limits::max_file_bytes`]; the read itself stops after that many bytes,
+/// so a file that grows while it is read stays bounded. `referenced_at` is the `base` or
+/// `include` that names the file, for messages.
+pub fn read_script_file(
+    path: &Path,
+    limits: &Limits,
+    referenced_at: Option<&Location>,
+) -> Result<String, LayoutError> {
+    let io = |source| LayoutError::Io { path: path.to_path_buf(), source };
+    let not_a_file = |meta: &std::fs::Metadata| LayoutError::NotAFile {
+        path: path.to_path_buf(),
+        kind: file_kind(meta),
+        referenced_at: referenced_at.cloned(),
+    };
+    let too_large = |size: u64| LayoutError::TooLarge {
+        path: path.to_path_buf(),
+        size,
+        limit: limits.max_file_bytes,
+        referenced_at: referenced_at.cloned(),
+    };
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(not_a_file(&meta));
+    }
+    if meta.len() > limits.max_file_bytes {
+        return Err(too_large(meta.len()));
+    }
+    let file = std::fs::File::open(path).map_err(io)?;
+    // the path may have been replaced between the two looks: check what was opened
+    let meta = file.metadata().map_err(io)?;
+    if !meta.is_file() {
+        return Err(not_a_file(&meta));
+    }
+    let mut bytes = Vec::new();
+    file.take(limits.max_file_bytes.saturating_add(1)).read_to_end(&mut bytes).map_err(io)?;
+    let read = u64::try_from(bytes.len()).unwrap_or(u64::MAX);
+    if read > limits.max_file_bytes {
+        return Err(too_large(read));
+    }
+    String::from_utf8(bytes)
+        .map_err(|e| io(std::io::Error::new(std::io::ErrorKind::InvalidData, e.utf8_error())))
+}
+
+/// Read a script file and everything it refers to, with the limits of the environment
+/// ([`Limits::from_env`]).
 pub fn load(path: &Path) -> Result<LoadedScript, LayoutError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| LayoutError::Io { path: path.to_path_buf(), source: e })?;
-    load_str(path, &text)
+    load_with(path, &Limits::from_env()?)
+}
+
+/// [`load`] with the given limits.
+pub fn load_with(path: &Path, limits: &Limits) -> Result<LoadedScript, LayoutError> {
+    let text = read_script_file(path, limits, None)?;
+    load_str_with(path, &text, limits)
 }
 
 /// Like [`load`], with the main file's text given (`path` names it in messages and anchors
 /// relative references).
 pub fn load_str(path: &Path, text: &str) -> Result<LoadedScript, LayoutError> {
+    load_str_with(path, text, &Limits::from_env()?)
+}
+
+/// [`load_str`] with the given limits.
+pub fn load_str_with(
+    path: &Path,
+    text: &str,
+    limits: &Limits,
+) -> Result<LoadedScript, LayoutError> {
+    let size = u64::try_from(text.len()).unwrap_or(u64::MAX);
+    if size > limits.max_file_bytes {
+        return Err(LayoutError::TooLarge {
+            path: path.to_path_buf(),
+            size,
+            limit: limits.max_file_bytes,
+            referenced_at: None,
+        });
+    }
     let mut loaded = LoadedScript {
         name: path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
         path: path.to_path_buf(),
@@ -185,11 +323,13 @@ pub fn load_str(path: &Path, text: &str) -> Result<LoadedScript, LayoutError> {
         edits: Vec::new(),
         extent: None,
         views: None,
+        views_at: None,
         lighting: None,
         units_per_metre: None,
+        limits: *limits,
     };
-    let mut stack = Vec::new();
-    load_into(&mut loaded, path, Some(text.to_string()), &mut stack, false)?;
+    let mut loader = Loader { limits, stack: Vec::new(), loads: 0, parsed: HashMap::new() };
+    loader.load_into(&mut loaded, path, Some(text.to_string()), None, false)?;
     Ok(loaded)
 }
 
@@ -197,86 +337,191 @@ fn canonical(p: &Path) -> PathBuf {
     std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf())
 }
 
-fn load_into(
-    out: &mut LoadedScript,
-    path: &Path,
-    text: Option<String>,
-    stack: &mut Vec<PathBuf>,
-    assets_only: bool,
-) -> Result<(), LayoutError> {
-    let key = canonical(path);
-    if stack.contains(&key) {
-        let cycle = stack.iter().chain(std::iter::once(&key)).map(|p| p.display().to_string());
-        return Err(LayoutError::Cycle {
-            path: path.to_path_buf(),
-            cycle: cycle.collect::<Vec<_>>().join(" -> "),
-        });
-    }
-    let text = match text {
-        Some(t) => t,
-        None => std::fs::read_to_string(path)
-            .map_err(|e| LayoutError::Io { path: path.to_path_buf(), source: e })?,
-    };
-    let script = parse_script(path, &text)?;
-    let file = out.files.len();
-    out.files.push(SourceFile::new(path.to_path_buf(), text));
-    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    stack.push(key);
+/// One file, parsed, located and validated: what every later load of the same file reuses.
+#[derive(Debug, Clone)]
+struct ParsedFile {
+    /// Index of the file in [`LoadedScript::files`].
+    file: usize,
+    /// The script without its assets, layout and edits (they are below, located).
+    script: Script,
+    items: Vec<ItemNode>,
+    edits: Vec<EditNode>,
+    assets: Vec<(String, AssetEntry)>,
+    views_at: Option<Location>,
+}
 
-    if assets_only
-        && (!script.layout.is_empty() || !script.edits.is_empty() || script.base.is_some())
-    {
-        let src = &out.files[file];
-        return Err(LayoutError::Semantic {
-            location: src.location(0),
-            message: "an included file may only define assets (use `base` to extend a scene)"
-                .into(),
-        });
+/// The state of one [`load_str_with`]: the chain of files being read (for cycles and the
+/// depth limit), the loads so far, and every file already parsed, by canonical path.
+struct Loader<'a> {
+    limits: &'a Limits,
+    stack: Vec<PathBuf>,
+    loads: usize,
+    parsed: HashMap<PathBuf, ParsedFile>,
+}
+
+impl Loader<'_> {
+    /// Check the depth and load limits for one more file, named at `from` (the main file
+    /// when `None`).
+    fn admit(&mut self, path: &Path, from: Option<&Location>) -> Result<(), LayoutError> {
+        let here = || {
+            from.cloned().unwrap_or_else(|| Location { file: path.to_path_buf(), line: 1, col: 1 })
+        };
+        let depth = self.stack.len().saturating_add(1);
+        if depth > self.limits.max_include_depth {
+            return Err(self.limits.exceeded(
+                Limit::IncludeDepth,
+                &here(),
+                format!("{} would be read at nesting level {depth}", path.display()),
+            ));
+        }
+        self.loads = self.loads.saturating_add(1);
+        if self.loads > self.limits.max_file_loads {
+            return Err(self.limits.exceeded(
+                Limit::FileLoads,
+                &here(),
+                format!("{} would be file load number {}", path.display(), self.loads),
+            ));
+        }
+        Ok(())
     }
-    if let Some(base) = &script.base {
-        load_into(out, &dir.join(base), None, stack, false)?;
-    }
-    for inc in &script.include {
-        let inc_path = dir.join(inc);
-        if !inc_path.exists() {
-            let src = &out.files[file];
-            let location = src.find_string(inc).unwrap_or_else(|| src.location(0));
-            stack.pop();
-            return Err(LayoutError::Semantic {
-                location,
-                message: format!("included file {} does not exist", inc_path.display()),
+
+    fn load_into(
+        &mut self,
+        out: &mut LoadedScript,
+        path: &Path,
+        text: Option<String>,
+        from: Option<&Location>,
+        assets_only: bool,
+    ) -> Result<(), LayoutError> {
+        let key = canonical(path);
+        if self.stack.contains(&key) {
+            let cycle =
+                self.stack.iter().chain(std::iter::once(&key)).map(|p| p.display().to_string());
+            return Err(LayoutError::Cycle {
+                path: path.to_path_buf(),
+                cycle: cycle.collect::<Vec<_>>().join(" -> "),
             });
         }
-        load_into(out, &inc_path, None, stack, true)?;
-    }
-    stack.pop();
+        self.admit(path, from)?;
+        // asset files are parsed once, however often they are included (the main file,
+        // given as text, need not be what is on disk)
+        let cached = if assets_only { self.parsed.get(&key).cloned() } else { None };
+        let parsed = match cached {
+            Some(p) => p,
+            None => {
+                let text = match text {
+                    Some(t) => t,
+                    None => read_script_file(path, self.limits, from)?,
+                };
+                let p = parse_file(out, path, text)?;
+                if assets_only {
+                    self.parsed.insert(key.clone(), p.clone());
+                }
+                p
+            }
+        };
+        let file = parsed.file;
+        let script = &parsed.script;
+        if assets_only
+            && (!parsed.items.is_empty() || !parsed.edits.is_empty() || script.base.is_some())
+        {
+            return Err(LayoutError::Semantic {
+                location: out.files[file].location(0),
+                message: "an included file may only define assets (use `base` to extend a scene)"
+                    .into(),
+            });
+        }
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        self.stack.push(key);
+        if let Some(base) = &script.base {
+            let at = out.files[file].find_string(base);
+            self.load_into(out, &dir.join(base), None, at.as_ref(), false)?;
+        }
+        for inc in &script.include {
+            let inc_path = dir.join(inc);
+            let src = &out.files[file];
+            let location = src.find_string(inc).unwrap_or_else(|| src.location(0));
+            if !inc_path.exists() {
+                return Err(LayoutError::Semantic {
+                    location,
+                    message: format!("included file {} does not exist", inc_path.display()),
+                });
+            }
+            self.load_into(out, &inc_path, None, Some(&location), true)?;
+        }
+        self.stack.pop();
 
-    for (name, def) in script.assets {
-        let src = &out.files[file];
-        let location = src.find_string(&name).unwrap_or_else(|| src.location(0));
-        out.assets.insert(name, AssetEntry { def, file, location });
+        let ParsedFile { script, items, edits, assets, views_at, .. } = parsed;
+        out.assets.extend(assets);
+        if !assets_only {
+            if let Some(n) = script.name {
+                out.name = n;
+            }
+            out.extent = script.extent.or(out.extent);
+            if script.views.is_some() {
+                out.views = script.views;
+                out.views_at = views_at;
+            }
+            out.lighting = script.lighting.or(out.lighting.take());
+            out.units_per_metre = script.units_per_metre.or(out.units_per_metre);
+            out.items.extend(items);
+            out.edits.extend(edits);
+        }
+        Ok(())
     }
-    if !assets_only {
-        if let Some(n) = script.name {
-            out.name = n;
-        }
-        out.extent = script.extent.or(out.extent);
-        out.views = script.views.or(out.views.take());
-        out.lighting = script.lighting.or(out.lighting.take());
-        out.units_per_metre = script.units_per_metre.or(out.units_per_metre);
-        let mut counters: HashMap<&'static str, usize> = HashMap::new();
-        for item in script.layout {
-            let node = locate_item(&out.files[file], file, item, &mut counters);
-            out.items.push(node);
-        }
-        for edit in script.edits {
+}
+
+/// Parse one file into `out.files`, locate its assets, items and edits, and validate every
+/// number it gives.
+fn parse_file(
+    out: &mut LoadedScript,
+    path: &Path,
+    text: String,
+) -> Result<ParsedFile, LayoutError> {
+    let mut script = parse_script(path, &text)?;
+    let file = out.files.len();
+    out.files.push(SourceFile::new(path.to_path_buf(), text));
+    let src = &out.files[file];
+    let assets: Vec<(String, AssetEntry)> = std::mem::take(&mut script.assets)
+        .into_iter()
+        .map(|(name, def)| {
+            let location = src.find_string(&name).unwrap_or_else(|| src.location(0));
+            (name.clone(), AssetEntry { def, file, location })
+        })
+        .collect();
+    let mut counters: HashMap<&'static str, usize> = HashMap::new();
+    let items: Vec<ItemNode> = std::mem::take(&mut script.layout)
+        .into_iter()
+        .map(|item| locate_item(src, file, item, &mut counters))
+        .collect();
+    let edits = locate_edits(src, file, std::mem::take(&mut script.edits), &mut counters);
+    let views_at = script.views.as_ref().map(|_| src.find_ident("views", 0));
+    for (name, entry) in &assets {
+        validate::asset(name, &entry.def, &entry.location)?;
+    }
+    validate::items(&items)?;
+    validate::edits(&edits)?;
+    validate::settings(&script, src)?;
+    Ok(ParsedFile { file, script, items, edits, assets, views_at })
+}
+
+/// Locate edits: the k-th edit of a variant is the k-th occurrence of its identifier after
+/// the layout items (which `counters` has counted).
+fn locate_edits(
+    src: &SourceFile,
+    file: usize,
+    edits: Vec<Edit>,
+    counters: &mut HashMap<&'static str, usize>,
+) -> Vec<EditNode> {
+    edits
+        .into_iter()
+        .map(|edit| {
             let n = counters.entry(edit.variant()).or_default();
-            let location = out.files[file].find_ident(edit.variant(), *n);
+            let offset = src.ident_offset(edit.variant(), *n);
             *n += 1;
-            out.edits.push(EditNode { edit, location, file });
-        }
-    }
-    Ok(())
+            EditNode { edit, location: src.location(offset), offset, file }
+        })
+        .collect()
 }
 
 /// Items are visited in document order (pre-order), so the k-th item of a variant is the
@@ -288,7 +533,7 @@ fn locate_item(
     counters: &mut HashMap<&'static str, usize>,
 ) -> ItemNode {
     let n = counters.entry(item.variant()).or_default();
-    let location = src.find_ident(item.variant(), *n);
+    let offset = src.ident_offset(item.variant(), *n);
     *n += 1;
     let children = match &item {
         Item::Group { children, .. } => {
@@ -296,17 +541,16 @@ fn locate_item(
         }
         _ => Vec::new(),
     };
-    ItemNode { item, location, file, children }
+    ItemNode { item, location: src.location(offset), offset, file, children }
 }
 
 /// Append the `edits` of the script at `path` to `script` (after its own edits), ignoring
 /// that file's `base`: the same edit list can then be applied to another layout of the same
 /// scene (e.g. one written against the ground-truth scene, applied to a mined layout whose
-/// instances carry the ground-truth keys). The file may hold edits only. Returns how many
-/// edits were added.
+/// instances carry the ground-truth keys). The file may hold edits only; it is read under
+/// the script's [`LoadedScript::limits`]. Returns how many edits were added.
 pub fn append_edits(script: &mut LoadedScript, path: &Path) -> Result<usize, LayoutError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| LayoutError::Io { path: path.to_path_buf(), source: e })?;
+    let text = read_script_file(path, &script.limits, None)?;
     let parsed = parse_script(path, &text)?;
     let file = script.files.len();
     script.files.push(SourceFile::new(path.to_path_buf(), text));
@@ -323,14 +567,10 @@ pub fn append_edits(script: &mut LoadedScript, path: &Path) -> Result<usize, Lay
             ),
         });
     }
-    let mut counters: HashMap<&'static str, usize> = HashMap::new();
-    let n = parsed.edits.len();
-    for edit in parsed.edits {
-        let k = counters.entry(edit.variant()).or_default();
-        let location = script.files[file].find_ident(edit.variant(), *k);
-        *k += 1;
-        script.edits.push(EditNode { edit, location, file });
-    }
+    let edits = locate_edits(src, file, parsed.edits, &mut HashMap::new());
+    validate::edits(&edits)?;
+    let n = edits.len();
+    script.edits.extend(edits);
     Ok(n)
 }
 

@@ -28,4 +28,18 @@ pub enum SynthError {
     LibraryAsset { location: assetfield_layout::Location, asset: String, library: String },
     #[error("invalid synthesis settings: {0}")]
     Config(String),
+    /// A layout with nothing for the ray tracer to draw: no instance, or containers only.
+    #[error(
+        "{location}: nothing to render: the resolved layout has {}; add objects to `layout`",
+        what_is_there(*instances)
+    )]
+    EmptyScene { location: assetfield_layout::Location, instances: usize },
+}
+
+/// What an empty layout holds, in words.
+fn what_is_there(instances: usize) -> String {
+    match instances {
+        0 => "no instances".into(),
+        n => format!("containers only ({n} instances, no object)"),
+    }
 }

@@ -15,7 +15,9 @@ use assetfield_core::canvas::{Canvas, GroundView, palette};
 use assetfield_core::fsx::{StagingDir, write_atomic};
 use assetfield_core::{Aabb3, Camera, Intrinsics, interrupt};
 use assetfield_data::{FrameEntry, TransformsFile, write_transforms};
-use assetfield_layout::{GtLayout, LoadedScript, ResolvedLayout, ViewSettings, resolve};
+use assetfield_layout::{
+    GtLayout, InvalidValue, LoadedScript, Location, ResolvedLayout, ViewSettings, resolve,
+};
 use glam::{Vec2, Vec3};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -66,6 +68,17 @@ impl SynthConfig {
 
     /// Command-line options over the scene's `views` settings over the defaults; checked.
     pub fn resolve(opts: &SynthOptions, scene: Option<&ViewSettings>) -> Result<Self, SynthError> {
+        SynthConfig::resolve_at(opts, scene, None)
+    }
+
+    /// [`SynthConfig::resolve`], with the place of the scene's `views` in its script: a
+    /// setting of the script that does not fit (its `test` views against `--views`, say) is
+    /// reported there, naming the script's field; one of the command line names the flag.
+    pub fn resolve_at(
+        opts: &SynthOptions,
+        scene: Option<&ViewSettings>,
+        views_at: Option<&Location>,
+    ) -> Result<Self, SynthError> {
         let d = SynthConfig::DEFAULT;
         let s = scene.cloned().unwrap_or(ViewSettings {
             count: None,
@@ -75,6 +88,21 @@ impl SynthConfig {
             elevation_deg: None,
             fov_deg: None,
         });
+        let origin = |flag: bool, script: bool| match (flag, script) {
+            (true, _) => Origin::Flag,
+            (false, true) => Origin::Script,
+            _ => Origin::Default,
+        };
+        let origins = [
+            (Setting::Views, origin(opts.views.is_some(), s.count.is_some())),
+            (Setting::TestViews, origin(opts.test_views.is_some(), s.test.is_some())),
+            (Setting::Resolution, origin(opts.resolution.is_some(), s.resolution.is_some())),
+            (Setting::Radius, origin(opts.radius.is_some(), s.radius.is_some())),
+            (Setting::Elevation, origin(opts.elevation_deg.is_some(), s.elevation_deg.is_some())),
+            (Setting::Fov, origin(opts.fov_deg.is_some(), s.fov_deg.is_some())),
+            (Setting::Aa, Origin::Flag),
+        ];
+        let origin_of = |k: Setting| origins.iter().find(|(s, _)| *s == k).map(|(_, o)| *o);
         let cfg = SynthConfig {
             views: opts.views.or(s.count).unwrap_or(d.views),
             test_views: opts.test_views.or(s.test).unwrap_or(d.test_views),
@@ -84,54 +112,184 @@ impl SynthConfig {
             fov_deg: opts.fov_deg.or(s.fov_deg).unwrap_or(d.fov_deg),
             samples_per_side: opts.samples_per_side.unwrap_or(d.samples_per_side),
         };
-        cfg.validate()?;
-        Ok(cfg)
+        let Some(p) = cfg.problem() else { return Ok(cfg) };
+        let (views, test) = (origin_of(Setting::Views), origin_of(Setting::TestViews));
+        // the script is to blame when the failing setting came from it; for the test views
+        // against the views, the one of the two that the script gave
+        let blame = match p.setting {
+            Setting::TestViews if test == Some(Origin::Script) => Some(Setting::TestViews),
+            Setting::TestViews if views == Some(Origin::Script) => Some(Setting::Views),
+            k if origin_of(k) == Some(Origin::Script) => Some(k),
+            _ => None,
+        };
+        match (blame, views_at) {
+            (Some(k), Some(at)) => Err(script_problem(&cfg, &p, k, views, test, at)),
+            _ => Err(SynthError::Config(p.flag_message())),
+        }
     }
 
     pub fn validate(&self) -> Result<(), SynthError> {
-        let bad = |m: String| Err(SynthError::Config(m));
-        if self.views < 2 {
-            return bad(format!("--views must be at least 2, got {}", self.views));
+        match self.problem() {
+            Some(p) => Err(SynthError::Config(p.flag_message())),
+            None => Ok(()),
+        }
+    }
+
+    /// The first setting out of its range, if any.
+    fn problem(&self) -> Option<Problem> {
+        let views = &ViewSettings::COUNT;
+        let bad =
+            |setting, expected: String, value: String| Some(Problem { setting, expected, value });
+        if !views.contains(&self.views) {
+            let expected = format!("between {} and {}", views.start(), views.end());
+            return bad(Setting::Views, expected, self.views.to_string());
         }
         if self.test_views == 0 || self.test_views >= self.views {
-            return bad(format!(
-                "test views must be between 1 and views - 1 ({}), got {}",
-                self.views - 1,
-                self.test_views
-            ));
+            let expected = format!("between 1 and views - 1 ({})", self.views - 1);
+            return bad(Setting::TestViews, expected, self.test_views.to_string());
         }
-        if !(8..=8192).contains(&self.resolution) {
-            return bad(format!(
-                "--res must be between 8 and 8192 pixels, got {}",
-                self.resolution
-            ));
+        let px = &ViewSettings::RESOLUTION_PX;
+        if !px.contains(&self.resolution) {
+            let expected = format!("between {} and {} pixels", px.start(), px.end());
+            return bad(Setting::Resolution, expected, self.resolution.to_string());
         }
         let (lo, hi) = self.elevation_deg;
-        if !(0.0..=90.0).contains(&lo) || !(0.0..=90.0).contains(&hi) || lo > hi {
-            return bad(format!(
-                "elevation range must satisfy 0 <= min <= max <= 90, got {lo}..{hi}"
-            ));
+        let elev = &ViewSettings::ELEVATION_DEG;
+        if !elev.contains(&lo) || !elev.contains(&hi) || lo > hi {
+            let expected = format!("a range with {} <= min <= max <= {}", elev.start(), elev.end());
+            return bad(Setting::Elevation, expected, format!("{lo}..{hi}"));
         }
-        if !(5.0..=150.0).contains(&self.fov_deg) {
-            return bad(format!("field of view must be 5..150 degrees, got {}", self.fov_deg));
+        let fov = &ViewSettings::FOV_DEG;
+        if !fov.contains(&self.fov_deg) {
+            let expected = format!("{}..{} degrees", fov.start(), fov.end());
+            return bad(Setting::Fov, expected, self.fov_deg.to_string());
         }
         if let Some(r) = self.radius
             && !(r.is_finite() && r > 0.0)
         {
-            return bad(format!("--radius must be positive, got {r}"));
+            return bad(Setting::Radius, "positive".into(), r.to_string());
         }
         if !(1..=8).contains(&self.samples_per_side) {
-            return bad(format!(
-                "--aa must be 1..8 samples per side, got {}",
-                self.samples_per_side
-            ));
+            let expected = "1..8 samples per side".into();
+            return bad(Setting::Aa, expected, self.samples_per_side.to_string());
         }
-        Ok(())
+        None
     }
 
     fn intrinsics(&self) -> Intrinsics {
         Intrinsics::from_fov_x(self.resolution, self.resolution, self.fov_deg.to_radians())
     }
+}
+
+/// A setting of the camera rig (for messages naming where it came from).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Setting {
+    Views,
+    TestViews,
+    Resolution,
+    Radius,
+    Elevation,
+    Fov,
+    Aa,
+}
+
+impl Setting {
+    /// The command-line flag that sets it.
+    fn flag(self) -> &'static str {
+        match self {
+            Setting::Views => "--views",
+            Setting::TestViews => "--test-views",
+            Setting::Resolution => "--res",
+            Setting::Radius => "--radius",
+            Setting::Elevation => "--elev-min/--elev-max",
+            Setting::Fov => "--fov",
+            Setting::Aa => "--aa",
+        }
+    }
+
+    /// Its field in a script's `views: (...)`.
+    fn field(self) -> &'static str {
+        match self {
+            Setting::Views => "count",
+            Setting::TestViews => "test",
+            Setting::Resolution => "resolution",
+            Setting::Radius => "radius",
+            Setting::Elevation => "elevation_deg",
+            Setting::Fov => "fov_deg",
+            Setting::Aa => "aa",
+        }
+    }
+}
+
+/// Where a setting's value came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Origin {
+    Flag,
+    Script,
+    Default,
+}
+
+impl Origin {
+    fn describe(self, s: Setting) -> String {
+        match self {
+            Origin::Flag => format!("from {}", s.flag()),
+            Origin::Script => format!("from `views: ({}: ...)`", s.field()),
+            Origin::Default => "by default".into(),
+        }
+    }
+}
+
+/// A setting out of its range: what it must be and what it is.
+#[derive(Debug)]
+struct Problem {
+    setting: Setting,
+    expected: String,
+    value: String,
+}
+
+impl Problem {
+    fn flag_message(&self) -> String {
+        format!("{} must be {}, got {}", self.setting.flag(), self.expected, self.value)
+    }
+}
+
+/// The error for a `views` setting of the script (`blame`) that does not fit the rest.
+fn script_problem(
+    cfg: &SynthConfig,
+    p: &Problem,
+    blame: Setting,
+    views: Option<Origin>,
+    test: Option<Origin>,
+    at: &Location,
+) -> SynthError {
+    let describe = |o: Option<Origin>, s| o.map(|o| o.describe(s)).unwrap_or_default();
+    let (value, expected) = match (p.setting, blame) {
+        (Setting::TestViews, Setting::TestViews) => (
+            cfg.test_views.to_string(),
+            format!(
+                "between 1 and {} (one less than the {} views {})",
+                cfg.views.saturating_sub(1),
+                cfg.views,
+                describe(views, Setting::Views)
+            ),
+        ),
+        (Setting::TestViews, _) => (
+            cfg.views.to_string(),
+            format!(
+                "more than the {} test views {}",
+                cfg.test_views,
+                describe(test, Setting::TestViews)
+            ),
+        ),
+        _ => (p.value.clone(), p.expected.clone()),
+    };
+    SynthError::Layout(assetfield_layout::LayoutError::Invalid(Box::new(InvalidValue {
+        location: at.clone(),
+        item: "views".into(),
+        field: blame.field().into(),
+        value,
+        expected,
+    })))
 }
 
 /// One camera of the rig.
@@ -198,6 +356,19 @@ pub fn load_scene(path: &Path) -> Result<(LoadedScript, AssetSet, ResolvedLayout
     Ok((script, assets, layout))
 }
 
+/// An empty layout (or one of containers only) has nothing to render: an error at the
+/// script's `layout`.
+fn refuse_empty(script: &LoadedScript, layout: &ResolvedLayout) -> Result<(), SynthError> {
+    if layout.objects().next().is_some() {
+        return Ok(());
+    }
+    let location = match script.files.first() {
+        Some(main) => main.find_ident("layout", 0),
+        None => Location { file: script.path.clone(), line: 1, col: 1 },
+    };
+    Err(SynthError::EmptyScene { location, instances: layout.instances.len() })
+}
+
 fn rel_name(split: &str, k: usize) -> String {
     format!("./{split}/r_{k}")
 }
@@ -247,12 +418,14 @@ pub fn synthesize_loaded(
     let start = Instant::now();
     let assets = AssetSet::from_script(script)?;
     let layout = resolve(script, &assets)?;
-    let cfg = SynthConfig::resolve(opts, script.views.as_ref())?;
+    refuse_empty(script, &layout)?;
+    let cfg = SynthConfig::resolve_at(opts, script.views.as_ref(), script.views_at.as_ref())?;
     let light = Light::from_script(script.lighting.as_ref());
     let world = Scene::new(&layout, &assets, light);
     let edited_scene = match edited {
         Some(p) => {
             let (escript, eassets, elayout) = load_scene(p)?;
+            refuse_empty(&escript, &elayout)?;
             let light = Light::from_script(escript.lighting.as_ref().or(script.lighting.as_ref()));
             let gt = GtLayout::from_resolved(&elayout)
                 .to_json_with(escript.units_per_metre.or(script.units_per_metre), &eassets.sources);

@@ -225,6 +225,85 @@ fn bad_settings_are_refused_before_anything_is_written() {
     std::fs::remove_dir_all(&root).unwrap();
 }
 
+/// Synthesise the script `text` (written to `scene.ron` in a scratch folder) and return
+/// the error's message; nothing may be written.
+fn synth_error(name: &str, text: &str, opts: &SynthOptions) -> String {
+    let root = scratch(name);
+    let (scene, out) = (root.join("scene.ron"), root.join("data"));
+    std::fs::write(&scene, text).unwrap();
+    let e = synthesize(&scene, opts, &out, false, None, &mut |_, _| {}).unwrap_err();
+    assert!(!out.exists(), "nothing written");
+    std::fs::remove_dir_all(&root).unwrap();
+    e.to_string().replace(&format!("{}", scene.display()), "scene.ron")
+}
+
+#[test]
+fn an_empty_scene_is_refused_with_its_place() {
+    let floor = r#""floor": Asset(container: true, parts: [Box(center: (0, 0, -0.01), size: (4, 4, 0.02), color: (0.5, 0.5, 0.5))])"#;
+    let opts = SynthOptions::default();
+    let e = synth_error(
+        "empty",
+        &format!("Scene(\n    assets: {{ {floor} }},\n    layout: [],\n)\n"),
+        &opts,
+    );
+    assert_eq!(
+        e,
+        "scene.ron:3:5: nothing to render: the resolved layout has no instances; add objects to `layout`"
+    );
+    let containers = format!(
+        "Scene(\n    assets: {{ {floor} }},\n    layout: [Instance(asset: \"floor\", at: (0, 0))],\n)\n"
+    );
+    let e = synth_error("containers", &containers, &opts);
+    assert!(e.contains("containers only (1 instances, no object)"), "{e}");
+}
+
+#[test]
+fn non_finite_positions_are_refused_before_rendering() {
+    let text = "Scene(\n    assets: { \"b\": Asset(parts: [Box(center: (0, 0, 0.5), size: (1, 1, 1), color: (1, 0, 0))]) },\n    layout: [\n        Instance(asset: \"b\", at: (NaN, 0)),\n    ],\n)\n";
+    let e = synth_error("nan", text, &SynthOptions::default());
+    assert_eq!(e, "scene.ron:4:9: Instance: at must be a point of finite numbers, got (NaN, 0)");
+}
+
+#[test]
+fn bad_views_of_a_script_name_the_script_line() {
+    let scene = |views: &str| {
+        format!(
+            "Scene(\n    assets: {{ \"b\": Asset(parts: [Box(center: (0, 0, 0.5), size: (1, 1, 1), color: (1, 0, 0))]) }},\n    views: {views},\n    layout: [Instance(asset: \"b\", at: (0, 0))],\n)\n"
+        )
+    };
+    // out of range on its own: refused when the script is loaded
+    let e = synth_error("res", &scene("(resolution: 0)"), &SynthOptions::default());
+    assert_eq!(e, "scene.ron:3:5: views: resolution must be 8..=8192 pixels, got 0");
+    // the script's test views against the views of the command line
+    let opts = SynthOptions { views: Some(20), ..Default::default() };
+    let e = synth_error("test", &scene("(test: 40)"), &opts);
+    assert_eq!(
+        e,
+        "scene.ron:3:5: views: test must be between 1 and 19 (one less than the 20 views from --views), got 40"
+    );
+    // the script's views against the default test views
+    let e = synth_error("count", &scene("(count: 5)"), &SynthOptions::default());
+    assert_eq!(
+        e,
+        "scene.ron:3:5: views: count must be more than the 10 test views by default, got 5"
+    );
+    // a bad flag is still reported as a flag
+    let opts = SynthOptions { test_views: Some(30), ..Default::default() };
+    let e = synth_error("flag", &scene("(count: 20)"), &opts);
+    assert!(
+        e.starts_with(
+            "scene.ron:3:5: views: count must be more than the 30 test views from --test-views"
+        ),
+        "{e}"
+    );
+    let opts = SynthOptions { views: Some(20), test_views: Some(30), ..Default::default() };
+    let e = synth_error("flags", &scene("(resolution: 64)"), &opts);
+    assert_eq!(
+        e,
+        "invalid synthesis settings: --test-views must be between 1 and views - 1 (19), got 30"
+    );
+}
+
 #[test]
 fn the_ground_truth_box_of_a_turned_round_object_is_its_own_size() {
     // a round stool (radius 0.25) and a square crate (0.5), both turned by 45 degrees

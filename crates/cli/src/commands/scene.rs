@@ -246,6 +246,9 @@ pub fn layout(a: LayoutArgs) -> Result<()> {
         layout.objects().count(),
         layout.containers().count()
     );
+    if layout.objects().next().is_none() {
+        println!("note: no objects: `assetfield synth` refuses this layout (nothing to render)");
+    }
     println!(
         "{:>4}  {:<28} {:<14} {:>8} {:>8} {:>6} {:>7} {:>6}  on",
         "id", "key", "category", "x", "y", "z", "yaw", "scale"
