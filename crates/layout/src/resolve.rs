@@ -240,6 +240,9 @@ pub fn resolve_with(
     }
     let instances: Vec<ResolvedInstance> =
         r.out.into_iter().zip(r.removed).filter(|(_, gone)| !gone).map(|(i, _)| i).collect();
+    for i in &instances {
+        check_derived(i)?;
+    }
     let extent = match script.extent {
         Some((a, b)) => Rect2::new(Vec2::from(a).min(b.into()), Vec2::from(a).max(b.into())),
         None => {
@@ -251,6 +254,44 @@ pub fn resolve_with(
         }
     };
     Ok(ResolvedLayout { name: script.name.clone(), instances, extent })
+}
+
+/// The largest coordinate a resolved layout may hold (scene units, either sign): 2^24, where
+/// f32 stops telling neighbouring units apart, so that a layout beyond it has no geometry
+/// left to draw (and sizes computed from it overflow).
+pub const MAX_COORDINATE: f32 = 16_777_216.0;
+
+/// Finite inputs can still give a result out of reach (a row from -3e38 to 3e38 spans an
+/// infinite extent, a position of 3e38 moved by 3e38 overflows, a scale of 1e30 makes an
+/// infinite box): every resolved instance's position, heights and box must lie within
+/// [`MAX_COORDINATE`], or the item (or edit) that made it is named.
+fn check_derived(i: &ResolvedInstance) -> Result<(), LayoutError> {
+    let t = i.transform;
+    let b = i.bev_aabb;
+    let values = [
+        ("position", t.position.x),
+        ("position", t.position.y),
+        ("height", t.base),
+        ("top", i.top),
+        ("box", b.min.x),
+        ("box", b.min.y),
+        ("box", b.max.x),
+        ("box", b.max.y),
+    ];
+    let yaw_ok = t.yaw_deg.is_finite() && t.scale.is_finite();
+    match values.iter().find(|(_, v)| !(v.abs() <= MAX_COORDINATE)) {
+        None if yaw_ok => Ok(()),
+        found => {
+            let (what, v) = found.copied().unwrap_or(("scale or yaw", t.scale * t.yaw_deg));
+            Err(LayoutError::Semantic {
+                location: i.location().clone(),
+                message: format!(
+                    "instance {} gets a {what} of {v}: beyond {MAX_COORDINATE} scene units (the numbers here are too large to compute with)",
+                    i.key
+                ),
+            })
+        }
+    }
 }
 
 /// What the edit being applied changed: each instance's transform and asset before its

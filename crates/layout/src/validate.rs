@@ -304,6 +304,13 @@ pub(crate) fn settings(script: &Script, src: &SourceFile) -> Result<(), LayoutEr
         let c = Check { location: &location, item: "extent".into() };
         c.point("extent min", a)?;
         c.point("extent max", b)?;
+        let far = crate::resolve::MAX_COORDINATE;
+        for (field, p) in [("extent min", a), ("extent max", b)] {
+            if p.0.abs() > far || p.1.abs() > far {
+                let v = format!("({}, {})", p.0, p.1);
+                return Err(c.fail(field, v, &format!("a point within {far} scene units")));
+            }
+        }
     }
     if let Some(u) = script.units_per_metre {
         let location = src.find_ident("units_per_metre", 0);

@@ -483,3 +483,24 @@ fn deeply_nested_groups_are_refused_by_the_parser_not_the_stack() {
     assert!(matches!(e, LayoutError::Syntax { .. }), "{e}");
     assert!(e.to_string().starts_with("test.ron:6:"), "{e}");
 }
+
+#[test]
+fn finite_numbers_whose_results_overflow_are_refused_with_their_place() {
+    // found by the fuzz harness: each number is finite, what the item computes from them is
+    // not (the row's spacing is infinite; the move overflows the position)
+    let cases = [
+        (r#"        Row(asset: "a", from: (-3e38, 0), to: (3e38, 0), count: 3),"#, ""),
+        (
+            r#"        Instance(asset: "a", at: (3e38, 0), name: "x"),"#,
+            r#"        Move(target: "x", by: (3e38, 0)),"#,
+        ),
+    ];
+    for (layout, edits) in cases {
+        let text = scene(layout, edits);
+        let marker = if edits.is_empty() { layout } else { edits }.trim();
+        let line = text.lines().position(|l| l.trim() == marker).unwrap() + 1;
+        let msg = resolve_text(&text, &Limits::default()).unwrap_err().to_string();
+        assert!(msg.starts_with(&format!("test.ron:{line}:9: instance ")), "{msg}");
+        assert!(msg.contains("too large to compute with"), "{msg}");
+    }
+}
