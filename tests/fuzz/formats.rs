@@ -269,7 +269,7 @@ fn check_transforms_json(v: &serde_json::Value) -> Result<(), String> {
         }
         for key in ["w", "h", "fl_x", "fl_y"] {
             if let Some(x) = num(key)
-                && !(x > 0.0)
+                && x <= 0.0
             {
                 return Err(format!("accepted {key} {x} in {place}"));
             }

@@ -279,7 +279,7 @@ fn check_derived(i: &ResolvedInstance) -> Result<(), LayoutError> {
         ("box", b.max.y),
     ];
     let yaw_ok = t.yaw_deg.is_finite() && t.scale.is_finite();
-    match values.iter().find(|(_, v)| !(v.abs() <= MAX_COORDINATE)) {
+    match values.iter().find(|(_, v)| v.is_nan() || v.abs() > MAX_COORDINATE) {
         None if yaw_ok => Ok(()),
         found => {
             let (what, v) = found.copied().unwrap_or(("scale or yaw", t.scale * t.yaw_deg));
