@@ -97,6 +97,22 @@ pub enum DataError {
         what: String,
     },
 
+    /// A value of a dataset file is out of range (see [`crate::validate`]): the file, where
+    /// in it (a frame, or the top level), the key, the value found and what was expected.
+    #[error("{}: {}\"{key}\" is {actual}, expected {expected}", path.display(), place.prefix())]
+    Invalid {
+        /// The file (`transforms*.json`, `synth.json`).
+        path: PathBuf,
+        /// The frame the value belongs to, or the top level.
+        place: crate::validate::Place,
+        /// The key, e.g. `camera_angle_x` or `transform_matrix[0][3]`.
+        key: String,
+        /// What a valid value is.
+        expected: String,
+        /// The value found.
+        actual: String,
+    },
+
     /// A frame's `transform_matrix` is not a rigid camera-to-world transform.
     #[error("{frame}: transform_matrix is not rigid: {reason}")]
     NotRigid {

@@ -169,9 +169,10 @@ pub fn checkpoint_path(out: &Path) -> PathBuf {
     out.with_file_name(format!("{stem}.ckpt.safetensors"))
 }
 
-/// The scene box and where it came from.
+/// The scene box and where it came from: `recorded` is the dataset's own (synth.json's
+/// `scene_aabb`, checked by the data loader).
 fn scene_bounds(
-    data: &Path,
+    recorded: Option<Aabb3>,
     format: Format,
     cameras: &[assetfield_core::Camera],
     align: Option<&GroundAlignment>,
@@ -180,22 +181,9 @@ fn scene_bounds(
         Some(g) => (g.transform_aabb(&b), format!("{what}, moved by the ground alignment")),
         None => (b, what.to_string()),
     };
-    let synth = data.join("synth.json");
-    if synth.is_file() {
-        let text = std::fs::read_to_string(&synth)
-            .with_context(|| format!("reading {}", synth.display()))?;
-        let v: serde_json::Value = serde_json::from_str(&text)
-            .with_context(|| format!("{}: invalid JSON", synth.display()))?;
-        let a: [[f32; 3]; 2] =
-            serde_json::from_value(v["scene_aabb"].clone()).with_context(|| {
-                format!(
-                    "{}: \"scene_aabb\" is not [[xmin, ymin, zmin], [xmax, ymax, zmax]]",
-                    synth.display()
-                )
-            })?;
-        let (lo, hi) = (Vec3::from(a[0]), Vec3::from(a[1]));
-        let pad = (hi - lo).max(Vec3::ZERO) * 0.02;
-        return Ok(moved(Aabb3::new(lo - pad, hi + pad), "synth.json scene_aabb + 2%"));
+    if let Some(b) = recorded {
+        let pad = b.extent().max(Vec3::ZERO) * 0.02;
+        return Ok(moved(Aabb3::new(b.min - pad, b.max + pad), "synth.json scene_aabb + 2%"));
     }
     if format == Format::NerfSynthetic {
         let b = Aabb3::new(Vec3::splat(-1.5), Vec3::splat(1.5));
@@ -436,7 +424,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
                 if let Some(g) = &alignment {
                     g.apply_to_cameras(&mut cams);
                 }
-                scene_bounds(&data.root, data.format, &cams.cameras(), alignment.as_ref())?
+                scene_bounds(cams.scene_box, data.format, &cams.cameras(), alignment.as_ref())?
             }
         };
         eprintln!(
