@@ -19,7 +19,7 @@ pub mod validate;
 
 pub use align::{GroundAlignment, bounds_from_cameras};
 pub use dataset::{Dataset, DatasetCameras, Format, Frame, LoadOptions, Split, View};
-pub use error::{DataError, FrameRef};
+pub use error::{DataError, FrameRef, InvalidValue};
 pub use features::FeatureMap;
 pub use image_f32::ImageF32;
 pub use map::{camera_map, camera_map_canvas};

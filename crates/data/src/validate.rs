@@ -13,7 +13,7 @@
 //! [`assetfield_core::camera::check_rigid`]).
 
 use crate::DataError;
-use crate::error::FrameRef;
+use crate::error::{FrameRef, InvalidValue};
 use crate::schema::{FrameEntry, TransformsFile};
 use assetfield_core::Aabb3;
 use glam::Vec3;
@@ -73,13 +73,13 @@ struct At<'a> {
 
 impl At<'_> {
     fn invalid(&self, key: &str, actual: impl ToString, expected: &str) -> DataError {
-        DataError::Invalid {
+        DataError::Invalid(Box::new(InvalidValue {
             path: self.path.to_path_buf(),
             place: self.place.clone(),
             key: key.to_string(),
             expected: expected.to_string(),
             actual: actual.to_string(),
-        }
+        }))
     }
 
     /// `value`, if given, must satisfy `ok`.
@@ -268,12 +268,12 @@ pub fn read_scene_box(root: &Path) -> Result<Option<Aabb3>, DataError> {
             what: "\"scene_aabb\" ([[xmin, ymin, zmin], [xmax, ymax, zmax]])".into(),
         });
     };
-    let b: [[f32; 3]; 2] = serde_json::from_value(raw.clone()).map_err(|e| DataError::Invalid {
-        path: path.clone(),
-        place: Place::File,
-        key: "scene_aabb".into(),
-        expected: "[[xmin, ymin, zmin], [xmax, ymax, zmax]] (six numbers)".into(),
-        actual: format!("{raw} ({e})"),
+    let b: [[f32; 3]; 2] = serde_json::from_value(raw.clone()).map_err(|e| {
+        At { path: &path, place: Place::File }.invalid(
+            "scene_aabb",
+            format!("{raw} ({e})"),
+            "[[xmin, ymin, zmin], [xmax, ymax, zmax]] (six numbers)",
+        )
     })?;
     check_scene_box(&path, "scene_aabb", b).map(Some)
 }

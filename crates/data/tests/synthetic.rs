@@ -416,7 +416,7 @@ fn field_of_view_outside_zero_to_pi_is_refused() {
             ],
         );
         assert!(
-            matches!(&e, DataError::Invalid { key, place: assetfield_data::Place::File, .. } if key == "camera_angle_x"),
+            matches!(&e, DataError::Invalid(v) if v.key == "camera_angle_x" && v.place == assetfield_data::Place::File),
             "{e}"
         );
     }
