@@ -231,6 +231,13 @@ pub fn train(a: TrainArgs) -> Result<()> {
     if a.res < 8 {
         bail!("--res {} is too small (at least 8)", a.res);
     }
+    if a.res > assetfield_field::config::MAX_PLANE_RES {
+        bail!(
+            "--res {} is too large (at most {} texels per side)",
+            a.res,
+            assetfield_field::config::MAX_PLANE_RES
+        );
+    }
     if a.batch == 0 {
         bail!("--batch must be at least 1");
     }
@@ -437,6 +444,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
             fc.decoder = DecoderKind::Sh { degree: 2 };
         }
         fc.semantic_channels = semantic_channels;
+        // the same bounds a field file is loaded with, before anything is allocated
+        fc.validate(&a.out).context("the field these options describe cannot be trained")?;
         let mut tc = TrainConfig::new(kind);
         tc.batch = a.batch;
         tc.iters = match (a.iters, seconds) {
