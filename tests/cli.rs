@@ -240,7 +240,8 @@ fn dataset_values_out_of_range_name_file_and_place() {
     let good = std::fs::read_to_string(&json).unwrap();
     let out = run_cli(&dir, &["inspect", "d"]);
     assert_eq!(out.0, 0, "the valid dataset inspects: {}", out.2);
-    let cases: [(&str, &dyn Fn(&mut serde_json::Value), &[&str]); 6] = [
+    type Edit<'a> = &'a dyn Fn(&mut serde_json::Value);
+    let cases: [(&str, Edit, &[&str]); 6] = [
         (
             "fov",
             &|v| v["camera_angle_x"] = serde_json::json!(6.3),
