@@ -215,3 +215,85 @@ fn a_random_scene_renders_again_from_its_script() {
     let (code, _, err) = run_cli(&dir, &["synth", "r3.ron", "--write-script", "x.ron"]);
     assert!(code != 0 && err.contains("--random"), "{err}");
 }
+
+/// Dataset values found by fuzzing that `inspect` and `train` used to accept: each is
+/// refused naming the file and the frame (index and file_path) or the top-level key.
+#[test]
+fn dataset_values_out_of_range_name_file_and_place() {
+    use assetfield_data::{FrameEntry, TransformsFile, write_transforms};
+    let dir = scratch("bad-values");
+    let d = dir.join("d");
+    std::fs::create_dir_all(d.join("train")).unwrap();
+    let mut frames = Vec::new();
+    for i in 0..3 {
+        image::RgbImage::from_pixel(8, 6, image::Rgb([40 * i as u8, 90, 200]))
+            .save(d.join(format!("train/r_{i}.png")))
+            .unwrap();
+        let eye = glam::Vec3::new(3.0 * (i as f32).cos(), 3.0 * (i as f32).sin(), 1.0);
+        let k = assetfield_core::Intrinsics::from_fov_x(8, 6, 0.7);
+        let c2w =
+            assetfield_core::Camera::look_at(k, eye, glam::Vec3::ZERO, glam::Vec3::Z).c2w_matrix();
+        frames.push(FrameEntry::new(format!("./train/r_{i}"), c2w));
+    }
+    let json = d.join("transforms_train.json");
+    write_transforms(&json, &TransformsFile::nerf_synthetic(0.7, frames)).unwrap();
+    let good = std::fs::read_to_string(&json).unwrap();
+    let out = run_cli(&dir, &["inspect", "d"]);
+    assert_eq!(out.0, 0, "the valid dataset inspects: {}", out.2);
+    type Edit<'a> = &'a dyn Fn(&mut serde_json::Value);
+    let cases: [(&str, Edit, &[&str]); 6] = [
+        (
+            "fov",
+            &|v| v["camera_angle_x"] = serde_json::json!(6.3),
+            &["transforms_train.json: \"camera_angle_x\" is 6.3", "(0, pi)"],
+        ),
+        (
+            "w0",
+            &|v| v["frames"][1]["w"] = serde_json::json!(0),
+            &["transforms_train.json: frame 1 (./train/r_1): \"w\" is 0"],
+        ),
+        (
+            "far",
+            &|v| v["frames"][2]["transform_matrix"][1][3] = serde_json::json!(1e30),
+            &["frame 2 (./train/r_2): \"transform_matrix translation\""],
+        ),
+        (
+            "inf",
+            &|v| v["frames"][0]["transform_matrix"][0][0] = serde_json::json!(1e39),
+            &["frame 0 (./train/r_0): \"transform_matrix[0][0]\" is inf"],
+        ),
+        (
+            "null",
+            &|v| v["frames"][0]["transform_matrix"][0][0] = serde_json::Value::Null,
+            &["transforms_train.json:", "null"],
+        ),
+        (
+            "aabb_scale",
+            &|v| v["aabb_scale"] = serde_json::json!(-4),
+            &["transforms_train.json: \"aabb_scale\" is -4.0"],
+        ),
+    ];
+    for (what, edit, needles) in cases {
+        let mut v: serde_json::Value = serde_json::from_str(&good).unwrap();
+        edit(&mut v);
+        std::fs::write(&json, serde_json::to_string(&v).unwrap()).unwrap();
+        for args in
+            [&["inspect", "d"][..], &["train", "d", "--out", "f.safetensors", "--iters", "1"]]
+        {
+            let (code, _, err) = run_cli(&dir, args);
+            assert_eq!(code, 1, "{what}: {args:?}: {err}");
+            for n in needles {
+                assert!(err.contains(n), "{what}: {args:?}: expected {n:?} in: {err}");
+            }
+        }
+    }
+    std::fs::write(&json, &good).unwrap();
+    std::fs::write(d.join("synth.json"), r#"{"scene_aabb": [[1, 0, 0], [-1, 1, 1]]}"#).unwrap();
+    expect_failure(
+        &dir,
+        &["inspect", "d"],
+        &["synth.json: \"scene_aabb\"", "xmin (1) below xmax (-1)"],
+    );
+    assert!(!dir.join("f.safetensors").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

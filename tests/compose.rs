@@ -351,3 +351,92 @@ fn mine_compose_round_trip_and_edit_fidelity() {
     assert!(!dir.join("x").exists(), "a failed run must not leave its output");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `library check` says ok only for libraries `compose` composes: on each broken library
+/// found by fuzzing both fail, naming the file and the entry or tensor (compose's error used
+/// to name no file).
+#[test]
+fn library_check_fails_wherever_compose_would() {
+    use assetfield_mining::library::{INDEX_FILE, index_from_ron, write_sample_library};
+    let dir = scratch("library-check");
+    std::fs::write(
+        dir.join("one.ron"),
+        "Scene(layout: [Instance(asset: \"obj000\", at: (0.2, 0.15))])\n",
+    )
+    .unwrap();
+    let compose = |lib: &str, out: &str| -> Vec<String> {
+        ["compose", "one.ron", "--library", lib, "--out", out, "--orbit", "1", "--res", "8"]
+            .iter()
+            .map(|s| s.to_string())
+            .chain(["--backend".into(), "cpu".into()])
+            .collect()
+    };
+    fn args(v: &[String]) -> Vec<&str> {
+        v.iter().map(String::as_str).collect()
+    }
+    write_sample_library(&dir.join("good"), 0.25).unwrap();
+    let out = ok(&dir, &["library", "check", "good"]);
+    assert!(out.contains("2 entries") && out.contains("ok"), "{out}");
+    ok(&dir, &args(&compose("good", "composed")));
+
+    let index_edit = |lib: &Path, edit: &dyn Fn(&mut assetfield_mining::library::LibraryIndex)| {
+        let p = lib.join(INDEX_FILE);
+        let mut ix = index_from_ron(&p, &std::fs::read_to_string(&p).unwrap()).unwrap();
+        edit(&mut ix);
+        std::fs::write(&p, index_to_ron(&ix).unwrap()).unwrap();
+    };
+    type Break = Box<dyn Fn(&Path)>;
+    let cases: Vec<(&str, Break, &str, &str)> = vec![
+        (
+            "texel",
+            Box::new(move |l| index_edit(l, &|ix| ix.texel_size = (0.0, 0.0))),
+            "index.ron",
+            "\"texel_size\" is (0.0, 0.0)",
+        ),
+        (
+            "listed",
+            Box::new(move |l| index_edit(l, &|ix| ix.shared.tensors.push("decoder.5.bias".into()))),
+            "shared.safetensors",
+            "missing tensor \"decoder.5.bias\"",
+        ),
+        (
+            "config",
+            Box::new(|l| {
+                let p = l.join("shared.safetensors");
+                let mut f = TensorFile::load(&p).unwrap();
+                let c = f.meta("config").unwrap().replace("\"basis_dim\":3", "\"basis_dim\":6");
+                f.set_meta("config", c);
+                f.save(&p).unwrap();
+            }),
+            "shared.safetensors",
+            "tensor \"color.basis.weight\" has shape [3, 4], expected [6, 4]",
+        ),
+        (
+            "nan-patch",
+            Box::new(|l| {
+                let p = l.join("patches.safetensors");
+                let mut f = TensorFile::load(&p).unwrap();
+                f.insert_f32("obj000.density", &[2, 3, 2], vec![f32::NAN; 12]);
+                f.save(&p).unwrap();
+            }),
+            "patches.safetensors",
+            "tensor \"obj000.density\" has a non-finite value (NaN) at index 0",
+        ),
+        (
+            "nan-yaw",
+            Box::new(move |l| index_edit(l, &|ix| ix.entries[1].yaw_deg = f32::NAN)),
+            "index.ron",
+            "entry \"obj001\": \"yaw_deg\" is NaN",
+        ),
+    ];
+    for (name, breaks, file, needle) in &cases {
+        write_sample_library(&dir.join(name), 0.25).unwrap();
+        breaks(&dir.join(name));
+        let path = Path::new(name).join(file).display().to_string();
+        fail(&dir, &["library", "check", name], &[&path, needle]);
+        let out = format!("out-{name}");
+        fail(&dir, &args(&compose(name, &out)), &[&path, needle]);
+        assert!(!dir.join(&out).exists(), "{name}: compose wrote {out}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

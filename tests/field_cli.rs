@@ -380,3 +380,58 @@ fn bad_input_fails_clearly() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Field files found by fuzzing (a NaN in a plane evaluated to "PSNR NaN dB" with exit 0; a
+/// resolution of 100000 aborted on a 640 GB allocation; a zero march step rendered blank
+/// images): every command that opens a field refuses them, naming the file and the tensor
+/// or config key, and writes nothing.
+#[test]
+fn broken_field_files_are_refused_by_every_command() {
+    let dir = scratch("field-broken");
+    let real = TensorFile::load(&repo().join("tests/data/living_room_s128.safetensors")).unwrap();
+    let config = |edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut f = real.clone();
+        let mut c: serde_json::Value = serde_json::from_str(f.meta("config").unwrap()).unwrap();
+        edit(&mut c);
+        f.set_meta("config", c.to_string());
+        f
+    };
+    let mut nan = real.clone();
+    let shape = nan.shape_of("density.plane").unwrap().to_vec();
+    let mut v = nan.get_f32("density.plane", &shape).unwrap().to_vec();
+    v[4242] = f32::NAN;
+    nan.insert_f32("density.plane", &shape, v);
+    let cases = [
+        (
+            "nan.safetensors",
+            nan,
+            "tensor \"density.plane\" has a non-finite value (NaN) at index 4242",
+        ),
+        (
+            "huge.safetensors",
+            config(&|c| c["res"] = serde_json::json!([100_000, 100_000, 34])),
+            "config \"res[0]\" is 100000, expected 2 to 4096",
+        ),
+        (
+            "step0.safetensors",
+            config(&|c| c["step_ratio"] = serde_json::json!(0.0)),
+            "config \"step_ratio\" is 0.0",
+        ),
+        (
+            "shape.safetensors",
+            config(&|c| c["res"] = serde_json::json!([64, 64, 34])),
+            "tensor \"density.plane\" has shape [110, 128, 16], expected [64, 64, 16]",
+        ),
+    ];
+    for (name, file, needle) in &cases {
+        file.save(&dir.join(name)).unwrap();
+        fail(&dir, &["eval", name, "--data", "nowhere", "--out", "ev"], &[name, needle]);
+        fail(&dir, &["render", name, "--out", "rd"], &[name, needle]);
+        fail(&dir, &["planes", name, "--out", "pl"], &[name, needle]);
+        fail(&dir, &["mine", name, "--out", "lib"], &[name, needle]);
+    }
+    for out in ["ev", "rd", "pl", "lib"] {
+        assert!(!dir.join(out).exists(), "{out} written by a failed command");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -35,6 +35,10 @@ pub enum CoreError {
     /// does not fill its shape).
     #[error("{}: {message}", path.display())]
     TensorFormat { path: PathBuf, message: String },
+    /// A floating-point tensor holds NaN or an infinity (`index` is the first such value,
+    /// counted row-major).
+    #[error("{}: tensor \"{name}\" has a non-finite value ({value}) at index {index}", path.display())]
+    TensorNonFinite { path: PathBuf, name: String, index: usize, value: f32 },
     /// A metadata entry of a tensor file is missing or is not the JSON the caller expects.
     #[error("{}: metadata \"{key}\": {message}", path.display())]
     TensorMeta { path: PathBuf, key: String, message: String },

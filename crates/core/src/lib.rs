@@ -21,4 +21,4 @@ pub use bbox::{Aabb3, Rect2};
 pub use camera::{Camera, Distortion, Intrinsics, Ray};
 pub use error::CoreError;
 pub use ground::GroundTransform;
-pub use tensors::{Tensor, TensorData, TensorFile};
+pub use tensors::{Tensor, TensorData, TensorFile, checked_numel, first_non_finite};

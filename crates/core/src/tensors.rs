@@ -115,8 +115,33 @@ impl Tensor {
     }
 
     /// Number of elements the shape asks for (1 for a scalar's empty shape).
+    ///
+    /// # Panics
+    /// If the product overflows `usize` (never for a tensor read from a file: the reader
+    /// refuses such shapes, see [`checked_numel`]).
     pub fn numel(&self) -> usize {
-        self.shape.iter().product()
+        checked_numel(&self.shape).expect("tensor shape product overflows usize")
+    }
+}
+
+/// Number of elements of `shape` (1 for the empty shape of a scalar), or `None` when the
+/// product overflows `usize`. Use it for every size computed from a file's header.
+pub fn checked_numel(shape: &[usize]) -> Option<usize> {
+    shape.iter().try_fold(1usize, |n, &d| n.checked_mul(d))
+}
+
+/// The first value that is NaN or infinite, with its index.
+pub fn first_non_finite(values: &[f32]) -> Option<(usize, f32)> {
+    values.iter().copied().enumerate().find(|(_, v)| !v.is_finite())
+}
+
+/// Bytes per element of a dtype assetfield reads.
+fn dtype_size(dtype: Dtype) -> Option<usize> {
+    match dtype {
+        Dtype::F32 => Some(4),
+        Dtype::U8 => Some(1),
+        Dtype::I64 => Some(8),
+        _ => None,
     }
 }
 
@@ -312,6 +337,28 @@ impl TensorFile {
         }
     }
 
+    /// Check that `f32` tensor `name` holds only finite values (tensors of other element
+    /// types always pass); the error names the tensor and the index of the first bad value.
+    pub fn check_finite(&self, name: &str) -> Result<(), CoreError> {
+        match &self.get(name)?.data {
+            TensorData::F32(v) => match first_non_finite(v) {
+                Some((index, value)) => Err(CoreError::TensorNonFinite {
+                    path: self.path(),
+                    name: name.to_string(),
+                    index,
+                    value,
+                }),
+                None => Ok(()),
+            },
+            TensorData::U8(_) | TensorData::I64(_) => Ok(()),
+        }
+    }
+
+    /// [`TensorFile::check_finite`] for every tensor, in name order.
+    pub fn check_all_finite(&self) -> Result<(), CoreError> {
+        self.names().try_for_each(|name| self.check_finite(name))
+    }
+
     /// Set a metadata entry.
     pub fn set_meta(&mut self, key: impl Into<String>, value: impl Into<String>) {
         self.metadata.insert(key.into(), value.into());
@@ -390,6 +437,31 @@ impl TensorFile {
             .map_err(|e| format_err(format!("not a valid safetensors file: {e}")))?;
         let (_, header) = SafeTensors::read_metadata(bytes)
             .map_err(|e| format_err(format!("not a valid safetensors file: {e}")))?;
+        // Sizes from the header are checked here, before any value is copied, rather than
+        // trusted to the parser: the element count of every shape (overflow-checked) times
+        // the element size must be exactly the bytes the tensor spans in this file, so no
+        // allocation below is larger than the file itself.
+        for (name, view) in parsed.iter() {
+            let Some(size) = dtype_size(view.dtype()) else {
+                return Err(format_err(format!(
+                    "tensor \"{name}\" has dtype {}, which assetfield does not read (F32, U8, I64)",
+                    view.dtype()
+                )));
+            };
+            let bytes = checked_numel(view.shape()).and_then(|n| n.checked_mul(size));
+            if bytes != Some(view.data().len()) {
+                return Err(format_err(format!(
+                    "tensor \"{name}\" declares shape {:?} of {} ({}), but its data in the file is {} bytes",
+                    view.shape(),
+                    view.dtype(),
+                    bytes.map_or_else(
+                        || "more values than can be counted".into(),
+                        |b| format!("{b} bytes")
+                    ),
+                    view.data().len()
+                )));
+            }
+        }
         let mut tensors = BTreeMap::new();
         for (name, view) in parsed.iter() {
             let raw = view.data();
@@ -569,6 +641,66 @@ mod tests {
         let dir = scratch("missing");
         assert!(TensorFile::load(&dir.join("absent.safetensors")).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A file of one tensor whose header says `dtype` and `shape` over `data`.
+    fn raw_file(dtype: &str, shape: &str, data: &[u8]) -> Vec<u8> {
+        let header = format!(
+            r#"{{"t":{{"dtype":"{dtype}","shape":{shape},"data_offsets":[0,{}]}}}}"#,
+            data.len()
+        );
+        let mut out = (header.len() as u64).to_le_bytes().to_vec();
+        out.extend_from_slice(header.as_bytes());
+        out.extend_from_slice(data);
+        out
+    }
+
+    #[test]
+    fn huge_declared_shapes_are_refused_before_allocating() {
+        let origin = Path::new("huge.safetensors");
+        // 2^40 x 2^40 values over 4 bytes, a product that overflows, and one that fits usize
+        // but not the file: all refused (no allocation, no panic), naming file and tensor
+        for shape in [
+            "[1099511627776,1099511627776]",
+            "[4294967296,4294967296,4294967296]",
+            "[18446744073709551615,2]",
+            "[1000000000]",
+            "[2,0,3]",
+        ] {
+            let bytes = raw_file("F32", shape, &[0, 0, 128, 63]);
+            let e = TensorFile::from_bytes(&bytes, origin).unwrap_err().to_string();
+            assert!(e.starts_with("huge.safetensors: "), "{shape}: {e}");
+        }
+        // the same header with the data it declares is fine
+        let ok = TensorFile::from_bytes(&raw_file("F32", "[1]", &[0, 0, 128, 63]), origin).unwrap();
+        assert_eq!(ok.get_f32("t", &[1]).unwrap(), &[1.0]);
+        assert_eq!(checked_numel(&[usize::MAX, 2]), None);
+        assert_eq!(checked_numel(&[0, usize::MAX]), Some(0));
+        assert_eq!(checked_numel(&[]), Some(1));
+    }
+
+    #[test]
+    fn non_finite_values_are_found_with_their_index() {
+        let mut f = sample();
+        f.origin = Some(PathBuf::from("run/fields.safetensors"));
+        assert!(f.check_all_finite().is_ok());
+        let mut v: Vec<f32> = (0..24).map(|i| i as f32).collect();
+        v[17] = f32::NAN;
+        v[20] = f32::INFINITY;
+        f.insert_f32("density.plane", &[2, 3, 4], v);
+        let e = f.check_all_finite().unwrap_err();
+        assert!(
+            matches!(&e, CoreError::TensorNonFinite { name, index: 17, .. } if name == "density.plane"),
+            "{e}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "run/fields.safetensors: tensor \"density.plane\" has a non-finite value (NaN) at index 17"
+        );
+        assert!(f.check_finite("mask").is_ok());
+        assert!(f.check_finite("absent").is_err());
+        assert_eq!(first_non_finite(&[0.0, f32::NEG_INFINITY]), Some((1, f32::NEG_INFINITY)));
+        assert_eq!(first_non_finite(&[]), None);
     }
 
     /// Decode a safetensors file without the `safetensors` crate, documenting the format:

@@ -131,6 +131,9 @@ pub struct DatasetCameras {
     pub aabb_scale: Option<f32>,
     /// Size of the images on disk, `(width, height)`, before downscaling.
     pub source_size: (u32, u32),
+    /// The scene box the dataset records (`scene_aabb` of `synth.json`), checked (see
+    /// [`crate::validate::read_scene_box`]).
+    pub scene_box: Option<assetfield_core::Aabb3>,
 }
 
 /// One posed image.
@@ -455,12 +458,14 @@ impl Dataset {
             });
         }
         let (format, files) = detect(&root, split)?;
+        let scene_box = crate::validate::read_scene_box(&root)?;
 
         let mut pending = Vec::new();
         let mut aabb_scale = None;
         for (json, file_split) in &files {
             let file = TransformsFile::read(json)?;
-            file.check_camera_model(json)?;
+            // every value of the file, all frames (not only the selected ones)
+            file.validate(json)?;
             aabb_scale = aabb_scale.or(file.aabb_scale);
             let distortion = distortion_of(&file);
             for (index, e) in file.frames.iter().enumerate() {
@@ -481,9 +486,6 @@ impl Dataset {
                 }
                 let frame = FrameRef::new(json, index, &e.file_path);
                 let matrix = e.matrix();
-                assetfield_core::camera::check_rigid(&matrix).map_err(|err| {
-                    DataError::NotRigid { frame: Box::new(frame.clone()), reason: core_reason(err) }
-                })?;
                 let spec = intrinsics_spec(&file, e, json, index)?;
                 pending.push(Pending { frame, split: label, matrix, spec, distortion });
             }
@@ -519,6 +521,7 @@ impl Dataset {
                     path: path.clone(),
                     source,
                 })?;
+                crate::validate::check_image_size(&p.frame, &path, size)?;
                 Ok((path, size))
             })
             .collect();
@@ -573,7 +576,7 @@ impl Dataset {
             });
         }
         let source_size = reference.map_or((0, 0), |(_, s)| s);
-        Ok(DatasetCameras { root, format, views, aabb_scale, source_size })
+        Ok(DatasetCameras { root, format, views, aabb_scale, source_size, scene_box })
     }
 
     /// Number of frames.

@@ -97,6 +97,11 @@ pub enum DataError {
         what: String,
     },
 
+    /// A value of a dataset file is out of range (see [`crate::validate`]): the file, where
+    /// in it (a frame, or the top level), the key, the value found and what was expected.
+    #[error("{0}")]
+    Invalid(Box<InvalidValue>),
+
     /// A frame's `transform_matrix` is not a rigid camera-to-world transform.
     #[error("{frame}: transform_matrix is not rigid: {reason}")]
     NotRigid {
@@ -225,6 +230,35 @@ pub enum DataError {
     /// An error from the core layer (writing files, pictures).
     #[error(transparent)]
     Core(#[from] CoreError),
+}
+
+/// What [`DataError::Invalid`] reports.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct InvalidValue {
+    /// The file (`transforms*.json`, `synth.json`).
+    pub path: PathBuf,
+    /// The frame the value belongs to, or the top level.
+    pub place: crate::validate::Place,
+    /// The key, e.g. `camera_angle_x` or `transform_matrix[0][3]`.
+    pub key: String,
+    /// What a valid value is.
+    pub expected: String,
+    /// The value found.
+    pub actual: String,
+}
+
+impl std::fmt::Display for InvalidValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: {}\"{}\" is {}, expected {}",
+            self.path.display(),
+            self.place.prefix(),
+            self.key,
+            self.actual,
+            self.expected
+        )
+    }
 }
 
 fn also_tried(tried: &[PathBuf]) -> String {

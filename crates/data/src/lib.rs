@@ -15,13 +15,15 @@ pub mod map;
 pub mod rays;
 pub mod schema;
 pub mod summary;
+pub mod validate;
 
 pub use align::{GroundAlignment, bounds_from_cameras};
 pub use dataset::{Dataset, DatasetCameras, Format, Frame, LoadOptions, Split, View};
-pub use error::{DataError, FrameRef};
+pub use error::{DataError, FrameRef, InvalidValue};
 pub use features::FeatureMap;
 pub use image_f32::ImageF32;
 pub use map::{camera_map, camera_map_canvas};
 pub use rays::{PixelRays, fill_rays, rays_flat};
 pub use schema::{FrameEntry, TransformsFile, write_transforms};
 pub use summary::{DatasetSummary, PosedViews};
+pub use validate::{MAX_CAMERA_DISTANCE, MAX_IMAGE_SIDE, MAX_SCENE_COORD, Place, read_scene_box};

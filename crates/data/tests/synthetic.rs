@@ -379,3 +379,158 @@ fn camera_map_writes_a_png() {
     assert_eq!(std::fs::read_dir(s.0.join("maps")).unwrap().count(), 1);
     camera_map(&[], &s.0.join("empty.png"), "no cameras").unwrap();
 }
+
+/// Rewrite a JSON file through `edit` of its parsed value.
+fn edit_json(path: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    edit(&mut v);
+    std::fs::write(path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+}
+
+/// Both loaders refuse the dataset with an error containing every needle.
+fn refused(dir: &Path, split: Split, needles: &[&str]) -> DataError {
+    let e = Dataset::load(dir, split, &LoadOptions::default()).unwrap_err();
+    let msg = e.to_string();
+    for n in needles {
+        assert!(msg.contains(n), "expected {n:?} in: {msg}");
+    }
+    let again = Dataset::load_cameras_only(dir, split, &LoadOptions::default()).unwrap_err();
+    assert_eq!(again.to_string(), msg, "both loaders run the same checks");
+    e
+}
+
+#[test]
+fn field_of_view_outside_zero_to_pi_is_refused() {
+    let s = Scratch::new("fov");
+    write_split(&s.0, "train", 3, |_| (8, 6));
+    let json = s.0.join("transforms_train.json");
+    for bad in [6.3, 0.0, -0.5, 3.2] {
+        edit_json(&json, |v| v["camera_angle_x"] = serde_json::json!(bad));
+        let e = refused(
+            &s.0,
+            Split::Train,
+            &[
+                "transforms_train.json: \"camera_angle_x\" is ",
+                "expected a horizontal field of view in radians, in (0, pi)",
+            ],
+        );
+        assert!(
+            matches!(&e, DataError::Invalid(v) if v.key == "camera_angle_x" && v.place == assetfield_data::Place::File),
+            "{e}"
+        );
+    }
+}
+
+#[test]
+fn zero_or_huge_image_sizes_are_refused() {
+    // a top-level w of 0 next to focal lengths
+    let s = Scratch::new("w0");
+    write_nerfstudio(&s.0, 3, |f| f.w = Some(0));
+    refused(
+        &s.0,
+        Split::All,
+        &["transforms.json: \"w\" is 0, expected an image size in pixels, 1 to 32768"],
+    );
+    // a per-frame w of 0 where the field of view fixes the intrinsics (the size was ignored)
+    let s = Scratch::new("framew0");
+    write_split(&s.0, "train", 3, |_| (8, 6));
+    edit_json(&s.0.join("transforms_train.json"), |v| v["frames"][1]["w"] = serde_json::json!(0));
+    refused(&s.0, Split::Train, &["transforms_train.json: frame 1 (./train/r_1): \"w\" is 0"]);
+    let s = Scratch::new("h-huge");
+    write_nerfstudio(&s.0, 3, |f| f.h = Some(1_000_000));
+    refused(&s.0, Split::All, &["\"h\" is 1000000"]);
+    // an image on disk larger than any camera takes is refused before it is decoded
+    let s = Scratch::new("wide-image");
+    write_split(&s.0, "train", 2, |_| (8, 6));
+    image::RgbaImage::new(40_000, 1).save(s.0.join("train/r_1.png")).unwrap();
+    refused(
+        &s.0,
+        Split::Train,
+        &[
+            "transforms_train.json: frame 1 (./train/r_1): \"the size of image ",
+            "r_1.png\" is 40000x1, expected 1 to 32768 pixels per side",
+        ],
+    );
+}
+
+#[test]
+fn far_away_cameras_are_refused() {
+    let s = Scratch::new("far");
+    write_split(&s.0, "train", 3, |_| (8, 6));
+    edit_json(&s.0.join("transforms_train.json"), |v| {
+        v["frames"][2]["transform_matrix"][0][3] = serde_json::json!(1e30)
+    });
+    refused(
+        &s.0,
+        Split::Train,
+        &[
+            "transforms_train.json: frame 2 (./train/r_2): \"transform_matrix translation\" is [1e30",
+            "expected a camera position within 1e6 scene units of the origin",
+        ],
+    );
+}
+
+#[test]
+fn non_finite_and_null_matrix_entries_are_refused() {
+    let s = Scratch::new("nonfinite");
+    write_split(&s.0, "train", 3, |_| (8, 6));
+    let json = s.0.join("transforms_train.json");
+    // 1e39 is a valid JSON number that becomes infinity as an f32
+    let good = std::fs::read_to_string(&json).unwrap();
+    edit_json(&json, |v| v["frames"][1]["transform_matrix"][2][1] = serde_json::json!(1e39));
+    refused(
+        &s.0,
+        Split::Train,
+        &["transforms_train.json: frame 1 (./train/r_1): \"transform_matrix[2][1]\" is inf"],
+    );
+    std::fs::write(&json, &good).unwrap();
+    edit_json(&json, |v| v["frames"][1]["transform_matrix"][2][1] = serde_json::Value::Null);
+    refused(&s.0, Split::Train, &["transforms_train.json:", "null"]);
+    std::fs::write(&json, &good).unwrap();
+    edit_json(&json, |v| v["camera_angle_x"] = serde_json::json!(1e39));
+    refused(&s.0, Split::Train, &["\"camera_angle_x\" is inf"]);
+}
+
+#[test]
+fn every_frame_is_checked_not_only_the_selected_ones() {
+    // frame 0 is a held-out view: loading the training split used to skip its pose
+    let s = Scratch::new("unselected");
+    write_nerfstudio(&s.0, 6, |f| f.frames[0].transform_matrix[1][1] = 2.0);
+    refused(
+        &s.0,
+        Split::Train,
+        &["transforms.json: frame 0 (images/0000.jpg): transform_matrix is not rigid"],
+    );
+}
+
+#[test]
+fn non_positive_aabb_scale_is_refused() {
+    for bad in [-4.0, 0.0] {
+        let s = Scratch::new("aabb-scale");
+        write_nerfstudio(&s.0, 2, |f| f.aabb_scale = Some(bad));
+        refused(&s.0, Split::All, &["transforms.json: \"aabb_scale\" is ", "positive"]);
+    }
+}
+
+#[test]
+fn inverted_or_empty_scene_boxes_are_refused() {
+    let s = Scratch::new("scene-box");
+    write_split(&s.0, "train", 2, |_| (8, 6));
+    let synth = s.0.join("synth.json");
+    std::fs::write(&synth, r#"{"scene_aabb": [[-1, -2, 0], [1, 2, 0.5]]}"#).unwrap();
+    let cams = Dataset::load_cameras_only(&s.0, Split::Train, &LoadOptions::default()).unwrap();
+    let b = cams.scene_box.unwrap();
+    assert_eq!((b.min, b.max), (Vec3::new(-1.0, -2.0, 0.0), Vec3::new(1.0, 2.0, 0.5)));
+    for (text, needle) in [
+        (r#"{"scene_aabb": [[1, -2, 0], [-1, 2, 0.5]]}"#, "xmin (1) below xmax (-1)"),
+        (r#"{"scene_aabb": [[-1, -2, 0.5], [1, 2, 0.5]]}"#, "zmin (0.5) below zmax (0.5)"),
+        (r#"{"scene_aabb": [[-1, -2, 0], [1, 2, 1e39]]}"#, "finite coordinates"),
+        (r#"{"scene_aabb": [[-1, -2, 0], [1, 2]]}"#, "six numbers"),
+    ] {
+        std::fs::write(&synth, text).unwrap();
+        refused(&s.0, Split::Train, &["synth.json: \"scene_aabb\" is ", needle]);
+    }
+    std::fs::write(&synth, r#"{"scene": "x"}"#).unwrap();
+    refused(&s.0, Split::Train, &["synth.json: missing required key: \"scene_aabb\""]);
+}

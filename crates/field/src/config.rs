@@ -1,7 +1,46 @@
 //! Model configuration: which factorisation, sizes, decoders. Saved inside every field file.
 
+use crate::io::FieldError;
 use assetfield_core::Aabb3;
 use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Most samples along a side of a ground plane (x or y). Trained fields use 128 to 1024; a
+/// 4096 x 4096 plane of 48 colour channels is already 3 GiB of `f32`.
+pub const MAX_PLANE_RES: usize = 4096;
+/// Most samples along the vertical axis (z), for the same reason as [`MAX_PLANE_RES`] (the
+/// VM baseline's XZ and YZ planes have this many rows).
+pub const MAX_AXIS_RES: usize = 4096;
+/// Fewest samples along any axis: linear interpolation needs two nodes.
+pub const MIN_RES: usize = 2;
+/// Most feature channels of a density or colour component: the density backward pass keeps
+/// one component's channels in stack buffers of this size ([`crate::model::MAX_CHANNELS`]).
+pub const MAX_FEATURE_CHANNELS: usize = crate::model::MAX_CHANNELS;
+/// Most channels of the semantic field: the widest per-pixel features in use (CLIP ViT-L:
+/// 768, DINOv2 ViT-L: 1024).
+pub const MAX_SEMANTIC_CHANNELS: usize = 1024;
+/// Widest network layer (colour basis output, decoder and guidance hidden layers), in
+/// units. The defaults are 27, 64 and 32.
+pub const MAX_LAYER_WIDTH: usize = 1024;
+/// Most hidden layers of the MLP decoder (the default has one).
+pub const MAX_HIDDEN_LAYERS: usize = 8;
+/// Most view-direction frequencies of the MLP decoder: `sin(2^k d)` for `k < 16` already
+/// varies faster than any view-dependent effect (the default uses 2).
+pub const MAX_VIEW_FREQS: usize = 16;
+/// Highest spherical-harmonics degree: [`crate::model::sh_basis`] computes 9 coefficients.
+pub const MAX_SH_DEGREE: usize = 2;
+/// Smallest march step, in voxels (the default is 0.5, TensoRF's): below a twentieth of a
+/// voxel a ray's samples (at most 2048, see [`crate::MarchSettings`]) run out before they
+/// cross a 100-voxel scene, and renders come out empty.
+pub const MIN_STEP_RATIO: f32 = 0.05;
+/// Largest march step, in voxels: beyond 4 voxels samples step over thin geometry.
+pub const MAX_STEP_RATIO: f32 = 4.0;
+/// Largest |coordinate| of the scene box, in scene units (as the data crate's camera and
+/// scene-box bounds: beyond it `f32` positions keep fewer than two decimals).
+pub const MAX_BOX_COORD: f32 = 1.0e6;
+/// Most values of all a field's tensors together: twice a default-sized field at
+/// [`MAX_PLANE_RES`] (4096^2 x (16 + 48) = 2^30 values); 8 GiB of `f32`.
+pub const MAX_PARAMETERS: usize = 1 << 31;
 
 /// Which factorisation of the radiance field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -142,5 +181,213 @@ impl FieldConfig {
             ModelKind::Vm => 3 * self.color_channels,
             _ => self.color_channels,
         }
+    }
+}
+
+/// A `FieldConfig` check's findings: the key, what was expected and what was found.
+struct Check<'a> {
+    path: &'a Path,
+}
+
+impl Check<'_> {
+    fn fail(&self, key: &str, expected: impl Into<String>, actual: impl ToString) -> FieldError {
+        FieldError::Config {
+            path: self.path.to_path_buf(),
+            key: key.to_string(),
+            expected: expected.into(),
+            actual: actual.to_string(),
+        }
+    }
+
+    fn range(&self, key: &str, v: usize, lo: usize, hi: usize) -> Result<(), FieldError> {
+        if v < lo || v > hi {
+            return Err(self.fail(key, format!("{lo} to {hi}"), v));
+        }
+        Ok(())
+    }
+}
+
+impl FieldConfig {
+    /// Check every value against the bounds above (resolutions, channel counts, layer
+    /// widths, decoder, scene box, render settings), before anything is allocated from it;
+    /// `path` names the file in the error ([`FieldError::Config`]: key, expected, actual).
+    pub fn validate(&self, path: &Path) -> Result<(), FieldError> {
+        let c = Check { path };
+        for (axis, (&r, max)) in
+            self.res.iter().zip([MAX_PLANE_RES, MAX_PLANE_RES, MAX_AXIS_RES]).enumerate()
+        {
+            c.range(&format!("res[{axis}]"), r, MIN_RES, max)?;
+        }
+        c.range("density_channels", self.density_channels, 1, MAX_FEATURE_CHANNELS)?;
+        c.range("color_channels", self.color_channels, 1, MAX_FEATURE_CHANNELS)?;
+        c.range("semantic_channels", self.semantic_channels, 0, MAX_SEMANTIC_CHANNELS)?;
+        if self.kind == ModelKind::Integrated {
+            c.range("guide_hidden", self.guide_hidden, 1, MAX_LAYER_WIDTH)?;
+        }
+        match &self.decoder {
+            DecoderKind::Mlp { hidden, view_freqs } => {
+                c.range("basis_dim", self.basis_dim, 1, MAX_LAYER_WIDTH)?;
+                c.range("decoder.Mlp.hidden (layers)", hidden.len(), 0, MAX_HIDDEN_LAYERS)?;
+                for (k, &h) in hidden.iter().enumerate() {
+                    c.range(&format!("decoder.Mlp.hidden[{k}]"), h, 1, MAX_LAYER_WIDTH)?;
+                }
+                c.range("decoder.Mlp.view_freqs", *view_freqs, 0, MAX_VIEW_FREQS)?;
+            }
+            DecoderKind::Sh { degree } => {
+                c.range("decoder.Sh.degree", *degree, 0, MAX_SH_DEGREE)?;
+            }
+        }
+        let [lo, hi] = self.aabb;
+        let shown = || format!("[{lo:?}, {hi:?}]");
+        if lo.iter().chain(&hi).any(|v| !(v.is_finite() && v.abs() <= MAX_BOX_COORD)) {
+            return Err(c.fail(
+                "aabb",
+                format!("finite coordinates within {MAX_BOX_COORD:e}"),
+                shown(),
+            ));
+        }
+        for (axis, name) in ["x", "y", "z"].iter().enumerate() {
+            if lo[axis] >= hi[axis] {
+                return Err(c.fail(
+                    "aabb",
+                    format!(
+                        "[[xmin, ymin, zmin], [xmax, ymax, zmax]] with {name}min below {name}max"
+                    ),
+                    shown(),
+                ));
+            }
+        }
+        if !self.density_shift.is_finite() {
+            return Err(c.fail(
+                "density_shift",
+                "a finite number",
+                format!("{:?}", self.density_shift),
+            ));
+        }
+        if !(self.distance_scale.is_finite() && self.distance_scale > 0.0) {
+            return Err(c.fail(
+                "distance_scale",
+                "a positive finite number",
+                format!("{:?}", self.distance_scale),
+            ));
+        }
+        if !(MIN_STEP_RATIO..=MAX_STEP_RATIO).contains(&self.step_ratio) {
+            return Err(c.fail(
+                "step_ratio",
+                format!("a march step of {MIN_STEP_RATIO} to {MAX_STEP_RATIO} voxels"),
+                format!("{:?}", self.step_ratio),
+            ));
+        }
+        // the bounds above keep every product below far from overflowing
+        let total: usize =
+            self.tensor_shapes().iter().map(|(_, s)| s.iter().product::<usize>()).sum();
+        if total > MAX_PARAMETERS {
+            return Err(c.fail(
+                "res and channels",
+                format!("at most {MAX_PARAMETERS} parameters in all"),
+                format!("{total} parameters"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Name and shape of every tensor a field of this configuration has, in the order of
+    /// its parameter buffer (what [`crate::Field::new`] builds). Call on a validated
+    /// configuration ([`FieldConfig::validate`]), whose sizes cannot overflow.
+    pub fn tensor_shapes(&self) -> Vec<(String, Vec<usize>)> {
+        let mut out = Vec::new();
+        let vm = self.kind == ModelKind::Vm;
+        let sets: &[[usize; 3]] =
+            if vm { &[[0, 1, 2], [0, 2, 1], [1, 2, 0]] } else { &[[0, 1, 2]] };
+        const AXES: [&str; 3] = ["x", "y", "z"];
+        let mut comps = |prefix: &str, ch: usize, with_line: bool| {
+            for a in sets {
+                let (cols, rows, len) = (self.res[a[0]], self.res[a[1]], self.res[a[2]]);
+                let (plane, line) = if vm {
+                    (
+                        format!("{prefix}.plane_{}{}", AXES[a[0]], AXES[a[1]]),
+                        format!("{prefix}.line_{}", AXES[a[2]]),
+                    )
+                } else {
+                    (format!("{prefix}.plane"), format!("{prefix}.axis"))
+                };
+                out.push((plane, vec![rows, cols, ch]));
+                if with_line {
+                    out.push((line, vec![len, ch]));
+                }
+            }
+        };
+        comps("density", self.density_channels, true);
+        comps("color", self.color_channels, self.kind != ModelKind::Integrated);
+        let mut dense = |name: &str, inn: usize, out_dim: usize, bias: bool| {
+            out.push((format!("{name}.weight"), vec![out_dim, inn]));
+            if bias {
+                out.push((format!("{name}.bias"), vec![out_dim]));
+            }
+        };
+        let (nd, gh, app) = (self.density_channels, self.guide_hidden, self.app_dim());
+        if self.kind == ModelKind::Integrated {
+            dense("guide.0", nd, gh, true);
+            dense("guide.1", gh, self.color_channels, true);
+        }
+        dense("color.basis", app, self.features_dim(), false);
+        if let DecoderKind::Mlp { hidden, .. } = &self.decoder {
+            let mut inn = self.features_dim() + self.view_encoding_dim();
+            for (k, &h) in hidden.iter().chain(std::iter::once(&3)).enumerate() {
+                dense(&format!("decoder.{k}"), inn, h, true);
+                inn = h;
+            }
+        }
+        let sem = self.semantic_dim();
+        if sem > 0 {
+            dense("guide_semantic.0", nd, gh, true);
+            dense("guide_semantic.1", gh, app, true);
+            dense("semantic.decoder", app, sem, true);
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Field;
+    use glam::Vec3;
+
+    #[test]
+    fn tensor_shapes_are_the_fields_layout() {
+        let aabb = Aabb3::new(Vec3::new(-1.0, -2.0, 0.0), Vec3::new(1.0, 2.0, 0.7));
+        for kind in [ModelKind::Standard, ModelKind::Integrated, ModelKind::Vm] {
+            for decoder in [
+                DecoderKind::Mlp { hidden: vec![16, 8], view_freqs: 3 },
+                DecoderKind::Mlp { hidden: vec![], view_freqs: 0 },
+                DecoderKind::Sh { degree: 1 },
+            ] {
+                for semantic in [0, 5] {
+                    let mut c = FieldConfig::new(kind, aabb, 12);
+                    (c.decoder, c.semantic_channels) = (decoder.clone(), semantic);
+                    (c.density_channels, c.color_channels) = (3, 5);
+                    c.validate(Path::new("t")).unwrap();
+                    let f = Field::new(c.clone(), 0);
+                    let specs: Vec<(String, Vec<usize>)> =
+                        f.params.specs.iter().map(|s| (s.name.clone(), s.shape.clone())).collect();
+                    assert_eq!(c.tensor_shapes(), specs, "{kind:?} {decoder:?} {semantic}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn defaults_are_valid_and_bounds_name_the_key() {
+        let aabb = Aabb3::new(Vec3::splat(-1.0), Vec3::splat(1.0));
+        let mut c = FieldConfig::new(ModelKind::Standard, aabb, 300);
+        assert!(c.validate(Path::new("f.safetensors")).is_ok());
+        c.res[2] = 1;
+        let e = c.validate(Path::new("f.safetensors")).unwrap_err().to_string();
+        assert_eq!(e, "f.safetensors: config \"res[2]\" is 1, expected 2 to 4096");
+        c.res = [4096, 4096, 4096];
+        (c.density_channels, c.color_channels) = (256, 256);
+        let e = c.validate(Path::new("f.safetensors")).unwrap_err().to_string();
+        assert!(e.contains("config \"res and channels\"") && e.contains("parameters"), "{e}");
     }
 }

@@ -236,6 +236,7 @@ pub fn evaluate_with<E: From<FieldError>>(
             psnr: metrics::psnr(&rgb, &frame.image.rgb),
             ssim: metrics::ssim(&rgb, &frame.image.rgb, w, h, 3),
         };
+        check_metrics(frame, &m)?;
         each(frame, &rgb, &m)?;
         views.push(m);
     }
@@ -251,6 +252,29 @@ pub fn evaluate_with<E: From<FieldError>>(
         model: model.to_string(),
         resolution,
     })
+}
+
+/// A report must hold numbers: JSON has no NaN or infinity (serde writes them as `null`),
+/// so a metric that is not finite is an error naming the view.
+fn check_metrics(frame: &Frame, m: &ViewMetrics) -> Result<(), FieldError> {
+    for (metric, value) in [("PSNR", m.psnr), ("SSIM", m.ssim)] {
+        if !value.is_finite() {
+            let why = if value.is_nan() {
+                "the rendering or the image holds NaN or infinite values"
+            } else {
+                "the rendering equals the image exactly, and an infinite PSNR cannot be written to metrics.json"
+            };
+            return Err(FieldError::NonFiniteMetric {
+                index: frame.index,
+                file_path: frame.file_path.clone(),
+                image: frame.image_path.clone(),
+                metric,
+                value,
+                why,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Mean PSNR of the field on `frames` (validation during training).
@@ -356,6 +380,41 @@ mod tests {
         // the first view is on +X, the second on +Y (counter-clockwise from above)
         assert!(cams[0].position().x > aabb.center().x + 1.0);
         assert!(cams[1].position().y > aabb.center().y + 1.0);
+    }
+
+    fn frame(rgb: Vec<f32>) -> Frame {
+        let k = Intrinsics::from_fov_x(16, 16, 0.8);
+        Frame {
+            index: 3,
+            file_path: "./test/r_3".into(),
+            split: assetfield_data::Split::Test,
+            image_path: PathBuf::from("/d/test/r_3.png"),
+            camera: Camera::look_at(k, Vec3::new(0.0, -3.0, 1.0), Vec3::ZERO, Vec3::Z),
+            image: assetfield_data::ImageF32 { width: 16, height: 16, rgb, alpha: None },
+            features: None,
+        }
+    }
+
+    #[test]
+    fn metrics_that_are_not_finite_are_errors_naming_the_view() {
+        let image: Vec<f32> = (0..768).map(|i| (i % 7) as f32 / 7.0).collect();
+        let f = frame(image.clone());
+        let run = |render: Vec<f32>| {
+            evaluate_with("s", &[&f], |_| Ok::<_, FieldError>(render.clone()), |_, _, _| Ok(()))
+        };
+        let report = run(image.iter().map(|v| v * 0.9).collect()).unwrap();
+        assert!(report.psnr.is_finite() && report.ssim.is_finite());
+        let mut nan = image.clone();
+        nan[5] = f32::NAN;
+        let e = run(nan).unwrap_err();
+        assert!(matches!(e, FieldError::NonFiniteMetric { index: 3, metric: "PSNR", .. }), "{e}");
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with("view 3 (./test/r_3, image /d/test/r_3.png): PSNR is NaN"),
+            "{msg}"
+        );
+        let e = run(image.clone()).unwrap_err().to_string();
+        assert!(e.contains("PSNR is inf") && e.contains("equals the image exactly"), "{e}");
     }
 
     #[test]

@@ -6,7 +6,7 @@ use crate::config::FieldConfig;
 use crate::model::Field;
 use crate::occupancy::Occupancy;
 use assetfield_core::{CoreError, TensorFile};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Format tag stored in the metadata.
 pub const FORMAT: &str = "assetfield-field/1";
@@ -21,7 +21,53 @@ pub enum FieldError {
     NotAField { path: String, found: Option<String> },
     #[error("{path}: {message}")]
     Invalid { path: String, message: String },
+    /// A value of the field's configuration (metadata `config`) is out of bounds (see the
+    /// constants of [`crate::config`]).
+    #[error("{}: config \"{key}\" is {actual}, expected {expected}", path.display())]
+    Config { path: PathBuf, key: String, expected: String, actual: String },
+    /// A tensor's shape is not the one the field's configuration implies.
+    #[error(
+        "{}: tensor \"{tensor}\" has shape {actual:?}, expected {expected:?} (the shape its config implies)",
+        path.display()
+    )]
+    Shape { path: PathBuf, tensor: String, expected: Vec<usize>, actual: Vec<usize> },
+    /// A parameter tensor holds NaN or an infinity; `index` is the first such value
+    /// (row-major).
+    #[error(
+        "{}: tensor \"{tensor}\" has a non-finite value ({value}) at index {index}",
+        path.display()
+    )]
+    NonFinite { path: PathBuf, tensor: String, index: usize, value: f32 },
+    /// An image metric came out NaN or infinite, which `metrics.json` cannot hold.
+    #[error(
+        "view {index} ({file_path}, image {}): {metric} is {value}, not a finite number: {why}",
+        image.display()
+    )]
+    NonFiniteMetric {
+        index: usize,
+        file_path: String,
+        image: PathBuf,
+        metric: &'static str,
+        value: f32,
+        why: &'static str,
+    },
 }
+
+impl FieldError {
+    /// [`CoreError::TensorNonFinite`] as [`FieldError::NonFinite`]; other errors as they are.
+    pub(crate) fn from_core(e: CoreError) -> Self {
+        match e {
+            CoreError::TensorNonFinite { path, name, index, value } => {
+                FieldError::NonFinite { path, tensor: name, index, value }
+            }
+            other => FieldError::Core(other),
+        }
+    }
+}
+
+/// Most samples per side of a stored occupancy grid (the trainer uses half the field's
+/// resolution, so [`crate::config::MAX_PLANE_RES`] is plenty).
+pub const MAX_OCCUPANCY_RES: usize = crate::config::MAX_PLANE_RES;
 
 impl Field {
     /// Every tensor plus config metadata, ready to save.
@@ -46,40 +92,60 @@ impl Field {
         Ok(())
     }
 
-    /// Rebuild a field from a loaded file; every tensor must be present with its shape.
+    /// Rebuild a field from a loaded file. Everything is checked before the field is
+    /// allocated: the configuration against its bounds ([`FieldConfig::validate`]), then
+    /// every tensor it implies (present, of the implied shape, `f32`, finite values), then
+    /// the occupancy grid; so the field is never larger than the file.
     pub fn from_tensor_file(
         file: &mut TensorFile,
     ) -> Result<(Field, Option<Occupancy>), FieldError> {
-        let path =
-            file.origin().map(|p| p.display().to_string()).unwrap_or_else(|| "<in memory>".into());
+        let origin = file.origin().map_or_else(|| PathBuf::from("<in memory>"), Path::to_path_buf);
+        let path = origin.display().to_string();
         let format = file.meta("format").map(str::to_string);
         if format.as_deref() != Some(FORMAT) {
             return Err(FieldError::NotAField { path, found: format });
         }
         let config: FieldConfig = file.meta_json("config")?;
-        if config.res.iter().any(|r| *r < 2) {
-            return Err(FieldError::Invalid {
-                path,
-                message: format!("resolution {:?} is too small", config.res),
-            });
+        config.validate(&origin)?;
+        let shapes = config.tensor_shapes();
+        for (name, expected) in &shapes {
+            let actual = file.get(name)?.shape.clone();
+            if &actual != expected {
+                return Err(FieldError::Shape {
+                    path: origin.clone(),
+                    tensor: name.clone(),
+                    expected: expected.clone(),
+                    actual,
+                });
+            }
+            file.get_f32(name, expected)?;
+            file.check_finite(name).map_err(FieldError::from_core)?;
         }
-        let mut field = Field::new(config, 0);
-        for spec in field.params.specs.clone() {
-            let data = file.take_f32(&spec.name, &spec.shape)?;
-            field.params.data[spec.offset..spec.offset + spec.len].copy_from_slice(&data);
-        }
-        let occupancy = match file.shape_of("occupancy").map(<[usize]>::to_vec) {
-            Some(shape) if shape.len() == 3 => {
-                let cells = file.take_u8("occupancy", &shape)?;
-                Some(Occupancy::from_cells(&field, [shape[2], shape[1], shape[0]], &cells))
+        let occupancy_res = match file.shape_of("occupancy") {
+            Some(&[nz, ny, nx])
+                if [nx, ny, nz].iter().all(|n| (1..=MAX_OCCUPANCY_RES).contains(n)) =>
+            {
+                Some([nx, ny, nz])
             }
             Some(shape) => {
                 return Err(FieldError::Invalid {
                     path,
                     message: format!(
-                        "tensor \"occupancy\" has shape {shape:?}, expected [nz, ny, nx]"
+                        "tensor \"occupancy\" has shape {shape:?}, expected [nz, ny, nx] with 1 to {MAX_OCCUPANCY_RES} cells per axis"
                     ),
                 });
+            }
+            None => None,
+        };
+        let mut field = Field::new(config, 0);
+        for spec in field.params.specs.clone() {
+            let data = file.take_f32(&spec.name, &spec.shape)?;
+            field.params.data[spec.offset..spec.offset + spec.len].copy_from_slice(&data);
+        }
+        let occupancy = match occupancy_res {
+            Some([nx, ny, nz]) => {
+                let cells = file.take_u8("occupancy", &[nz, ny, nx])?;
+                Some(Occupancy::from_cells(&field, [nx, ny, nz], &cells))
             }
             None => None,
         };

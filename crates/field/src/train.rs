@@ -555,6 +555,10 @@ impl Trainer {
         let state: TrainState = file.meta_json("train")?;
         let (field, occupancy) = Field::from_tensor_file(&mut file)?;
         let n = field.params.len();
+        for name in ["train.adam_m", "train.adam_v"] {
+            file.get_f32(name, &[n])?;
+            file.check_finite(name).map_err(FieldError::from_core)?;
+        }
         let m = file.take_f32("train.adam_m", &[n])?;
         let v = file.take_f32("train.adam_v", &[n])?;
         let mut t = Trainer::new(data, field.config.clone(), state.config.clone());

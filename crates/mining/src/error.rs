@@ -59,6 +59,13 @@ pub enum MiningError {
     /// A library index and its tensors disagree.
     #[error("{path}: tensor \"{tensor}\" has shape {actual:?}, but the index says {expected:?}")]
     LibraryMismatch { path: String, tensor: String, expected: Vec<usize>, actual: Vec<usize> },
+    /// A value of a library's index (or of its shared field configuration) is out of range.
+    /// `place` is the entry, container or category it belongs to (empty for a top-level key).
+    #[error("{path}: {}\"{key}\" is {actual}, expected {expected}", place_prefix(place))]
+    LibraryValue { path: String, place: String, key: String, expected: String, actual: String },
+    /// A tensor of a library holds NaN or an infinity (`index`: the first, row-major).
+    #[error("{path}: tensor \"{tensor}\" has a non-finite value ({value}) at index {index}")]
+    NonFinite { path: String, tensor: String, index: usize, value: f32 },
     /// Libraries that do not share their vertical axes, basis and decoders cannot be merged.
     #[error(
         "cannot merge {a} and {b}: shared tensor \"{tensor}\" differs ({detail}); libraries can only be merged when they were mined from fields that share their vertical axes, basis and decoders"
@@ -78,6 +85,11 @@ pub enum MiningError {
     Interrupted,
 }
 
+/// `"entry \"x\": "` for a place, `""` for none.
+fn place_prefix(place: &str) -> String {
+    if place.is_empty() { String::new() } else { format!("{place}: ") }
+}
+
 impl MiningError {
     /// An I/O or encoding failure of another layer, with what was being done.
     pub fn io(context: impl std::fmt::Display, e: impl std::fmt::Display) -> Self {
@@ -95,6 +107,14 @@ impl From<assetfield_core::CoreError> for MiningError {
                     tensor: name,
                     expected: expected.into_vec(),
                     actual: actual.into_vec(),
+                }
+            }
+            assetfield_core::CoreError::TensorNonFinite { path, name, index, value } => {
+                MiningError::NonFinite {
+                    path: path.display().to_string(),
+                    tensor: name,
+                    index,
+                    value,
                 }
             }
             other => MiningError::Io(other.to_string()),

@@ -21,8 +21,11 @@
 //! [`merge_libraries`] builds a cross-scene library from libraries whose shared tensors are
 //! identical and refuses, naming the first tensor that differs, otherwise.
 
-use assetfield_core::TensorFile;
 use assetfield_core::fsx::{StagingDir, write_atomic};
+use assetfield_core::{TensorData, TensorFile};
+use assetfield_field::config::{MAX_BOX_COORD, MAX_FEATURE_CHANNELS, MAX_PLANE_RES};
+use assetfield_field::eval::FieldInfo;
+use assetfield_field::{FieldConfig, FieldError, ModelKind};
 use glam::Vec2;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
@@ -191,6 +194,12 @@ pub struct Library {
     pub index: LibraryIndex,
     pub patches: TensorFile,
     pub shared: TensorFile,
+    /// The configuration of the field the shared tensors belong to (metadata `config` of
+    /// the shared file), checked against its bounds and against the shared tensors.
+    pub config: FieldConfig,
+    /// What the source field's training recorded (background, ground alignment, dataset),
+    /// from the shared file's metadata.
+    pub info: FieldInfo,
 }
 
 fn ron_options() -> ron::Options {
@@ -241,9 +250,9 @@ pub fn content_hash(file: &TensorFile) -> String {
         }
         eat(t.data.dtype_name().as_bytes());
         match &t.data {
-            assetfield_core::TensorData::F32(v) => v.iter().for_each(|x| eat(&x.to_le_bytes())),
-            assetfield_core::TensorData::U8(v) => eat(v),
-            assetfield_core::TensorData::I64(v) => v.iter().for_each(|x| eat(&x.to_le_bytes())),
+            TensorData::F32(v) => v.iter().for_each(|x| eat(&x.to_le_bytes())),
+            TensorData::U8(v) => eat(v),
+            TensorData::I64(v) => v.iter().for_each(|x| eat(&x.to_le_bytes())),
         }
     }
     format!("fnv1a64:{h:016x}")
@@ -264,58 +273,287 @@ pub fn write_library_files(
     Ok(())
 }
 
-/// Check the index against the tensors: every entry's and container's tensors exist with the
-/// shapes the index implies, and the shared file matches its hash.
+/// The ground-plane tensors of a field, which a library keeps per entry and container
+/// rather than in its shared file.
+const PLANE_TENSORS: [&str; 2] = ["density.plane", "color.plane"];
+
+/// Builds the errors of one file of a library.
+struct Checker {
+    path: String,
+}
+
+impl Checker {
+    fn value(
+        &self,
+        place: &str,
+        key: &str,
+        actual: impl std::fmt::Debug,
+        expected: impl Into<String>,
+    ) -> MiningError {
+        MiningError::LibraryValue {
+            path: self.path.clone(),
+            place: place.to_string(),
+            key: key.to_string(),
+            expected: expected.into(),
+            actual: format!("{actual:?}"),
+        }
+    }
+
+    /// World coordinates or sizes: finite and within [`MAX_BOX_COORD`].
+    fn finite(&self, place: &str, key: &str, values: &[f32]) -> Result<()> {
+        if values.iter().all(|v| v.is_finite() && v.abs() <= MAX_BOX_COORD) {
+            return Ok(());
+        }
+        let shown =
+            if values.len() == 1 { format!("{:?}", values[0]) } else { format!("{values:?}") };
+        Err(MiningError::LibraryValue {
+            path: self.path.clone(),
+            place: place.to_string(),
+            key: key.to_string(),
+            expected: format!("finite numbers within {MAX_BOX_COORD:e} scene units"),
+            actual: shown,
+        })
+    }
+
+    /// An angle in degrees: finite.
+    fn angle(&self, place: &str, key: &str, v: f32) -> Result<()> {
+        if v.is_finite() {
+            return Ok(());
+        }
+        Err(self.value(place, key, v, "a finite angle in degrees"))
+    }
+
+    /// Tensor `name` of `file`: present, `expected` shape, element type `dtype`, and (for
+    /// `f32`) finite values. `purpose` says what needs it; `by_index`: whether the index
+    /// (rather than the shared configuration) implies the shape.
+    fn tensor(
+        &self,
+        file: &TensorFile,
+        name: &str,
+        expected: &[usize],
+        dtype: &str,
+        purpose: &str,
+        by_index: bool,
+    ) -> Result<()> {
+        let Some(t) = file.tensors.get(name) else {
+            return Err(MiningError::MissingTensor {
+                source_name: self.path.clone(),
+                name: name.to_string(),
+                purpose: purpose.to_string(),
+            });
+        };
+        if t.shape != expected && !by_index {
+            return Err(MiningError::Format {
+                path: self.path.clone(),
+                message: format!(
+                    "tensor \"{name}\" has shape {:?}, expected {expected:?} (the shape {purpose} implies)",
+                    t.shape
+                ),
+            });
+        }
+        if t.shape != expected {
+            return Err(MiningError::LibraryMismatch {
+                path: self.path.clone(),
+                tensor: name.to_string(),
+                expected: expected.to_vec(),
+                actual: t.shape.clone(),
+            });
+        }
+        if t.data.dtype_name() != dtype {
+            return Err(MiningError::Format {
+                path: self.path.clone(),
+                message: format!(
+                    "tensor \"{name}\" has dtype {}, expected {dtype} ({purpose})",
+                    t.data.dtype_name()
+                ),
+            });
+        }
+        if let TensorData::F32(v) = &t.data
+            && let Some((index, value)) = assetfield_core::first_non_finite(v)
+        {
+            return Err(MiningError::NonFinite {
+                path: self.path.clone(),
+                tensor: name.to_string(),
+                index,
+                value,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// `FieldError`s of the shared configuration as the library errors that name the file.
+fn config_error(path: &str, e: FieldError) -> MiningError {
+    match e {
+        FieldError::Config { key, expected, actual, .. } => MiningError::LibraryValue {
+            path: path.to_string(),
+            place: "metadata \"config\"".into(),
+            key,
+            expected,
+            actual,
+        },
+        other => MiningError::Format { path: path.to_string(), message: other.to_string() },
+    }
+}
+
+/// Check a library: everything that composing it ([`open_library`], the composer's loader)
+/// and `assetfield library check` rely on, so that a library that passes composes. Returns
+/// the shared field's configuration and training metadata.
+///
+/// - `index.ron`: model `s` or `i`; texel size positive and finite; channel counts 1 to
+///   [`MAX_FEATURE_CHANNELS`]; unique entry, category and container names; per entry a
+///   patch size of 1 to [`MAX_PLANE_RES`] texels per side, finite non-negative extents,
+///   finite base, box, position and yaw, a pivot within the box, a known source, support and
+///   category; per container 2 to [`MAX_PLANE_RES`] texels per side (a field needs two
+///   nodes) and a finite, non-empty world box; categories whose template and members exist.
+/// - the patches file: every entry's and container's tensors present, with the shapes the
+///   index implies, `f32` (masks `u8`), finite.
+/// - the shared file: its format tag; a field configuration (metadata `config`) within the
+///   field bounds ([`FieldConfig::validate`]) of the index's model and channels; every
+///   tensor the index lists and every non-plane tensor the configuration implies present,
+///   with the implied shapes, finite; the content hash of the index; readable training
+///   metadata.
+///
+/// Every error names the file, and the entry, container, category or tensor.
 pub fn validate(
     index: &LibraryIndex,
     patches: &TensorFile,
     shared: &TensorFile,
     dir: &Path,
-) -> Result<()> {
-    let ppath = dir.join(&index.patches).display().to_string();
+) -> Result<(FieldConfig, FieldInfo)> {
+    let ix = Checker { path: dir.join(INDEX_FILE).display().to_string() };
+    if !matches!(index.model.as_str(), "s" | "i") {
+        return Err(ix.value(
+            "",
+            "model",
+            &index.model,
+            "\"s\" or \"i\" (the fields with ground planes)",
+        ));
+    }
+    let (tx, ty) = index.texel_size;
+    if !(tx.is_finite() && ty.is_finite() && tx > 0.0 && ty > 0.0) {
+        return Err(ix.value(
+            "",
+            "texel_size",
+            index.texel_size,
+            "the world size of a texel (x, y), positive and finite",
+        ));
+    }
     let (nd, nc) = index.channels;
-    let check = |name: &str, expected: Vec<usize>| -> Result<()> {
-        match patches.shape_of(name) {
-            None => Err(MiningError::MissingTensor {
-                source_name: ppath.clone(),
-                name: name.to_string(),
-                purpose: "an entry of the library index".into(),
-            }),
-            Some(actual) if actual != expected.as_slice() => Err(MiningError::LibraryMismatch {
-                path: ppath.clone(),
-                tensor: name.to_string(),
-                expected,
-                actual: actual.to_vec(),
-            }),
-            Some(_) => Ok(()),
+    for (what, n) in [("density", nd), ("colour", nc)] {
+        if !(1..=MAX_FEATURE_CHANNELS).contains(&n) {
+            return Err(ix.value(
+                "",
+                "channels",
+                index.channels,
+                format!("(density, colour) channel counts of 1 to {MAX_FEATURE_CHANNELS} ({what})"),
+            ));
         }
+    }
+    let mut names = BTreeSet::new();
+    for e in &index.entries {
+        if !names.insert(e.name.as_str()) {
+            return Err(ix.value("", "entries", &e.name, "unique entry names"));
+        }
+    }
+    let categories: BTreeSet<&str> = index.categories.iter().map(|c| c.name.as_str()).collect();
+    if categories.len() != index.categories.len() {
+        return Err(ix.value("", "categories", index.categories.len(), "unique category names"));
+    }
+    let containers: BTreeSet<&str> = index.containers.iter().map(|c| c.name.as_str()).collect();
+    if containers.len() != index.containers.len() {
+        return Err(ix.value("", "containers", index.containers.len(), "unique container names"));
+    }
+    let side = |place: &str, key: &str, (h, w): (usize, usize), min: usize| -> Result<()> {
+        if [h, w].iter().all(|n| (min..=MAX_PLANE_RES).contains(n)) {
+            return Ok(());
+        }
+        Err(ix.value(
+            place,
+            key,
+            (h, w),
+            format!("(rows, cols) of {min} to {MAX_PLANE_RES} texels"),
+        ))
+    };
+    let source = |place: &str, s: usize| -> Result<()> {
+        if s < index.sources.len() {
+            return Ok(());
+        }
+        Err(ix.value(
+            place,
+            "source",
+            s,
+            format!("an index into the {} source(s)", index.sources.len()),
+        ))
     };
     for e in &index.entries {
-        let (h, w) = e.patch_size;
-        check(&e.density, vec![h, w, nd])?;
-        check(&e.color, vec![h, w, nc])?;
-        check(&e.mask, vec![h, w])?;
-        if let Some((x, y)) = e.pivot
-            && !(x.is_finite() && y.is_finite())
+        let place = format!("entry {:?}", e.name);
+        side(&place, "patch_size", e.patch_size, 1)?;
+        let (ex, ey, ez) = e.extent;
+        ix.finite(&place, "extent", &[ex, ey, ez])?;
+        if [ex, ey, ez].iter().any(|v| *v < 0.0) {
+            return Err(ix.value(&place, "extent", e.extent, "non-negative sizes (x, y, height)"));
+        }
+        ix.finite(&place, "base", &[e.base])?;
+        ix.finite(&place, "source_box", &e.source_box)?;
+        let b = e.source_box;
+        if b[0] > b[2] || b[1] > b[3] {
+            return Err(ix.value(&place, "source_box", b, "[xmin, ymin, xmax, ymax], min <= max"));
+        }
+        ix.finite(&place, "position", &[e.position.0, e.position.1])?;
+        if let Some((x, y)) = e.pivot {
+            ix.finite(&place, "pivot", &[x, y])?;
+            // the centre of the object's ground contact, so within its box (a texel of slack)
+            if x < b[0] - tx || x > b[2] + tx || y < b[1] - ty || y > b[3] + ty {
+                return Err(ix.value(
+                    &place,
+                    "pivot",
+                    (x, y),
+                    format!("a point of the entry's source_box {b:?}"),
+                ));
+            }
+        }
+        ix.angle(&place, "yaw_deg", e.yaw_deg)?;
+        source(&place, e.source)?;
+        if !categories.contains(e.category.as_str()) {
+            return Err(ix.value(&place, "category", &e.category, "the name of a category"));
+        }
+        if let Some(s) = &e.supported_by
+            && !names.contains(s.as_str())
         {
-            return Err(MiningError::Format {
-                path: dir.join(INDEX_FILE).display().to_string(),
-                message: format!("entry {:?} has pivot ({x}, {y}), which is not finite", e.name),
-            });
+            return Err(ix.value(&place, "supported_by", s, "the name of an entry"));
         }
     }
     for c in &index.containers {
-        let (h, w) = c.size;
-        check(&c.density, vec![h, w, nd])?;
-        check(&c.color, vec![h, w, nc])?;
-        check(&c.mask, vec![h, w])?;
+        let place = format!("container {:?}", c.name);
+        side(&place, "size", c.size, 2)?;
+        ix.finite(&place, "world", &c.world)?;
+        let w = c.world;
+        let (rows, cols) = c.size;
+        // the box covers whole texel cells: cols x rows texels
+        let fits = |len: f32, n: usize, texel: f32| {
+            let want = n as f32 * texel;
+            (len - want).abs() <= 1e-3 * want
+        };
+        if !(fits(w[2] - w[0], cols, tx) && fits(w[3] - w[1], rows, ty)) {
+            return Err(ix.value(
+                &place,
+                "world",
+                w,
+                format!(
+                    "[xmin, ymin, xmax, ymax] of {cols} x {rows} texel cells of {tx} x {ty} ({} x {} in all)",
+                    cols as f32 * tx,
+                    rows as f32 * ty
+                ),
+            ));
+        }
+        source(&place, c.source)?;
     }
-    let names: BTreeSet<&str> = index.entries.iter().map(|e| e.name.as_str()).collect();
     for c in &index.categories {
         for m in std::iter::once(&c.template).chain(&c.members) {
             if !names.contains(m.as_str()) {
                 return Err(MiningError::Format {
-                    path: dir.join(INDEX_FILE).display().to_string(),
+                    path: ix.path.clone(),
                     message: format!(
                         "category {:?} names entry {m:?}, which does not exist",
                         c.name
@@ -324,20 +562,114 @@ pub fn validate(
             }
         }
     }
+
+    // the patches file
+    let pf = Checker { path: dir.join(&index.patches).display().to_string() };
+    for (what, name, density, color, mask, (h, w)) in index
+        .entries
+        .iter()
+        .map(|e| ("entry", &e.name, &e.density, &e.color, &e.mask, e.patch_size))
+        .chain(
+            index
+                .containers
+                .iter()
+                .map(|c| ("container", &c.name, &c.density, &c.color, &c.mask, c.size)),
+        )
+    {
+        let purpose = format!("{what} {name:?} of the library index");
+        pf.tensor(patches, density, &[h, w, nd], "F32", &purpose, true)?;
+        pf.tensor(patches, color, &[h, w, nc], "F32", &purpose, true)?;
+        pf.tensor(patches, mask, &[h, w], "U8", &purpose, true)?;
+    }
+
+    // the shared file
+    let sf = Checker { path: dir.join(&index.shared.file).display().to_string() };
+    if shared.meta("format") != Some(SHARED_FORMAT) {
+        return Err(sf.value(
+            "",
+            "metadata \"format\"",
+            shared.meta("format"),
+            format!("{SHARED_FORMAT:?} (the shared tensors of an asset library)"),
+        ));
+    }
+    let config: FieldConfig = shared.meta_json("config").map_err(|e| MiningError::Format {
+        path: sf.path.clone(),
+        message: format!("no usable field configuration in the metadata: {e}"),
+    })?;
+    config.validate(&dir.join(&index.shared.file)).map_err(|e| config_error(&sf.path, e))?;
+    if config.kind == ModelKind::Vm {
+        return Err(sf.value(
+            "metadata \"config\"",
+            "kind",
+            config.kind,
+            "Standard or Integrated (a TensoRF-VM field has no ground planes to compose)",
+        ));
+    }
+    if config.kind.name() != index.model {
+        return Err(ix.value(
+            "",
+            "model",
+            &index.model,
+            format!("{:?}, the model of the shared configuration", config.kind.name()),
+        ));
+    }
+    if (config.density_channels, config.color_channels) != index.channels {
+        return Err(ix.value(
+            "",
+            "channels",
+            index.channels,
+            format!(
+                "{:?}, the channels of the shared configuration",
+                (config.density_channels, config.color_channels)
+            ),
+        ));
+    }
+    // the texels are the source field's plane texels
+    let voxel = config.voxel_size();
+    let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * b;
+    if !(close(tx, voxel.x) && close(ty, voxel.y)) {
+        return Err(ix.value(
+            "",
+            "texel_size",
+            index.texel_size,
+            format!(
+                "({}, {}), the plane texel of the shared configuration (its box over its resolution)",
+                voxel.x, voxel.y
+            ),
+        ));
+    }
+    for name in &index.shared.tensors {
+        if !shared.tensors.contains_key(name) {
+            return Err(MiningError::MissingTensor {
+                source_name: sf.path.clone(),
+                name: name.clone(),
+                purpose: "the shared tensors the library index lists".into(),
+            });
+        }
+    }
+    for (name, shape) in config.tensor_shapes() {
+        if PLANE_TENSORS.contains(&name.as_str()) {
+            continue;
+        }
+        sf.tensor(shared, &name, &shape, "F32", "the shared configuration", false)?;
+    }
     let hash = content_hash(shared);
     if hash != index.shared.hash {
         return Err(MiningError::Format {
-            path: dir.join(&index.shared.file).display().to_string(),
+            path: sf.path.clone(),
             message: format!(
                 "content hash {hash} does not match the index ({}): the shared tensors were changed",
                 index.shared.hash
             ),
         });
     }
-    Ok(())
+    let info = FieldInfo::read(shared)
+        .map_err(|e| MiningError::Format { path: sf.path.clone(), message: e.to_string() })?;
+    Ok((config, info))
 }
 
-/// Read and check a library folder.
+/// Read and check a library folder: the one loader of libraries, used by
+/// `assetfield library check`, by merging and by the composer (see [`validate`]).
 pub fn open_library(dir: &Path) -> Result<Library> {
     let ipath = dir.join(INDEX_FILE);
     let text = std::fs::read_to_string(&ipath).map_err(|e| {
@@ -346,8 +678,80 @@ pub fn open_library(dir: &Path) -> Result<Library> {
     let index = index_from_ron(&ipath, &text)?;
     let patches = TensorFile::load(&dir.join(&index.patches))?;
     let shared = TensorFile::load(&dir.join(&index.shared.file))?;
-    validate(&index, &patches, &shared, dir)?;
-    Ok(Library { dir: dir.to_path_buf(), index, patches, shared })
+    let (config, info) = validate(&index, &patches, &shared, dir)?;
+    Ok(Library { dir: dir.to_path_buf(), index, patches, shared, config, info })
+}
+
+/// Write a small but complete library into `dir` (created if needed), for tests and
+/// examples of the crates that read libraries: an S-AssetField configuration with 2 density
+/// and 4 colour channels on 0.1 texels, one category of two 2 x 3 entries (`obj000`, the
+/// template, and `obj001`), one 4 x 5 container (the whole plane), and shared tensors from
+/// a fresh field of that configuration, with `decoder.0.bias[0] = bias` (libraries with different `bias`
+/// cannot be merged).
+pub fn write_sample_library(dir: &Path, bias: f32) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| MiningError::io(dir.display(), e))?;
+    // a plane of 5 x 4 nodes 0.1 apart
+    let world = assetfield_core::Aabb3::new(glam::Vec3::ZERO, glam::Vec3::new(0.4, 0.3, 0.3));
+    let mut config = FieldConfig::new(ModelKind::Standard, world, 5);
+    (config.density_channels, config.color_channels, config.basis_dim) = (2, 4, 3);
+    config.decoder = assetfield_field::DecoderKind::Mlp { hidden: vec![4], view_freqs: 1 };
+    let mut field = assetfield_field::Field::new(config, 7);
+    if let Some(s) = field.params.spec("decoder.0.bias").cloned() {
+        field.params.data[s.offset] = bias;
+    }
+    let shared = crate::pipeline::shared_tensors(&field, "sample.safetensors")?;
+    let (nd, nc) = (2, 4);
+    let mut patches = TensorFile::new();
+    patches.set_meta("format", FORMAT);
+    let mut entries = Vec::new();
+    for (k, name) in ["obj000", "obj001"].iter().enumerate() {
+        patches.insert_f32(format!("{name}.density"), &[2, 3, nd], vec![0.1; 6 * nd]);
+        patches.insert_f32(format!("{name}.color"), &[2, 3, nc], vec![0.2; 6 * nc]);
+        patches.insert_u8(format!("{name}.mask"), &[2, 3], vec![1; 6]);
+        entries.push(Entry {
+            name: name.to_string(),
+            category: "cat0".into(),
+            kind: if k == 0 { EntryKind::Template } else { EntryKind::Instance },
+            density: format!("{name}.density"),
+            color: format!("{name}.color"),
+            mask: format!("{name}.mask"),
+            patch_size: (2, 3),
+            extent: (0.3, 0.2, 0.5),
+            base: 0.0,
+            source_box: [0.0, 0.0, 0.3, 0.2],
+            position: (0.15, 0.1),
+            pivot: None,
+            matched_on: None,
+            yaw_deg: 90.0 * k as f32,
+            residual: 0.0,
+            supported_by: None,
+            source: 0,
+        });
+    }
+    patches.insert_f32("container.density", &[4, 5, nd], vec![0.0; 20 * nd]);
+    patches.insert_f32("container.color", &[4, 5, nc], vec![0.0; 20 * nc]);
+    patches.insert_u8("container.mask", &[4, 5], vec![0; 20]);
+    let index = LibraryIndex {
+        format: FORMAT.into(),
+        sources: vec!["sample.safetensors".into()],
+        model: "s".into(),
+        texel_size: (0.1, 0.1),
+        channels: (nd, nc),
+        patches: PATCHES_FILE.into(),
+        shared: SharedRef {
+            file: SHARED_FILE.into(),
+            hash: content_hash(&shared),
+            tensors: shared.names().map(str::to_string).collect(),
+        },
+        categories: vec![Category {
+            name: "cat0".into(),
+            template: "obj000".into(),
+            members: vec!["obj000".into(), "obj001".into()],
+        }],
+        entries,
+        containers: vec![Container::named("container", (4, 5), [-0.05, -0.05, 0.45, 0.35], 0)],
+    };
+    write_library_files(dir, &index, &patches, &shared)
 }
 
 /// Compare two shared files; the first difference as (tensor, detail).
@@ -362,7 +766,7 @@ pub fn shared_difference(a: &TensorFile, b: &TensorFile) -> Option<(String, Stri
                     return Some((n.into(), format!("shape {:?} vs {:?}", x.shape, y.shape)));
                 }
                 match (&x.data, &y.data) {
-                    (assetfield_core::TensorData::F32(p), assetfield_core::TensorData::F32(q)) => {
+                    (TensorData::F32(p), TensorData::F32(q)) => {
                         let diff = p.iter().zip(q).map(|(u, v)| (u - v).abs()).fold(0f32, f32::max);
                         if p.iter().zip(q).any(|(u, v)| u.to_bits() != v.to_bits()) {
                             return Some((
@@ -519,65 +923,8 @@ pub fn merge_libraries(inputs: &[PathBuf], out: &Path, force: bool) -> Result<Me
 pub(crate) mod tests {
     use super::*;
 
-    /// A small but complete library in `dir` (one category of two entries, one container),
-    /// with shared tensor `decoder.0.bias = [bias]`.
     pub(crate) fn write_tiny(dir: &Path, bias: f32) {
-        std::fs::create_dir_all(dir).unwrap();
-        let mut shared = TensorFile::new();
-        shared.insert_f32("decoder.0.bias", &[2], vec![bias, 0.5]);
-        shared.insert_f32("density.axis", &[3, 2], vec![1.0; 6]);
-        shared.set_meta("format", SHARED_FORMAT);
-        shared.set_meta("config", "{}");
-        let mut patches = TensorFile::new();
-        let mut entries = Vec::new();
-        for (k, name) in ["obj000", "obj001"].iter().enumerate() {
-            patches.insert_f32(format!("{name}.density"), &[2, 3, 2], vec![0.1; 12]);
-            patches.insert_f32(format!("{name}.color"), &[2, 3, 4], vec![0.2; 24]);
-            patches.insert_u8(format!("{name}.mask"), &[2, 3], vec![1; 6]);
-            entries.push(Entry {
-                name: name.to_string(),
-                category: "cat0".into(),
-                kind: if k == 0 { EntryKind::Template } else { EntryKind::Instance },
-                density: format!("{name}.density"),
-                color: format!("{name}.color"),
-                mask: format!("{name}.mask"),
-                patch_size: (2, 3),
-                extent: (0.3, 0.2, 0.5),
-                base: 0.0,
-                source_box: [0.0, 0.0, 0.3, 0.2],
-                position: (0.15, 0.1),
-                pivot: None,
-                matched_on: None,
-                yaw_deg: 90.0 * k as f32,
-                residual: 0.0,
-                supported_by: None,
-                source: 0,
-            });
-        }
-        patches.insert_f32("container.density", &[4, 5, 2], vec![0.0; 40]);
-        patches.insert_f32("container.color", &[4, 5, 4], vec![0.0; 80]);
-        patches.insert_u8("container.mask", &[4, 5], vec![0; 20]);
-        let index = LibraryIndex {
-            format: FORMAT.into(),
-            sources: vec!["f.safetensors".into()],
-            model: "s".into(),
-            texel_size: (0.1, 0.1),
-            channels: (2, 4),
-            patches: PATCHES_FILE.into(),
-            shared: SharedRef {
-                file: SHARED_FILE.into(),
-                hash: content_hash(&shared),
-                tensors: shared.names().map(str::to_string).collect(),
-            },
-            categories: vec![Category {
-                name: "cat0".into(),
-                template: "obj000".into(),
-                members: vec!["obj000".into(), "obj001".into()],
-            }],
-            entries,
-            containers: vec![Container::named("container", (4, 5), [0.0, 0.0, 0.5, 0.4], 0)],
-        };
-        write_library_files(dir, &index, &patches, &shared).unwrap();
+        write_sample_library(dir, bias).unwrap();
     }
 
     fn scratch(name: &str) -> PathBuf {

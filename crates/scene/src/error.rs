@@ -35,6 +35,15 @@ pub enum SceneError {
     #[error("{location}: {inner}")]
     At { location: String, inner: Box<SceneError> },
 
+    /// A library that does not pass the library check (the error names the file and the
+    /// entry, container or tensor).
+    #[error("asset library {}: {source}", dir.display())]
+    LibraryCheck {
+        dir: PathBuf,
+        #[source]
+        source: Box<assetfield_mining::MiningError>,
+    },
+
     /// A library file problem.
     #[error("{}: {reason}", path.display())]
     Library { path: PathBuf, reason: String },

@@ -32,6 +32,10 @@ use std::sync::Arc;
 /// `assetfield mine` fills with background in the container.
 pub const DEFAULT_HALO: usize = 2;
 
+/// Most texels of an empty canvas (rows x cols): 64 million, 16 GiB of the default 16 + 48
+/// feature channels.
+pub const MAX_CANVAS_TEXELS: usize = 64_000_000;
+
 /// Which entry owns each texel of a container (`u32::MAX`: none).
 #[derive(Debug, Clone)]
 struct Ownership {
@@ -67,23 +71,19 @@ fn lib_err(path: &Path, reason: impl Into<String>) -> SceneError {
 }
 
 impl AssetLibrary {
-    /// Read and check a library folder.
+    /// Read and check a library folder, with the one library check there is
+    /// ([`assetfield_mining::library::open_library`], which `assetfield library check` runs
+    /// too): a library that opens here composes.
     pub fn open(dir: &Path) -> Result<Self, SceneError> {
-        let lib = open_library(dir).map_err(|e| lib_err(dir, e.to_string()))?;
-        let shared_path = dir.join(&lib.index.shared.file);
-        let config: FieldConfig = lib.shared.meta_json("config").map_err(|e| {
-            lib_err(&shared_path, format!("no field configuration in the metadata: {e}"))
+        let lib = open_library(dir).map_err(|e| SceneError::LibraryCheck {
+            dir: dir.to_path_buf(),
+            source: Box::new(e),
         })?;
-        let info = assetfield_field::eval::FieldInfo::read(&lib.shared)
-            .map_err(|e| lib_err(&shared_path, e.to_string()))?;
-        if config.kind == assetfield_field::ModelKind::Vm {
-            return Err(SceneError::NoGroundPlanes { kind: "vm".into() });
-        }
         Ok(AssetLibrary {
             dir: dir.to_path_buf(),
-            background: info.background_or_white(),
-            config,
-            info,
+            background: lib.info.background_or_white(),
+            config: lib.config,
+            info: lib.info,
             index: lib.index,
             patches: lib.patches,
             shared: lib.shared,
@@ -189,8 +189,10 @@ impl AssetLibrary {
                 }
                 let texel = self.texel();
                 let n = ((extent.size() / texel).ceil()).max(Vec2::ONE);
+                // counted in f64 so that a tiny texel cannot overflow the product
+                let texels = (f64::from(n.x) + 1.0) * (f64::from(n.y) + 1.0);
                 let (cols, rows) = (n.x as usize + 1, n.y as usize + 1);
-                if rows * cols > 64_000_000 {
+                if texels > MAX_CANVAS_TEXELS as f64 {
                     return Err(lib_err(
                         &self.dir,
                         format!(

@@ -463,6 +463,7 @@ pub fn mine(a: MineArgs) -> Result<()> {
 pub fn library(a: LibraryArgs) -> Result<()> {
     match a.command {
         LibraryCommand::Check { lib } => {
+            // the loader `compose` uses (AssetLibrary::open runs exactly this check)
             let l = open_library(&lib)
                 .with_context(|| format!("{} is not a valid asset library", lib.display()))?;
             let ix = &l.index;
@@ -481,7 +482,9 @@ pub fn library(a: LibraryArgs) -> Result<()> {
             for c in &ix.categories {
                 println!("  {}: template {}, {} member(s)", c.name, c.template, c.members.len());
             }
-            println!("ok: every index entry matches its tensors");
+            println!(
+                "ok: the index, every patch and the shared tensors pass the check `compose` opens libraries with"
+            );
             Ok(())
         }
         LibraryCommand::Merge { libs, out, force } => {

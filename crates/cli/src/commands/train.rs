@@ -169,9 +169,10 @@ pub fn checkpoint_path(out: &Path) -> PathBuf {
     out.with_file_name(format!("{stem}.ckpt.safetensors"))
 }
 
-/// The scene box and where it came from.
+/// The scene box and where it came from: `recorded` is the dataset's own (synth.json's
+/// `scene_aabb`, checked by the data loader).
 fn scene_bounds(
-    data: &Path,
+    recorded: Option<Aabb3>,
     format: Format,
     cameras: &[assetfield_core::Camera],
     align: Option<&GroundAlignment>,
@@ -180,22 +181,9 @@ fn scene_bounds(
         Some(g) => (g.transform_aabb(&b), format!("{what}, moved by the ground alignment")),
         None => (b, what.to_string()),
     };
-    let synth = data.join("synth.json");
-    if synth.is_file() {
-        let text = std::fs::read_to_string(&synth)
-            .with_context(|| format!("reading {}", synth.display()))?;
-        let v: serde_json::Value = serde_json::from_str(&text)
-            .with_context(|| format!("{}: invalid JSON", synth.display()))?;
-        let a: [[f32; 3]; 2] =
-            serde_json::from_value(v["scene_aabb"].clone()).with_context(|| {
-                format!(
-                    "{}: \"scene_aabb\" is not [[xmin, ymin, zmin], [xmax, ymax, zmax]]",
-                    synth.display()
-                )
-            })?;
-        let (lo, hi) = (Vec3::from(a[0]), Vec3::from(a[1]));
-        let pad = (hi - lo).max(Vec3::ZERO) * 0.02;
-        return Ok(moved(Aabb3::new(lo - pad, hi + pad), "synth.json scene_aabb + 2%"));
+    if let Some(b) = recorded {
+        let pad = b.extent().max(Vec3::ZERO) * 0.02;
+        return Ok(moved(Aabb3::new(b.min - pad, b.max + pad), "synth.json scene_aabb + 2%"));
     }
     if format == Format::NerfSynthetic {
         let b = Aabb3::new(Vec3::splat(-1.5), Vec3::splat(1.5));
@@ -242,6 +230,13 @@ pub fn train(a: TrainArgs) -> Result<()> {
     // cheap checks first, before anything is loaded
     if a.res < 8 {
         bail!("--res {} is too small (at least 8)", a.res);
+    }
+    if a.res > assetfield_field::config::MAX_PLANE_RES {
+        bail!(
+            "--res {} is too large (at most {} texels per side)",
+            a.res,
+            assetfield_field::config::MAX_PLANE_RES
+        );
     }
     if a.batch == 0 {
         bail!("--batch must be at least 1");
@@ -436,7 +431,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
                 if let Some(g) = &alignment {
                     g.apply_to_cameras(&mut cams);
                 }
-                scene_bounds(&data.root, data.format, &cams.cameras(), alignment.as_ref())?
+                scene_bounds(cams.scene_box, data.format, &cams.cameras(), alignment.as_ref())?
             }
         };
         eprintln!(
@@ -449,6 +444,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
             fc.decoder = DecoderKind::Sh { degree: 2 };
         }
         fc.semantic_channels = semantic_channels;
+        // the same bounds a field file is loaded with, before anything is allocated
+        fc.validate(&a.out).context("the field these options describe cannot be trained")?;
         let mut tc = TrainConfig::new(kind);
         tc.batch = a.batch;
         tc.iters = match (a.iters, seconds) {
