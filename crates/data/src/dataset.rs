@@ -458,6 +458,16 @@ impl Dataset {
             });
         }
         let (format, files) = detect(&root, split)?;
+        // A dataset is valid as a whole: the split files not requested are checked too (a
+        // broken test split fails the training run's load, not its evaluation later).
+        for other in SPLITS.iter().map(|s| root.join(split_file_name(*s))) {
+            if format == Format::NerfSynthetic
+                && other.is_file()
+                && !files.iter().any(|(f, _)| *f == other)
+            {
+                TransformsFile::read(&other)?.validate(&other)?;
+            }
+        }
         let scene_box = crate::validate::read_scene_box(&root)?;
 
         let mut pending = Vec::new();

@@ -66,6 +66,13 @@ impl FeatureMap {
         if h == 0 || w == 0 || c == 0 {
             return Err(bad(path, format!("empty feature map of shape {shape:?}")));
         }
+        let side = crate::validate::MAX_IMAGE_SIDE as usize;
+        if h > side || w > side {
+            return Err(bad(
+                path,
+                format!("feature map of shape {shape:?}: at most {side} pixels per side"),
+            ));
+        }
         if let Some(i) = data.iter().position(|v| !v.is_finite()) {
             return Err(bad(path, format!("value {i} is not finite ({})", data[i])));
         }
@@ -175,20 +182,22 @@ fn parse_npy(bytes: &[u8]) -> Result<(Vec<usize>, Vec<f32>), String> {
         .filter(|s| !s.is_empty())
         .map(|s| s.parse::<usize>().map_err(|_| format!("bad dimension {s:?}")))
         .collect::<Result<Vec<_>, _>>()?;
-    let n: usize = shape.iter().product();
     let size = match descr {
         "<f4" | "=f4" => 4,
         "<f2" | "=f2" => 2,
         "<f8" | "=f8" => 8,
         d => return Err(format!("dtype {d} is not supported (little-endian float16/32/64 are)")),
     };
-    if body.len() < n * size {
+    // the header's shape is checked against the data before anything is allocated from it
+    let bytes = assetfield_core::checked_numel(&shape).and_then(|n| n.checked_mul(size));
+    let Some(bytes) = bytes.filter(|b| *b <= body.len()) else {
         return Err(format!(
             "data holds {} bytes, shape {shape:?} of {descr} needs {}",
             body.len(),
-            n * size
+            bytes.map_or_else(|| "more than can be counted".to_string(), |b| b.to_string())
         ));
-    }
+    };
+    let n = bytes / size;
     let data = body[..n * size]
         .chunks_exact(size)
         .map(|b| match size {
@@ -221,6 +230,17 @@ fn f16_to_f32(h: u16) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn npy_headers_with_huge_shapes_are_refused() {
+        for shape in [vec![4_294_967_296, 4_294_967_296, 2], vec![usize::MAX, 3], vec![1000, 1000]]
+        {
+            let mut bytes = npy_bytes(&shape, &[]);
+            bytes.extend_from_slice(&[0; 16]);
+            let e = parse_npy(&bytes).unwrap_err();
+            assert!(e.contains("data holds 16 bytes"), "{shape:?}: {e}");
+        }
+    }
 
     #[test]
     fn npy_round_trip_and_f16() {

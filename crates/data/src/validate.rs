@@ -3,8 +3,8 @@
 //! that reads a dataset go through) before any image is opened:
 //!
 //! - [`TransformsFile::validate`]: every value of a `transforms*.json`, top-level keys and
-//!   every frame (all of them, not only the frames of the requested split), against the
-//!   bounds below;
+//!   every frame, against the bounds below; of every split file of the folder and all their
+//!   frames, not only those of the requested split (a dataset is valid as a whole);
 //! - [`read_scene_box`]: the scene box a synthesised dataset records in `synth.json`.
 //!
 //! A value out of range is a [`DataError::Invalid`] naming the file, the place (the frame's

@@ -505,6 +505,24 @@ fn every_frame_is_checked_not_only_the_selected_ones() {
 }
 
 #[test]
+fn every_split_file_is_checked_not_only_the_requested_one() {
+    let s = Scratch::new("other-split");
+    write_split(&s.0, "train", 2, |_| (8, 6));
+    write_split(&s.0, "test", 2, |_| (8, 6));
+    assert!(Dataset::load_cameras_only(&s.0, Split::Train, &LoadOptions::default()).is_ok());
+    edit_json(&s.0.join("transforms_test.json"), |v| {
+        v["frames"][1]["transform_matrix"][1][3] = serde_json::json!(4294967296.0)
+    });
+    for split in [Split::Train, Split::Test, Split::All] {
+        refused(
+            &s.0,
+            split,
+            &["transforms_test.json: frame 1 (./test/r_1): \"transform_matrix translation\""],
+        );
+    }
+}
+
+#[test]
 fn non_positive_aabb_scale_is_refused() {
     for bad in [-4.0, 0.0] {
         let s = Scratch::new("aabb-scale");
