@@ -3,8 +3,7 @@
 //! and a `Scatter` of N / 8 instances clear of them. Resolution used to be quadratic in N
 //! (16000 lines took 16 s); it should now grow about linearly.
 //!
-//! `cargo bench -p assetfield-benches --bench layout` (a quicker look without criterion:
-//! `cargo run --release -p assetfield-layout --example resolve_scale`).
+//! `cargo bench -p assetfield-benches --bench layout`.
 
 use assetfield_layout::{PartsCatalog, load_str, resolve};
 use criterion::{Criterion, criterion_group, criterion_main};

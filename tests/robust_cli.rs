@@ -52,3 +52,21 @@ fn a_killed_synth_s_staging_folder_goes_with_the_next_run() {
     assert_eq!(names, ["d"], "only the finished output stays");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_limit_is_raised_by_a_flag_as_the_error_says() {
+    let dir = scratch("robust-limit");
+    let script = "Scene(\n  assets: {\n    \"a\": Asset(parts: [Box(center: (0, 0, 0.5), size: (0.5, 0.5, 1), color: (1, 0, 0))]),\n  },\n  layout: [Row(asset: \"a\", from: (0, 0), to: (10, 0), count: 20)],\n)\n";
+    std::fs::write(dir.join("row.ron"), script).unwrap();
+    let (code, _, err) = run_cli(&dir, &["layout", "row.ron", "--limit", "instances=10"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("row.ron:5:12"), "{err}");
+    assert!(err.contains("--limit instances=N"), "{err}");
+    let (code, out, err) = run_cli(&dir, &["layout", "row.ron", "--limit", "instances=20"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("20 instances"), "{out}");
+    let (code, _, err) = run_cli(&dir, &["layout", "row.ron", "--limit", "instancez=20"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("unknown limit") && err.contains("scatter-tries"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

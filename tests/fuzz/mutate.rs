@@ -1,30 +1,27 @@
 //! Seeded mutations of text (RON, JSON) and of safetensors files: the same seed always gives
 //! the same mutated bytes, so a failing case is reproduced from its format, seed and number.
 
-/// SplitMix64: small, fast, and the same on every machine.
+/// The layout language's seeded generator (SplitMix64: the same on every machine), with the
+/// draws a mutator needs.
 #[derive(Debug, Clone)]
-pub struct Rng(u64);
+pub struct Rng(assetfield_layout::rng::Rng);
 
 impl Rng {
     pub fn new(seed: u64) -> Self {
-        Rng(seed)
+        Rng(assetfield_layout::rng::Rng::new(seed))
     }
 
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     /// Uniform in `0..n` (`n` > 0).
     pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n.max(1) as u64) as usize
+        self.0.below(n)
     }
 
     pub fn chance(&mut self, p: f64) -> bool {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64 <= p
+        (self.0.f32() as f64) < p
     }
 
     pub fn pick<'a, T>(&mut self, items: &'a [T]) -> &'a T {

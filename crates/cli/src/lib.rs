@@ -29,6 +29,24 @@ pub use commands::{
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
+    /// Raise (or lower) a limit on the work a layout script may ask for, for this run:
+    /// instances, scatter-tries, region-points, include-depth, file-loads or script-bytes
+    /// (e.g. --limit instances=5000000; repeat for several). The environment variables
+    /// ASSETFIELD_MAX_* set the same limits; this flag wins.
+    #[arg(long = "limit", value_name = "NAME=N", global = true, value_parser = parse_limit)]
+    pub limits: Vec<(assetfield_layout::Limit, u64)>,
+}
+
+/// `NAME=N` of `--limit`.
+fn parse_limit(s: &str) -> Result<(assetfield_layout::Limit, u64), String> {
+    use assetfield_layout::Limit;
+    let names = || Limit::ALL.iter().map(|l| l.flag_name()).collect::<Vec<_>>().join(", ");
+    let (name, value) =
+        s.split_once('=').ok_or_else(|| format!("expected NAME=N (NAME one of {})", names()))?;
+    let limit = Limit::from_flag_name(name.trim())
+        .ok_or_else(|| format!("unknown limit {name:?} (one of {})", names()))?;
+    let n = value.trim().parse().map_err(|_| format!("{value:?} is not a whole number >= 0"))?;
+    Ok((limit, n))
 }
 
 #[derive(Debug, Subcommand)]
@@ -60,7 +78,7 @@ pub enum Command {
     /// (ASSETFIELD_MAX_INSTANCES, default 1000000), scatter tries (ASSETFIELD_MAX_SCATTER_TRIES),
     /// points of a scatter region (ASSETFIELD_MAX_REGION_POINTS), base/include nesting
     /// (ASSETFIELD_MAX_INCLUDE_DEPTH) and file loads (ASSETFIELD_MAX_FILE_LOADS), and bytes per
-    /// file (ASSETFIELD_MAX_SCRIPT_BYTES); set the variable to raise one.
+    /// file (ASSETFIELD_MAX_SCRIPT_BYTES); set the variable, or pass --limit NAME=N, to raise one.
     Layout(LayoutArgs),
     /// Train a radiance field on ground feature planes from a dataset.
     ///
@@ -155,6 +173,9 @@ pub fn main_with_args(args: impl IntoIterator<Item = impl Into<OsString> + Clone
             return if e.use_stderr() { 2 } else { 0 };
         }
     };
+    for (limit, value) in &cli.limits {
+        assetfield_layout::Limits::set_for_process(*limit, *value);
+    }
     install_ctrlc();
     install_broken_pipe_exit();
     install_logging();

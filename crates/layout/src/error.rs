@@ -62,7 +62,8 @@ pub enum LayoutError {
     Invalid(Box<InvalidValue>),
     /// The script asks for more than one of the [`crate::Limits`] allows.
     #[error(
-        "{location}: {what}: more than the limit of {value} {limit} (raise it with the environment variable {}=N)",
+        "{location}: {what}: more than the limit of {value} {limit} (raise it with --limit {}=N or the environment variable {}=N)",
+        limit.flag_name(),
         limit.env_var()
     )]
     Limit {

@@ -14,6 +14,9 @@
 use crate::error::{LayoutError, Location};
 use std::fmt;
 
+/// Limits set for the whole process (by [`Limits::set_for_process`]), in [`Limit::ALL`]'s order.
+static PROCESS_LIMITS: std::sync::Mutex<[Option<u64>; 6]> = std::sync::Mutex::new([None; 6]);
+
 /// One of the limits of [`Limits`] (for error messages and environment variables).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Limit {
@@ -52,6 +55,23 @@ impl Limit {
             Limit::FileLoads => "ASSETFIELD_MAX_FILE_LOADS",
             Limit::FileBytes => "ASSETFIELD_MAX_SCRIPT_BYTES",
         }
+    }
+
+    /// The name `--limit NAME=N` gives it on the command line.
+    pub fn flag_name(self) -> &'static str {
+        match self {
+            Limit::Instances => "instances",
+            Limit::ScatterTries => "scatter-tries",
+            Limit::RegionPoints => "region-points",
+            Limit::IncludeDepth => "include-depth",
+            Limit::FileLoads => "file-loads",
+            Limit::FileBytes => "script-bytes",
+        }
+    }
+
+    /// The limit that `--limit NAME=N` names.
+    pub fn from_flag_name(name: &str) -> Option<Limit> {
+        Limit::ALL.into_iter().find(|l| l.flag_name() == name)
     }
 
     /// What the limit counts, in words ("instances per script").
@@ -139,8 +159,25 @@ impl Limits {
     /// The defaults, each replaced by its environment variable when set
     /// (`ASSETFIELD_MAX_INSTANCES=2000000`). A variable that is not a non-negative integer
     /// is an error naming it.
+    ///
+    /// Values set for the whole process ([`Limits::set_for_process`], the CLI's `--limit`)
+    /// come last and win over the variables.
     pub fn from_env() -> Result<Limits, LayoutError> {
-        Limits::from_lookup(|name| std::env::var(name).ok())
+        let mut limits = Limits::from_lookup(|name| std::env::var(name).ok())?;
+        let set = PROCESS_LIMITS.lock().unwrap_or_else(|p| p.into_inner());
+        for (limit, value) in Limit::ALL.into_iter().zip(set.iter()) {
+            if let Some(v) = value {
+                limits.set(limit, *v);
+            }
+        }
+        Ok(limits)
+    }
+
+    /// Set one limit for every script this process loads from now on (what the CLI's
+    /// `--limit NAME=N` does); it wins over the environment variable.
+    pub fn set_for_process(limit: Limit, value: u64) {
+        let k = Limit::ALL.iter().position(|l| *l == limit).unwrap_or(0);
+        PROCESS_LIMITS.lock().unwrap_or_else(|p| p.into_inner())[k] = Some(value);
     }
 
     /// [`Limits::from_env`] with the variables looked up by `var` (testable without touching
