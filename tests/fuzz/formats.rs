@@ -19,6 +19,9 @@ pub enum Format {
     Dataset,
     Field,
     Library,
+    /// The harness's own check: case 0 panics, 1 aborts, 2 hangs, 3 allocates beyond the
+    /// memory limit, 4 breaks the oracle, the rest pass. Not one of [`Format::ALL`].
+    Canary,
 }
 
 impl Format {
@@ -30,11 +33,12 @@ impl Format {
             Format::Dataset => "dataset",
             Format::Field => "field",
             Format::Library => "library",
+            Format::Canary => "canary",
         }
     }
 
     pub fn parse(s: &str) -> Option<Format> {
-        Format::ALL.into_iter().find(|f| f.name() == s)
+        Format::ALL.into_iter().chain([Format::Canary]).find(|f| f.name() == s)
     }
 }
 
@@ -100,10 +104,11 @@ pub struct Case {
     pub mutated: Vec<u8>,
 }
 
-/// Run case `rng` of `format`: mutate a valid input, load it as the tools do, check the
+/// Run case `number` of `format` (drawing from `rng`, seeded by it): mutate a valid input, load it as the tools do, check the
 /// oracle. Files of the workspace that the case changed are restored before it returns.
 pub fn run_case(
     format: Format,
+    number: u64,
     seeds: &Seeds,
     ws: &Workspace,
     rng: &mut Rng,
@@ -114,6 +119,7 @@ pub fn run_case(
         Format::Dataset => dataset_case(ws, rng, case),
         Format::Field => field_case(seeds, ws, rng, case),
         Format::Library => library_case(ws, rng, case),
+        Format::Canary => canary_case(number),
     }
 }
 
@@ -134,6 +140,25 @@ impl Restore {
 impl Drop for Restore {
     fn drop(&mut self) {
         let _ = std::fs::write(&self.path, &self.bytes);
+    }
+}
+
+/// The canary's cases, by number: each kind of failure the supervisor must catch.
+fn canary_case(number: u64) -> Outcome {
+    match number {
+        0 => panic!("the canary panics"),
+        1 => std::process::abort(),
+        2 => loop {
+            std::thread::sleep(std::time::Duration::from_secs(1));
+        },
+        3 => {
+            // 8 GiB: beyond the workers' address-space limit, within what this machine would
+            // hand out without it (no page is touched), so only the limit stops it
+            let v: Vec<u8> = Vec::with_capacity(1 << 33);
+            Ok(Verdict::Refused(format!("allocated {}", v.capacity())))
+        }
+        4 => Err("the canary breaks the oracle".into()),
+        _ => Ok(Verdict::Accepted),
     }
 }
 

@@ -304,7 +304,7 @@ pub fn worker(format: Format) {
         let mut rng = Rng::new(case_seed(seed, format.name(), case));
         let mut c = Case::default();
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            run_case(format, &seeds, &ws, &mut rng, &mut c)
+            run_case(format, case, &seeds, &ws, &mut rng, &mut c)
         }));
         let line = match outcome {
             Ok(Ok(Verdict::Accepted)) => format!("FUZZ accepted {case}"),
@@ -341,7 +341,7 @@ pub fn reproduce(
     let ws = Workspace::new(seeds, scratch.join("reproduce")).expect("workspace");
     let mut rng = Rng::new(case_seed(settings.seed, format.name(), case));
     let mut c = Case::default();
-    let outcome = run_case(format, seeds, &ws, &mut rng, &mut c);
+    let outcome = run_case(format, case, seeds, &ws, &mut rng, &mut c);
     println!("{} case {case}: input {}", format.name(), c.input);
     for m in &c.mutations {
         println!("  mutation: {m}");
@@ -353,4 +353,29 @@ pub fn reproduce(
         Ok(()) => println!("  the mutated input: {}", saved.display()),
         Err(e) => println!("  cannot save the mutated input to {}: {e}", saved.display()),
     }
+}
+
+/// Check the supervisor itself on the canary: each kind of failure (panic, abort, hang,
+/// allocation beyond the limit, broken rule) must be reported on its case, and nothing else.
+/// Panics (failing the run) when one goes unnoticed.
+pub fn canary_check(seeds: &Seeds, settings: &Settings, scratch: &std::path::Path) {
+    let quick = Settings { case_seconds: 2.0, workers: 1, ..settings.clone() };
+    let t = run_format(Format::Canary, seeds, 8, &quick, scratch);
+    let failed: Vec<u64> = t.failures.iter().map(|f| f.case).collect();
+    let says = |case: u64, needle: &str| {
+        t.failures.iter().any(|f| f.case == case && f.what.contains(needle))
+    };
+    assert!(
+        failed == [0, 1, 2, 3, 4]
+            && says(0, "panic: the canary panics")
+            && says(1, "SIGABRT")
+            && says(2, "a hang")
+            && says(3, "memory allocation")
+            && says(4, "breaks the oracle")
+            && t.accepted == 3,
+        "the fuzz supervisor missed a failure of its canary: {t:#?}"
+    );
+    println!(
+        "fuzz canary: its panic, abort, hang, allocation beyond the limit and broken rule were each caught"
+    );
 }
