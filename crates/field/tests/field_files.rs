@@ -84,6 +84,26 @@ fn non_finite_parameters_are_refused_with_tensor_and_index() {
 }
 
 #[test]
+fn finite_parameters_too_large_to_decode_are_refused() {
+    // found by the fuzz harness: eight values of 3e38 in a field's planes passed the finite
+    // check and rendered NaN
+    let dir = scratch("huge-values");
+    let tensor = "density.plane";
+    let mut f = real_field();
+    let shape = f.shape_of(tensor).unwrap().to_vec();
+    let mut v = f.get_f32(tensor, &shape).unwrap().to_vec();
+    v[99] = 3.0e38;
+    f.insert_f32(tensor, &shape, v);
+    let (e, msg) = load_err(&f, &dir, "huge.safetensors");
+    assert!(
+        matches!(&e, FieldError::ParameterRange { tensor: t, index: 99, .. } if t == tensor),
+        "{msg}"
+    );
+    assert!(msg.contains("tensor \"density.plane\" has a value of 300000000000000000000000000000000000000 at index 99"), "{msg}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn huge_resolutions_are_refused_before_allocating() {
     let dir = scratch("huge");
     // 100000^2 x (16 + 48) values would be a 2.5 TB allocation

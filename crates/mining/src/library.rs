@@ -378,6 +378,19 @@ impl Checker {
                 value,
             });
         }
+        // patches and shared tensors are field parameters: the field's bound holds for them
+        let limit = assetfield_field::io::MAX_PARAMETER_MAGNITUDE;
+        if let TensorData::F32(v) = &t.data
+            && let Some(index) = v.iter().position(|x| x.abs() > limit)
+        {
+            return Err(MiningError::LibraryValue {
+                path: self.path.clone(),
+                place: format!("tensor \"{name}\""),
+                key: format!("value {index}"),
+                expected: format!("within {limit:e} (a field's parameters stay within it)"),
+                actual: v[index].to_string(),
+            });
+        }
         Ok(())
     }
 }

@@ -212,6 +212,20 @@ fn cases() -> Vec<Case> {
             &["tensor \"density.axis\" has a non-finite value (NaN) at index 0"],
         ),
         (
+            "a shared tensor too large to decode (found by the fuzz harness)",
+            |d| {
+                edit_shared(d, |f| {
+                    let mut t = f.get_f32("density.axis", &[32, 2]).unwrap().to_vec();
+                    t[3] = 3.0e38;
+                    f.insert_f32("density.axis", &[32, 2], t);
+                })
+            },
+            "shared.safetensors",
+            &[
+                "tensor \"density.axis\": \"value 3\" is 300000000000000000000000000000000000000, expected within 1e6",
+            ],
+        ),
+        (
             "a shared tensor changed behind the index's back",
             |d| {
                 let p = d.join("shared.safetensors");
