@@ -270,12 +270,14 @@ pub fn mutate_safetensors(rng: &mut Rng, bytes: &mut Vec<u8>) -> Vec<String> {
             what.into_iter().map(|w| format!("header: {w}")).collect()
         }
         5..=7 => {
-            // non-finite values over f32 data: one, or a run of them
+            // non-finite, huge or merely unusual values over f32 data, one or a run of them
+            // (the unusual ones load, so the renderer sees perturbed parameters too)
             let data_len = bytes.len() - h1;
             if data_len < 4 {
                 return vec!["no data to poison".into()];
             }
-            let bad = *rng.pick(&[f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 3.0e38]);
+            let bad =
+                *rng.pick(&[f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 3.0e38, 1.0e3, -50.0]);
             let start = h1 + rng.below(data_len / 4) * 4;
             let run = if rng.chance(0.3) { data_len } else { 1 + rng.below(8) };
             let mut k = start;
