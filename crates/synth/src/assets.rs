@@ -133,8 +133,36 @@ fn build_asset(
     Ok((g, source))
 }
 
+/// Largest mesh, material or texture file an asset may read (bytes): the catalogs' furniture
+/// models and their textures are a few MB each; a quarter GiB leaves room for a detailed
+/// scan, and a path that names `/dev/zero` or a growing file stops there.
+pub const MAX_MESH_FILE_BYTES: u64 = 256 << 20;
+
+/// Read a file an asset names: a regular file (a FIFO could block, a device never end) of
+/// at most [`MAX_MESH_FILE_BYTES`], read through a bounded reader.
+fn read_asset_file(path: &Path) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
+    if !meta.is_file() {
+        return Err("not a regular file (a folder, a FIFO or a device)".into());
+    }
+    let too_large =
+        |n: u64| format!("{n} bytes, more than the {MAX_MESH_FILE_BYTES} an asset file may have");
+    if meta.len() > MAX_MESH_FILE_BYTES {
+        return Err(too_large(meta.len()));
+    }
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(MAX_MESH_FILE_BYTES + 1).read_to_end(&mut bytes))
+        .map_err(|e| e.to_string())?;
+    if bytes.len() as u64 > MAX_MESH_FILE_BYTES {
+        return Err(too_large(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
 fn load_texture(path: &Path) -> Result<Texture, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("texture {}: {e}", path.display()))?;
+    let bytes = read_asset_file(path).map_err(|e| format!("texture {}: {e}", path.display()))?;
     texture_from_bytes(&bytes).map_err(|e| format!("texture {}: {e}", path.display()))
 }
 
@@ -165,9 +193,16 @@ pub fn load_obj_into(
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, materials) = tobj::load_obj(path, &opts).map_err(|e| e.to_string())?;
-    let materials = materials.map_err(|e| format!("material library: {e}"))?;
     let dir = path.parent().unwrap_or(Path::new("."));
+    let obj = read_asset_file(path)?;
+    let (models, materials) = tobj::load_obj_buf(&mut obj.as_slice(), &opts, |mtl: &Path| {
+        match read_asset_file(&dir.join(mtl)) {
+            Ok(text) => tobj::load_mtl_buf(&mut text.as_slice()),
+            Err(_) => Err(tobj::LoadError::OpenFileFailed),
+        }
+    })
+    .map_err(|e| e.to_string())?;
+    let materials = materials.map_err(|e| format!("material library: {e}"))?;
     let level = match up {
         Axis::Z => Mat3::IDENTITY,
         // +Y up -> +Z up: (x, y, z) -> (x, -z, y)

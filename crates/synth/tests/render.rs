@@ -327,3 +327,20 @@ fn the_ground_truth_box_of_a_turned_round_object_is_its_own_size() {
     let d = 0.5 * std::f32::consts::SQRT_2;
     assert!((size(1) - glam::Vec2::splat(d)).abs().max_element() < 1e-3, "{}", size(1));
 }
+
+#[test]
+fn a_mesh_path_that_is_no_regular_file_is_refused_without_reading_it() {
+    // as `base:` and `include:` are: /dev/zero would be read for ever, a folder is no mesh
+    let dir = scratch("mesh-device");
+    for (name, path) in [("zero", "/dev/zero"), ("folder", "/tmp")] {
+        let text = format!(
+            "Scene(\n    assets: {{ \"m\": Asset(obj: Obj(path: \"{path}\")) }},\n    layout: [Instance(asset: \"m\", at: (0, 0))],\n)\n"
+        );
+        let script = dir.join(format!("{name}.ron"));
+        std::fs::write(&script, text).unwrap();
+        let e = assetfield_synth::load_scene(&script).unwrap_err().to_string();
+        assert!(e.contains("not a regular file"), "{name}: {e}");
+        assert!(e.contains(&format!("{name}.ron:2:")), "{name}: {e}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
