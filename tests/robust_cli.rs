@@ -70,3 +70,25 @@ fn a_limit_is_raised_by_a_flag_as_the_error_says() {
     assert!(err.contains("unknown limit") && err.contains("scatter-tries"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn field_size_bounds_move_with_a_flag() {
+    let dir = scratch("robust-plane-res");
+    // the default bound, named with the flag that moves it
+    let (code, _, err) =
+        run_cli(&dir, &["train", "nodata", "--out", "f.safetensors", "--res", "5000"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("at most 4096") && err.contains("--limit plane-res=N"), "{err}");
+    // raised, the same --res passes this check (and fails on the missing dataset instead)
+    let args = ["--limit", "plane-res=8192", "train", "nodata", "--out", "f.safetensors"];
+    let (code, _, err) = run_cli(&dir, &[&args[..], &["--res", "5000"]].concat());
+    assert_eq!(code, 1, "{err}");
+    assert!(!err.contains("too large") && err.contains("nodata"), "{err}");
+    // lowered, a field file larger than the bound is refused on loading, naming the key
+    let field = repo().join("tests/data/living_room_s128.safetensors");
+    let (code, _, err) =
+        run_cli(&dir, &["--limit", "plane-res=64", "eval", field.to_str().unwrap(), "--out", "ev"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("\"res[0]\" is 128, expected 2 to 64"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

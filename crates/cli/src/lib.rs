@@ -29,24 +29,57 @@ pub use commands::{
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
-    /// Raise (or lower) a limit on the work a layout script may ask for, for this run:
-    /// instances, scatter-tries, region-points, include-depth, file-loads or script-bytes
-    /// (e.g. --limit instances=5000000; repeat for several). The environment variables
-    /// ASSETFIELD_MAX_* set the same limits; this flag wins.
+    /// Raise (or lower) a limit for this run: what a layout script may ask for (instances,
+    /// scatter-tries, region-points, include-depth, file-loads, script-bytes; the environment
+    /// variables ASSETFIELD_MAX_* set the same, this flag wins) or how large a field may be
+    /// (plane-res: samples per plane side, default 4096; parameters: values of all its
+    /// tensors, default 2^31). E.g. --limit instances=5000000; repeat for several.
     #[arg(long = "limit", value_name = "NAME=N", global = true, value_parser = parse_limit)]
-    pub limits: Vec<(assetfield_layout::Limit, u64)>,
+    pub limits: Vec<LimitSetting>,
+}
+
+/// One `--limit NAME=N`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LimitSetting {
+    /// A limit of the layout language.
+    Script(assetfield_layout::Limit, u64),
+    /// Samples per plane side (and along the vertical axis) of a field.
+    PlaneRes(u64),
+    /// Values of all a field's tensors together.
+    Parameters(u64),
+}
+
+impl LimitSetting {
+    /// Put the setting in force for the rest of this process.
+    fn install(self) {
+        use assetfield_field::config::set_size_limits_for_process;
+        match self {
+            LimitSetting::Script(limit, v) => assetfield_layout::Limits::set_for_process(limit, v),
+            LimitSetting::PlaneRes(v) => set_size_limits_for_process(Some(v), None),
+            LimitSetting::Parameters(v) => set_size_limits_for_process(None, Some(v)),
+        }
+    }
 }
 
 /// `NAME=N` of `--limit`.
-fn parse_limit(s: &str) -> Result<(assetfield_layout::Limit, u64), String> {
+fn parse_limit(s: &str) -> Result<LimitSetting, String> {
     use assetfield_layout::Limit;
-    let names = || Limit::ALL.iter().map(|l| l.flag_name()).collect::<Vec<_>>().join(", ");
+    let names = || {
+        let mut v: Vec<&str> = Limit::ALL.iter().map(|l| l.flag_name()).collect();
+        v.extend(["plane-res", "parameters"]);
+        v.join(", ")
+    };
     let (name, value) =
         s.split_once('=').ok_or_else(|| format!("expected NAME=N (NAME one of {})", names()))?;
-    let limit = Limit::from_flag_name(name.trim())
-        .ok_or_else(|| format!("unknown limit {name:?} (one of {})", names()))?;
-    let n = value.trim().parse().map_err(|_| format!("{value:?} is not a whole number >= 0"))?;
-    Ok((limit, n))
+    let n: u64 =
+        value.trim().parse().map_err(|_| format!("{value:?} is not a whole number >= 0"))?;
+    match name.trim() {
+        "plane-res" => Ok(LimitSetting::PlaneRes(n)),
+        "parameters" => Ok(LimitSetting::Parameters(n)),
+        other => Limit::from_flag_name(other)
+            .map(|l| LimitSetting::Script(l, n))
+            .ok_or_else(|| format!("unknown limit {name:?} (one of {})", names())),
+    }
 }
 
 #[derive(Debug, Subcommand)]
@@ -173,8 +206,8 @@ pub fn main_with_args(args: impl IntoIterator<Item = impl Into<OsString> + Clone
             return if e.use_stderr() { 2 } else { 0 };
         }
     };
-    for (limit, value) in &cli.limits {
-        assetfield_layout::Limits::set_for_process(*limit, *value);
+    for setting in &cli.limits {
+        setting.install();
     }
     install_ctrlc();
     install_broken_pipe_exit();

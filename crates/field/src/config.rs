@@ -4,13 +4,12 @@ use crate::io::FieldError;
 use assetfield_core::Aabb3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// Most samples along a side of a ground plane (x or y). Trained fields use 128 to 1024; a
-/// 4096 x 4096 plane of 48 colour channels is already 3 GiB of `f32`.
+/// Most samples along a side of a ground plane (x or y) by default ([`max_plane_res`] is the
+/// bound in force). Trained fields use 128 to 1024; a 4096 x 4096 plane of 48 colour channels
+/// is already 3 GiB of `f32`.
 pub const MAX_PLANE_RES: usize = 4096;
-/// Most samples along the vertical axis (z), for the same reason as [`MAX_PLANE_RES`] (the
-/// VM baseline's XZ and YZ planes have this many rows).
-pub const MAX_AXIS_RES: usize = 4096;
 /// Fewest samples along any axis: linear interpolation needs two nodes.
 pub const MIN_RES: usize = 2;
 /// Most feature channels of a density or colour component: the density backward pass keeps
@@ -38,9 +37,47 @@ pub const MAX_STEP_RATIO: f32 = 4.0;
 /// Largest |coordinate| of the scene box, in scene units (as the data crate's camera and
 /// scene-box bounds: beyond it `f32` positions keep fewer than two decimals).
 pub const MAX_BOX_COORD: f32 = 1.0e6;
-/// Most values of all a field's tensors together: twice a default-sized field at
+/// Most values of all a field's tensors together by default ([`max_parameters`] is the bound
+/// in force): twice a default-sized field at
 /// [`MAX_PLANE_RES`] (4096^2 x (16 + 48) = 2^30 values); 8 GiB of `f32`.
 pub const MAX_PARAMETERS: usize = 1 << 31;
+
+/// The size bounds a user may move for one run (`assetfield --limit plane-res=N` or
+/// `--limit parameters=N`): [`MAX_PLANE_RES`] (also the vertical axis's bound) and
+/// [`MAX_PARAMETERS`] are their defaults. Values are clamped to 65,536 texels per side and
+/// 2^40 parameters, where every size product still fits a `usize` with room.
+static PLANE_RES_LIMIT: AtomicUsize = AtomicUsize::new(MAX_PLANE_RES);
+static PARAMETERS_LIMIT: AtomicUsize = AtomicUsize::new(MAX_PARAMETERS);
+
+/// Most samples per side of a plane (and along the vertical axis) for this run.
+pub fn max_plane_res() -> usize {
+    PLANE_RES_LIMIT.load(Ordering::Relaxed)
+}
+
+/// Most values of all a field's tensors together for this run.
+pub fn max_parameters() -> usize {
+    PARAMETERS_LIMIT.load(Ordering::Relaxed)
+}
+
+/// Move the size bounds for the rest of this process (the CLI's `--limit`); `None` keeps one.
+pub fn set_size_limits_for_process(plane_res: Option<u64>, parameters: Option<u64>) {
+    let clamp = |v: u64, max: usize| usize::try_from(v).unwrap_or(usize::MAX).clamp(MIN_RES, max);
+    if let Some(v) = plane_res {
+        PLANE_RES_LIMIT.store(clamp(v, 1 << 16), Ordering::Relaxed);
+    }
+    if let Some(v) = parameters {
+        PARAMETERS_LIMIT.store(clamp(v, 1 << 40), Ordering::Relaxed);
+    }
+}
+
+/// Bytes of memory the machine has available now (Linux: `MemAvailable` of `/proc/meminfo`),
+/// or `None` where that is not known.
+pub fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
 
 /// Which factorisation of the radiance field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -213,10 +250,15 @@ impl FieldConfig {
     /// `path` names the file in the error ([`FieldError::Config`]: key, expected, actual).
     pub fn validate(&self, path: &Path) -> Result<(), FieldError> {
         let c = Check { path };
-        for (axis, (&r, max)) in
-            self.res.iter().zip([MAX_PLANE_RES, MAX_PLANE_RES, MAX_AXIS_RES]).enumerate()
-        {
-            c.range(&format!("res[{axis}]"), r, MIN_RES, max)?;
+        let side = max_plane_res();
+        for (axis, &r) in self.res.iter().enumerate() {
+            if !(MIN_RES..=side).contains(&r) {
+                return Err(c.fail(
+                    &format!("res[{axis}]"),
+                    format!("{MIN_RES} to {side} (raise the bound with --limit plane-res=N)"),
+                    r.to_string(),
+                ));
+            }
         }
         c.range("density_channels", self.density_channels, 1, MAX_FEATURE_CHANNELS)?;
         c.range("color_channels", self.color_channels, 1, MAX_FEATURE_CHANNELS)?;
@@ -281,11 +323,29 @@ impl FieldConfig {
         // the bounds above keep every product below far from overflowing
         let total: usize =
             self.tensor_shapes().iter().map(|(_, s)| s.iter().product::<usize>()).sum();
-        if total > MAX_PARAMETERS {
+        let most = max_parameters();
+        if total > most {
             return Err(c.fail(
                 "res and channels",
-                format!("at most {MAX_PARAMETERS} parameters in all"),
+                format!(
+                    "at most {most} parameters in all (raise the bound with --limit parameters=N)"
+                ),
                 format!("{total} parameters"),
+            ));
+        }
+        // a field holds its parameters once; a machine that cannot even do that is told so
+        // before anything is allocated
+        let bytes = total as u64 * 4;
+        if let Some(free) = available_memory()
+            && bytes > free
+        {
+            return Err(c.fail(
+                "res and channels",
+                format!(
+                    "parameters that fit the {:.1} GiB of memory available",
+                    free as f64 / (1u64 << 30) as f64
+                ),
+                format!("{total} parameters ({:.1} GiB)", bytes as f64 / (1u64 << 30) as f64),
             ));
         }
         Ok(())
@@ -384,7 +444,10 @@ mod tests {
         assert!(c.validate(Path::new("f.safetensors")).is_ok());
         c.res[2] = 1;
         let e = c.validate(Path::new("f.safetensors")).unwrap_err().to_string();
-        assert_eq!(e, "f.safetensors: config \"res[2]\" is 1, expected 2 to 4096");
+        assert_eq!(
+            e,
+            "f.safetensors: config \"res[2]\" is 1, expected 2 to 4096 (raise the bound with --limit plane-res=N)"
+        );
         c.res = [4096, 4096, 4096];
         (c.density_channels, c.color_channels) = (256, 256);
         let e = c.validate(Path::new("f.safetensors")).unwrap_err().to_string();

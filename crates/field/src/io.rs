@@ -78,10 +78,6 @@ impl FieldError {
 /// the renderer produce an infinity or NaN (found by the fuzz harness: values of 3e38 did).
 pub const MAX_PARAMETER_MAGNITUDE: f32 = 1.0e6;
 
-/// Most samples per side of a stored occupancy grid (the trainer uses half the field's
-/// resolution, so [`crate::config::MAX_PLANE_RES`] is plenty).
-pub const MAX_OCCUPANCY_RES: usize = crate::config::MAX_PLANE_RES;
-
 impl Field {
     /// Every tensor plus config metadata, ready to save.
     pub fn to_tensor_file(&self, occupancy: Option<&Occupancy>) -> Result<TensorFile, FieldError> {
@@ -142,17 +138,17 @@ impl Field {
                 });
             }
         }
+        // the trainer's grid has half the field's resolution: the plane bound covers it
+        let most = crate::config::max_plane_res();
         let occupancy_res = match file.shape_of("occupancy") {
-            Some(&[nz, ny, nx])
-                if [nx, ny, nz].iter().all(|n| (1..=MAX_OCCUPANCY_RES).contains(n)) =>
-            {
+            Some(&[nz, ny, nx]) if [nx, ny, nz].iter().all(|n| (1..=most).contains(n)) => {
                 Some([nx, ny, nz])
             }
             Some(shape) => {
                 return Err(FieldError::Invalid {
                     path,
                     message: format!(
-                        "tensor \"occupancy\" has shape {shape:?}, expected [nz, ny, nx] with 1 to {MAX_OCCUPANCY_RES} cells per axis"
+                        "tensor \"occupancy\" has shape {shape:?}, expected [nz, ny, nx] with 1 to {most} cells per axis"
                     ),
                 });
             }

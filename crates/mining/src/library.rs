@@ -23,7 +23,7 @@
 
 use assetfield_core::fsx::{StagingDir, write_atomic};
 use assetfield_core::{TensorData, TensorFile};
-use assetfield_field::config::{MAX_BOX_COORD, MAX_FEATURE_CHANNELS, MAX_PLANE_RES};
+use assetfield_field::config::{MAX_BOX_COORD, MAX_FEATURE_CHANNELS, max_plane_res};
 use assetfield_field::eval::FieldInfo;
 use assetfield_field::{FieldConfig, FieldError, ModelKind};
 use glam::Vec2;
@@ -415,9 +415,9 @@ fn config_error(path: &str, e: FieldError) -> MiningError {
 ///
 /// - `index.ron`: model `s` or `i`; texel size positive and finite; channel counts 1 to
 ///   [`MAX_FEATURE_CHANNELS`]; unique entry, category and container names; per entry a
-///   patch size of 1 to [`MAX_PLANE_RES`] texels per side, finite non-negative extents,
+///   patch size of 1 to [`max_plane_res`] texels per side, finite non-negative extents,
 ///   finite base, box, position and yaw, a pivot within the box, a known source, support and
-///   category; per container 2 to [`MAX_PLANE_RES`] texels per side (a field needs two
+///   category; per container 2 to [`max_plane_res`] texels per side (a field needs two
 ///   nodes) and a finite, non-empty world box; categories whose template and members exist.
 /// - the patches file: every entry's and container's tensors present, with the shapes the
 ///   index implies, `f32` (masks `u8`), finite.
@@ -478,14 +478,14 @@ pub fn validate(
         return Err(ix.value("", "containers", index.containers.len(), "unique container names"));
     }
     let side = |place: &str, key: &str, (h, w): (usize, usize), min: usize| -> Result<()> {
-        if [h, w].iter().all(|n| (min..=MAX_PLANE_RES).contains(n)) {
+        if [h, w].iter().all(|n| (min..=max_plane_res()).contains(n)) {
             return Ok(());
         }
         Err(ix.value(
             place,
             key,
             (h, w),
-            format!("(rows, cols) of {min} to {MAX_PLANE_RES} texels"),
+            format!("(rows, cols) of {min} to {} texels", max_plane_res()),
         ))
     };
     let source = |place: &str, s: usize| -> Result<()> {

@@ -231,11 +231,11 @@ pub fn train(a: TrainArgs) -> Result<()> {
     if a.res < 8 {
         bail!("--res {} is too small (at least 8)", a.res);
     }
-    if a.res > assetfield_field::config::MAX_PLANE_RES {
+    if a.res > assetfield_field::config::max_plane_res() {
         bail!(
-            "--res {} is too large (at most {} texels per side)",
+            "--res {} is too large (at most {} texels per side; raise the bound with --limit plane-res=N)",
             a.res,
-            assetfield_field::config::MAX_PLANE_RES
+            assetfield_field::config::max_plane_res()
         );
     }
     if a.batch == 0 {
