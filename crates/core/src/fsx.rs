@@ -86,6 +86,45 @@ pub fn clean_stale(path: &Path) -> Result<(), CoreError> {
     Ok(())
 }
 
+/// Bytes of memory the machine has available now (Linux: `MemAvailable` of `/proc/meminfo`),
+/// or `None` where that is not known.
+pub fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// Read a whole input file that must be a regular file (a FIFO could block, a device such as
+/// `/dev/zero` never end) and must fit the memory available; the read stops at the size seen
+/// first, so a file that grows meanwhile stays bounded.
+pub fn read_regular_file(path: &Path) -> Result<Vec<u8>, CoreError> {
+    use std::io::{Error, ErrorKind, Read};
+    let meta = std::fs::metadata(path).map_err(|e| CoreError::io(path, e))?;
+    if !meta.is_file() {
+        let what =
+            if meta.is_dir() { "a folder" } else { "not a regular file (a FIFO or a device)" };
+        return Err(CoreError::io(path, Error::new(ErrorKind::InvalidInput, what)));
+    }
+    let len = meta.len();
+    if let Some(free) = available_memory()
+        && len > free
+    {
+        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        let msg = format!(
+            "the file holds {:.1} GiB, more than the {:.1} GiB of memory available",
+            gib(len),
+            gib(free)
+        );
+        return Err(CoreError::io(path, Error::new(ErrorKind::OutOfMemory, msg)));
+    }
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(len).read_to_end(&mut bytes))
+        .map_err(|e| CoreError::io(path, e))?;
+    Ok(bytes)
+}
+
 /// Write `bytes` to `path` atomically (temporary sibling, then rename). Temporaries that a
 /// killed run left for the same path are removed first ([`clean_stale`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CoreError> {
@@ -274,6 +313,22 @@ mod tests {
         assert!(!old.exists() && !staged.exists());
         // and the usual rule holds again: it exists, so it is not replaced without --force
         assert!(StagingDir::new(&out, false).is_err());
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn inputs_must_be_regular_files() {
+        let root = scratch("regular");
+        let f = root.join("x.safetensors");
+        std::fs::write(&f, b"abc").unwrap();
+        assert_eq!(read_regular_file(&f).unwrap(), b"abc");
+        // /dev/zero would be read for ever, a folder is no file
+        for p in [Path::new("/dev/zero"), root.as_path()] {
+            if p.exists() {
+                let e = read_regular_file(p).unwrap_err().to_string();
+                assert!(e.contains("not a regular file") || e.contains("a folder"), "{e}");
+            }
+        }
         std::fs::remove_dir_all(&root).unwrap();
     }
 

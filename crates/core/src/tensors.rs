@@ -507,7 +507,8 @@ impl TensorFile {
     /// Read a file written by [`TensorFile::save`], Python's `safetensors` or torch (tensors
     /// of type F32, U8 or I64).
     pub fn load(path: &Path) -> Result<Self, CoreError> {
-        let bytes = std::fs::read(path).map_err(|e| CoreError::io(path, e))?;
+        // a regular file that fits memory: `/dev/zero` or a FIFO named as a field is refused
+        let bytes = crate::fsx::read_regular_file(path)?;
         Self::from_bytes(&bytes, path)
     }
 }

@@ -70,15 +70,6 @@ pub fn set_size_limits_for_process(plane_res: Option<u64>, parameters: Option<u6
     }
 }
 
-/// Bytes of memory the machine has available now (Linux: `MemAvailable` of `/proc/meminfo`),
-/// or `None` where that is not known.
-pub fn available_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    kib.checked_mul(1024)
-}
-
 /// Which factorisation of the radiance field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum ModelKind {
@@ -336,7 +327,7 @@ impl FieldConfig {
         // a field holds its parameters once; a machine that cannot even do that is told so
         // before anything is allocated
         let bytes = total as u64 * 4;
-        if let Some(free) = available_memory()
+        if let Some(free) = assetfield_core::fsx::available_memory()
             && bytes > free
         {
             return Err(c.fail(
