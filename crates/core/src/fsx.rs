@@ -125,13 +125,27 @@ pub fn read_regular_file(path: &Path) -> Result<Vec<u8>, CoreError> {
     Ok(bytes)
 }
 
+/// Whether `path` lies inside a staging folder (an ancestor named `.NAME.tmp-PID`): that
+/// folder is new, so nothing stale can stand beside its files.
+fn inside_staging(path: &Path) -> bool {
+    path.ancestors().skip(1).filter_map(Path::file_name).any(|n| {
+        let n = n.to_string_lossy();
+        n.starts_with('.')
+            && n.rsplit_once(".tmp-")
+                .is_some_and(|(_, pid)| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
+    })
+}
+
 /// Write `bytes` to `path` atomically (temporary sibling, then rename). Temporaries that a
-/// killed run left for the same path are removed first ([`clean_stale`]).
+/// killed run left for the same path are removed first ([`clean_stale`]), except inside a
+/// staging folder, which holds none (so a dataset's thousand views read no folder listing).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CoreError> {
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| CoreError::io(parent, e))?;
     }
-    clean_stale(path)?;
+    if !inside_staging(path) {
+        clean_stale(path)?;
+    }
     let tmp = sibling(path, "tmp");
     if let Err(e) = std::fs::write(&tmp, bytes) {
         // a disk that fills up part way leaves no half-written temporary behind
@@ -314,6 +328,16 @@ mod tests {
         // and the usual rule holds again: it exists, so it is not replaced without --force
         assert!(StagingDir::new(&out, false).is_err());
         std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn files_inside_a_staging_folder_skip_the_stale_scan() {
+        assert!(inside_staging(Path::new("runs/.d.tmp-123/train/r_0.png")));
+        assert!(inside_staging(Path::new(".lib.tmp-9/index.ron")));
+        assert!(!inside_staging(Path::new("runs/d/train/r_0.png")));
+        assert!(!inside_staging(Path::new("runs/.d.tmp-12x/a.png")));
+        // the file's own name does not count: a temporary is not written atomically
+        assert!(!inside_staging(Path::new("runs/.f.tmp-5")));
     }
 
     #[test]
