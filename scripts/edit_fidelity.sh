@@ -15,6 +15,9 @@
 # OWN=R passes `mine --own-patch-residual R` (default: the mine default 0, every instance
 # keeps its own patch in the mined layout; 2: templates where they fit; inf: templates only)
 # and suffixes the output names with _ownR.
+# REFINE=N refines the mined library's templates for N iterations (`assetfield refine`, against
+# the scene's training views) and composes with the refined templates-only layout; with
+# OWN=inf, the table compares templates before and after refinement.
 # Set BIN to use another binary (default target/release/assetfield, built if missing).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -31,7 +34,8 @@ OUT=runs/fidelity
 [ "$SUITE" = runs/suite ] || OUT="$SUITE/fidelity"
 mkdir -p runs/fidelity/data
 mkdir -p "$OUT/data" "$OUT/lib" "$OUT/compose" "$OUT/logs"
-TAG=${MODEL}${OWN:+_own$OWN}
+MINED_TAG=${MODEL}${OWN:+_own$OWN}
+TAG=${MINED_TAG}${REFINE:+_ref$REFINE}
 OWN_ARGS=()
 [ -n "${OWN:-}" ] && OWN_ARGS=(--own-patch-residual "$OWN")
 
@@ -46,10 +50,18 @@ for scene in "${SCENES[@]}"; do
   [ -f "$data/edited/transforms_test.json" ] ||
     "$BIN" synth "scenes/$scene.ron" --edited "scenes/edits/$scene.ron" --out "$data" --force \
       > "$OUT/logs/${scene}.synth.log" 2>&1
-  lib="$OUT/lib/${scene}_$TAG"
+  lib="$OUT/lib/${scene}_$MINED_TAG"
   [ -f "$lib/metrics.json" ] ||
     "$BIN" mine "$field" --out "$lib" --gt "$data/gt_layout.json" --gt-names "${OWN_ARGS[@]}" \
-      --force > "$OUT/logs/${scene}_$TAG.mine.log" 2>&1
+      --force > "$OUT/logs/${scene}_$MINED_TAG.mine.log" 2>&1
+  if [ -n "${REFINE:-}" ]; then
+    refined="$OUT/lib/${scene}_$TAG"
+    [ -f "$refined/refine.json" ] ||
+      "$BIN" refine "$lib" --data "$data" --out "$refined" --iters "$REFINE" --force \
+        > "$OUT/logs/${scene}_$TAG.refine.log" 2>&1
+    cp "$lib/metrics.json" "$refined/metrics.json"
+    lib="$refined"
+  fi
   same="$OUT/compose/${scene}_${TAG}_same"
   [ -f "$same/metrics.json" ] ||
     "$BIN" compose "$lib/layout.ron" --library "$lib" --views "$data" --metrics --out "$same" \

@@ -8,7 +8,7 @@ use std::ffi::OsString;
 
 pub use commands::{
     BenchArgs, ComposeArgs, DemoArgs, EvalArgs, InspectArgs, LayoutArgs, LibraryArgs, MineArgs,
-    PlanesArgs, RenderArgs, SynthArgs, TrainArgs,
+    PlanesArgs, RefineArgs, RenderArgs, SynthArgs, TrainArgs,
 };
 
 /// AssetField: editable neural scenes on ground feature planes.
@@ -174,6 +174,17 @@ pub enum Command {
     /// written in the script. Errors name the script line. Writes the renders, compose.json,
     /// layout.png and, with --metrics, metrics.json against the --views images.
     Compose(ComposeArgs),
+    /// Refine a library's templates against its scene's training views (paper Sec. 3.4).
+    ///
+    /// Every instance is drawn with its category's template patch, posed as mining found
+    /// it; only the template patches are optimised (Adam on the exact gradient of the
+    /// rendered colour, through the composition) so that the composed scene reproduces the
+    /// training views. Axes, decoders, poses and the container stay fixed. Writes a new
+    /// library whose layout.ron draws every instance with its template (what `compose` reads
+    /// like any other), and refine.json with the test-view PSNR of the mined layout (own
+    /// patches) and of the templates-only layout before and after. The dataset must be the
+    /// library's scene: views that do not look into its box are refused.
+    Refine(RefineArgs),
     /// Measure composed-scene rendering and re-composition on the GPU or the CPU
     /// (`bench render`, `bench reconfigure`).
     ///
@@ -310,6 +321,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(a) => commands::eval(a),
         Command::Render(a) => commands::render(a),
         Command::Compose(a) => commands::compose(a),
+        Command::Refine(a) => commands::refine(a),
         Command::Bench(a) => commands::bench(a),
         Command::Planes(a) => commands::planes(a),
         Command::Mine(a) => commands::mine(a),

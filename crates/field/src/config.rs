@@ -161,9 +161,83 @@ impl FieldConfig {
     /// Resolutions for a plane of `plane_res` samples along its longer side: cubic voxels.
     pub fn resolution_for(&self, plane_res: usize) -> [usize; 3] {
         let e = self.aabb().extent();
-        let voxel = e.x.max(e.y) / (plane_res.max(2) - 1) as f32;
+        self.resolution_for_voxel(e.x.max(e.y) / (plane_res.max(2) - 1) as f32)
+    }
+
+    /// Resolutions for cubic voxels of side `voxel` (world units): the box's extent over the
+    /// voxel, rounded, plus one node; at least 2 samples along x and y and 32 along z.
+    pub fn resolution_for_voxel(&self, voxel: f32) -> [usize; 3] {
+        let e = self.aabb().extent();
         let n = |len: f32, min: usize| ((len / voxel).round() as usize + 1).max(min);
         [n(e.x, 2), n(e.y, 2), n(e.z, 32)]
+    }
+
+    /// Whether tensor `name` is one of the ground planes, which every scene has for itself;
+    /// every other tensor (vertical axes, colour basis, guidance MLPs, decoders) is what
+    /// several scenes can share (paper Sec. 3.4).
+    pub fn is_plane_tensor(name: &str) -> bool {
+        PLANE_TENSORS.contains(&name)
+    }
+
+    /// The first value that keeps two configurations from sharing their non-plane tensors:
+    /// model, channels, networks, the vertical range and resolution, the density's shift and
+    /// distance scale, the march step and the texel size must agree; the ground box and the
+    /// plane resolution may differ. `None` when they can share.
+    pub fn sharing_mismatch(&self, other: &FieldConfig) -> Option<SharingMismatch> {
+        let differ = |key: &str, a: String, b: String| {
+            Some(SharingMismatch { key: key.to_string(), first: a, second: b })
+        };
+        let close = |a: f32, b: f32, tol: f32| (a - b).abs() <= tol * a.abs().max(b.abs());
+        if self.kind != other.kind {
+            return differ("kind", self.kind.name().into(), other.kind.name().into());
+        }
+        let counts = |c: &FieldConfig| {
+            [
+                ("density_channels", c.density_channels),
+                ("color_channels", c.color_channels),
+                ("basis_dim", c.features_dim()),
+                ("guide_hidden", c.guide_hidden),
+                ("semantic_channels", c.semantic_dim()),
+                ("res[2] (vertical axis samples)", c.res[2]),
+            ]
+        };
+        for ((key, a), (_, b)) in counts(self).into_iter().zip(counts(other)) {
+            if a != b {
+                return differ(key, a.to_string(), b.to_string());
+            }
+        }
+        if self.decoder != other.decoder {
+            return differ(
+                "decoder",
+                format!("{:?}", self.decoder),
+                format!("{:?}", other.decoder),
+            );
+        }
+        let ez = (self.aabb[1][2] - self.aabb[0][2]).abs();
+        for (key, a, b) in [
+            ("aabb zmin", self.aabb[0][2], other.aabb[0][2]),
+            ("aabb zmax", self.aabb[1][2], other.aabb[1][2]),
+        ] {
+            if (a - b).abs() > SHARE_TOLERANCE * ez {
+                return differ(key, a.to_string(), b.to_string());
+            }
+        }
+        for (key, a, b) in [
+            ("density_shift", self.density_shift, other.density_shift),
+            ("distance_scale", self.distance_scale, other.distance_scale),
+            ("step_ratio", self.step_ratio, other.step_ratio),
+        ] {
+            if !close(a, b, SHARE_TOLERANCE) {
+                return differ(key, a.to_string(), b.to_string());
+            }
+        }
+        let (va, vb) = (self.voxel_size(), other.voxel_size());
+        for (key, a, b) in [("texel size x", va.x, vb.x), ("texel size y", va.y, vb.y)] {
+            if !close(a, b, SHARE_TOLERANCE) {
+                return differ(key, a.to_string(), b.to_string());
+            }
+        }
+        None
     }
 
     /// World size of one voxel along each axis.
@@ -209,6 +283,28 @@ impl FieldConfig {
             ModelKind::Vm => 3 * self.color_channels,
             _ => self.color_channels,
         }
+    }
+}
+
+/// The ground-plane tensors of the S- and I-AssetField (see [`FieldConfig::is_plane_tensor`]).
+pub const PLANE_TENSORS: [&str; 2] = ["density.plane", "color.plane"];
+
+/// Relative tolerance of the values two configurations sharing tensors must agree on
+/// (texel size, vertical range, distance scale): f32 rounding of boxes snapped to whole
+/// voxels stays near 1e-6; a different grid differs by far more.
+pub const SHARE_TOLERANCE: f32 = 1e-4;
+
+/// Why two field configurations cannot share tensors: the key and both values.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SharingMismatch {
+    pub key: String,
+    pub first: String,
+    pub second: String,
+}
+
+impl std::fmt::Display for SharingMismatch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} is {} in the first and {} in the second", self.key, self.first, self.second)
     }
 }
 

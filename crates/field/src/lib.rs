@@ -7,6 +7,7 @@ pub mod adam;
 pub mod config;
 pub mod interp;
 pub mod io;
+pub mod joint;
 pub mod march;
 pub mod mlp;
 pub mod model;
@@ -16,11 +17,13 @@ pub mod train;
 
 pub use config::{DecoderKind, FieldConfig, ModelKind};
 pub use io::FieldError;
+pub use joint::{JointTrainer, joint_configs, share_config};
 pub use march::{MarchSettings, MarchWork};
 pub use model::Field;
 pub use occupancy::Occupancy;
 pub use train::{
-    Clock, StepStats, TrainConfig, Trainer, process_cpu_seconds, render_semantic_view, render_view,
+    Clock, GridRule, StepStats, TrainConfig, Trainer, process_cpu_seconds, render_semantic_view,
+    render_view,
 };
 pub mod eval;
 pub mod pictures;

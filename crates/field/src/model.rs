@@ -849,8 +849,14 @@ impl Field {
     /// The same field at another plane resolution (coarse-to-fine): grids are resampled
     /// bilinearly (align corners), networks copied.
     pub fn resized(&self, plane_res: usize) -> Field {
+        self.resized_to(self.config.resolution_for(plane_res))
+    }
+
+    /// The field resampled to the resolutions `res` (x, y, z); tensors that are not grids
+    /// are copied.
+    pub fn resized_to(&self, res: [usize; 3]) -> Field {
         let mut cfg = self.config.clone();
-        cfg.res = cfg.resolution_for(plane_res);
+        cfg.res = res;
         let mut out = Field::new(cfg, 0);
         for spec in out.params.specs.clone() {
             let old = self.params.spec(&spec.name).expect("same model kind, same tensor names");
@@ -872,6 +878,32 @@ impl Field {
             out.params.data[spec.offset..spec.offset + spec.len].copy_from_slice(&dst);
         }
         out
+    }
+
+    /// Offsets and lengths of the tensors several scenes share (every tensor but the ground
+    /// planes, see [`FieldConfig::is_plane_tensor`]), by name, in layout order.
+    pub fn shared_ranges(&self) -> Vec<(&str, std::ops::Range<usize>)> {
+        self.params
+            .specs
+            .iter()
+            .filter(|s| !FieldConfig::is_plane_tensor(&s.name))
+            .map(|s| (s.name.as_str(), s.offset..s.offset + s.len))
+            .collect()
+    }
+
+    /// Copy the shared tensors (see [`Field::shared_ranges`]) of `from`, a field whose
+    /// configuration can share with this one's ([`FieldConfig::sharing_mismatch`]).
+    pub fn copy_shared_from(&mut self, from: &Field) {
+        for spec in &self.params.specs {
+            if FieldConfig::is_plane_tensor(&spec.name) {
+                continue;
+            }
+            let src =
+                from.params.spec(&spec.name).expect("sharing configurations have the same tensors");
+            debug_assert_eq!(src.shape, spec.shape);
+            self.params.data[spec.offset..spec.offset + spec.len]
+                .copy_from_slice(&from.params.data[src.offset..src.offset + src.len]);
+        }
     }
 
     /// Offsets and lengths of the density grid tensors (for L1 regularisation).

@@ -61,6 +61,58 @@ pub struct TrainConfig {
     pub seed: u64,
     /// Chunks per batch (fixed so results do not depend on scheduling).
     pub chunks: usize,
+    /// How plane resolutions become grid sizes, and whether the shared tensors train
+    /// (scenes trained together or against a frozen shared set; see [`GridRule`]).
+    #[serde(default)]
+    pub grid: GridRule,
+}
+
+/// How a run's plane resolution schedule becomes grid sizes, and what it trains. The default
+/// is a scene trained alone: `plane_res` texels along the longer side of its own box, the
+/// vertical axis at the same voxel size, every tensor trained.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GridRule {
+    /// The grid at the final plane resolution (`plane_res_final`); an earlier stage at
+    /// `plane_res` scales every axis by `(plane_res - 1) / (plane_res_final - 1)`, so scenes
+    /// trained together, whose final grids share one voxel size and one vertical axis, share
+    /// them at every stage. `None`: from the field's own box.
+    #[serde(default)]
+    pub final_res: Option<[usize; 3]>,
+    /// The vertical axis keeps its final length at every stage (a frozen shared axis keeps
+    /// its samples).
+    #[serde(default)]
+    pub vertical_fixed: bool,
+    /// Keep every tensor but the ground planes as it is: a new scene fitted against the
+    /// shared axes, basis and decoders of another field or library (`train --share`).
+    #[serde(default)]
+    pub frozen_shared: bool,
+}
+
+impl GridRule {
+    /// The grid of `config`'s box at plane resolution `plane_res` of a run that ends at
+    /// `plane_res_final`.
+    pub fn resolution(
+        &self,
+        config: &FieldConfig,
+        plane_res: usize,
+        plane_res_final: usize,
+    ) -> [usize; 3] {
+        let mut res = match self.final_res {
+            Some(full) => {
+                let f = (plane_res.max(2) - 1) as f64 / (plane_res_final.max(2) - 1) as f64;
+                let n = |k: usize, min: usize| {
+                    (((full[k] - 1) as f64 * f).round() as usize + 1).max(min).min(full[k].max(min))
+                };
+                // the vertical axis keeps the 32 samples a field alone has at least
+                [n(0, 2), n(1, 2), n(2, MIN_VERTICAL_RES.min(full[2]))]
+            }
+            None => config.resolution_for(plane_res),
+        };
+        if self.vertical_fixed {
+            res[2] = self.final_res.map_or(config.res[2], |f| f[2]);
+        }
+        res
+    }
 }
 
 impl TrainConfig {
@@ -88,6 +140,7 @@ impl TrainConfig {
             semantic_weight: default_semantic_weight(),
             seed: 20230,
             chunks: 4,
+            grid: GridRule::default(),
         }
     }
 }
@@ -122,6 +175,10 @@ pub fn process_cpu_seconds() -> Option<f64> {
     // USER_HZ is 100 on every Linux architecture
     Some(ticks / 100.0)
 }
+
+/// Fewest vertical axis samples at any stage ([`FieldConfig::resolution_for`] gives a field
+/// trained alone at least as many).
+const MIN_VERTICAL_RES: usize = 32;
 
 /// Iterations before the first occupancy grid: before that the density has not formed and
 /// a grid would mark the scene empty for good (short runs never use one).
@@ -162,7 +219,7 @@ pub struct Trainer {
     height: u32,
     rng: u64,
     work: Vec<(MarchWork, Vec<f32>)>,
-    grad: Vec<f32>,
+    pub(crate) grad: Vec<f32>,
     elapsed_before: f64,
     started: Instant,
     cpu_started: Option<f64>,
@@ -195,7 +252,7 @@ impl Trainer {
         let (width, height) = data.resolution();
         let mut fc = field_config;
         fc.kind = config.kind;
-        fc.res = fc.resolution_for(config.plane_res_start);
+        fc.res = config.grid.resolution(&fc, config.plane_res_start, config.plane_res_final);
         let field = Field::new(fc, config.seed);
         let n = field.params.len();
         Trainer {
@@ -249,7 +306,14 @@ impl Trainer {
     }
 
     fn resize_to(&mut self, plane_res: usize) {
-        self.field = self.field.resized(plane_res);
+        let res =
+            self.config.grid.resolution(&self.field.config, plane_res, self.config.plane_res_final);
+        let resized = self.field.resized_to(res);
+        let old = std::mem::replace(&mut self.field, resized);
+        if self.config.grid.frozen_shared {
+            // the vertical resolution is fixed: the shared tensors keep their exact values
+            self.field.copy_shared_from(&old);
+        }
         let n = self.field.params.len();
         self.adam.reset(n);
         self.grad = vec![0.0; n];
@@ -290,24 +354,38 @@ impl Trainer {
         self.occupancy = (occ.fill() > 1e-4).then_some(occ);
     }
 
-    fn learning_rate(&self, g: Group) -> f32 {
+    fn learning_rate(&self, g: Group, progress: f64) -> f32 {
         let base = match g {
             Group::Grid => self.config.lr_grid,
             Group::Network => self.config.lr_network,
         };
-        base * self.config.lr_decay_target.powf(self.progress() as f32)
+        base * self.config.lr_decay_target.powf(progress as f32)
     }
 
     /// One iteration: a batch of random training rays, forward, backward, Adam.
     pub fn step(&mut self) -> StepStats {
         let t0 = Instant::now();
-        // scheduled events
-        // a finer grid without empty-space skipping would make every later step slow: the
-        // steps wait for the first occupancy grid (or for enough iterations without one)
-        let can_upsample = self.occupancy.is_some() || self.iter >= MIN_ITERS_BEFORE_OCCUPANCY;
+        let progress = self.progress();
+        self.schedule(progress, self.may_upsample());
+        let mut stats = self.gradients();
+        self.apply_with(progress, stats.psnr);
+        stats.seconds = t0.elapsed().as_secs_f64();
+        stats
+    }
+
+    /// Whether a resolution step may come now: a finer grid without empty-space skipping
+    /// would make every later step slow, so the steps wait for the first occupancy grid (or
+    /// for enough iterations without one).
+    pub(crate) fn may_upsample(&self) -> bool {
+        self.occupancy.is_some() || self.iter >= MIN_ITERS_BEFORE_OCCUPANCY
+    }
+
+    /// Scheduled events at `progress`: resolution steps (when `can_upsample`), early and
+    /// scheduled occupancy grids.
+    pub(crate) fn schedule(&mut self, progress: f64, can_upsample: bool) {
         while can_upsample
             && self.upsampled < self.config.upsample_at.len()
-            && self.progress() >= self.config.upsample_at[self.upsampled]
+            && progress >= self.config.upsample_at[self.upsampled]
         {
             self.upsampled += 1;
             let r = self.plane_res_at(self.upsampled);
@@ -326,12 +404,17 @@ impl Trainer {
         }
         // scheduled grids wait until the density has had time to form
         while self.occupancy_done < self.config.occupancy_at.len()
-            && self.progress() >= self.config.occupancy_at[self.occupancy_done]
+            && progress >= self.config.occupancy_at[self.occupancy_done]
             && self.iter >= MIN_ITERS_BEFORE_OCCUPANCY
         {
             self.occupancy_done += 1;
             self.rebuild_occupancy();
         }
+    }
+
+    /// A batch of random training rays, forward and backward: the gradient of the batch's
+    /// loss (and the regularisers) in `self.grad`; the iteration's figures.
+    pub(crate) fn gradients(&mut self) -> StepStats {
         let batch = self.config.batch;
         let (w, h) = (self.width as u64, self.height as u64);
         let n_views = self.views.len() as u64;
@@ -418,29 +501,41 @@ impl Trainer {
             }
         });
         self.regularise();
-        let lr = |g| self.learning_rate(g);
-        let (lg, ln) = (lr(Group::Grid), lr(Group::Network));
-        self.adam.step(&mut self.field.params, &self.grad, |g| match g {
-            Group::Grid => lg,
-            Group::Network => ln,
-        });
-        self.iter += 1;
+        if self.config.grid.frozen_shared {
+            for (_, r) in self.field.shared_ranges() {
+                self.grad[r].fill(0.0);
+            }
+        }
         let sse: f32 = results.iter().map(|r| r.0).sum();
         let mse = sse / (batch as f32 * 3.0);
         let psnr = -10.0 * mse.max(1e-12).log10();
-        if self.iter.is_multiple_of(10) || self.iter == 1 {
-            self.history.push((self.elapsed(), self.iter, psnr));
-        }
         let samples: usize = results.iter().map(|r| r.2).sum();
         self.samples_per_ray = samples as f32 / batch as f32;
         StepStats {
-            iter: self.iter,
+            iter: self.iter + 1,
             loss: mse,
             psnr,
             semantic_loss: semantic
                 .then(|| results.iter().map(|r| r.1).sum::<f32>() / (batch * nc) as f32),
             samples,
-            seconds: t0.elapsed().as_secs_f64(),
+            seconds: 0.0,
+        }
+    }
+
+    /// The Adam update with `self.grad` at `progress` (learning-rate decay); the iteration
+    /// is counted and its batch PSNR (`psnr`) kept in the history.
+    pub(crate) fn apply_with(&mut self, progress: f64, psnr: f32) {
+        let (lg, ln) = (
+            self.learning_rate(Group::Grid, progress),
+            self.learning_rate(Group::Network, progress),
+        );
+        self.adam.step(&mut self.field.params, &self.grad, |g| match g {
+            Group::Grid => lg,
+            Group::Network => ln,
+        });
+        self.iter += 1;
+        if self.iter.is_multiple_of(10) || self.iter == 1 {
+            self.history.push((self.elapsed(), self.iter, psnr));
         }
     }
 

@@ -32,6 +32,7 @@ pub mod pipeline;
 pub mod pivot;
 pub mod planes;
 pub mod pose;
+pub mod regroup;
 mod rng;
 pub mod rotate;
 pub mod yaw;

@@ -202,6 +202,29 @@ pub struct Library {
     pub info: FieldInfo,
 }
 
+impl Library {
+    /// A field of the library's shared configuration holding its shared tensors (vertical
+    /// axes, basis, guidance MLPs, decoders) and zero ground planes: what a new scene is
+    /// fitted against (`train --share LIB`).
+    pub fn shared_field(&self) -> Result<assetfield_field::Field> {
+        let mut field = assetfield_field::Field::new(self.config.clone(), 0);
+        let path = self.dir.join(&self.index.shared.file).display().to_string();
+        for spec in field.params.specs.clone() {
+            let data = &mut field.params.data[spec.offset..spec.offset + spec.len];
+            if FieldConfig::is_plane_tensor(&spec.name) {
+                data.fill(0.0);
+                continue;
+            }
+            let v = self
+                .shared
+                .get_f32(&spec.name, &spec.shape)
+                .map_err(|e| MiningError::Format { path: path.clone(), message: e.to_string() })?;
+            data.copy_from_slice(v);
+        }
+        Ok(field)
+    }
+}
+
 fn ron_options() -> ron::Options {
     ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
 }
@@ -275,7 +298,7 @@ pub fn write_library_files(
 
 /// The ground-plane tensors of a field, which a library keeps per entry and container
 /// rather than in its shared file.
-const PLANE_TENSORS: [&str; 2] = ["density.plane", "color.plane"];
+use assetfield_field::config::PLANE_TENSORS;
 
 /// Builds the errors of one file of a library.
 struct Checker {
@@ -795,12 +818,17 @@ pub fn shared_difference(a: &TensorFile, b: &TensorFile) -> Option<(String, Stri
             (None, None) => {}
         }
     }
-    for key in ["config", "model"] {
-        if a.meta(key) != b.meta(key) {
-            return Some((format!("metadata \"{key}\""), "the field configurations differ".into()));
-        }
+    if a.meta("model") != b.meta("model") {
+        return Some(("metadata \"model\"".into(), "the models differ".into()));
     }
-    None
+    // the configurations may differ in their ground boxes (scenes trained together), not in
+    // what the shared tensors mean
+    match (a.meta_json::<FieldConfig>("config"), b.meta_json::<FieldConfig>("config")) {
+        (Ok(x), Ok(y)) => {
+            x.sharing_mismatch(&y).map(|m| ("metadata \"config\"".to_string(), m.to_string()))
+        }
+        _ => Some(("metadata \"config\"".into(), "a field configuration is unreadable".into())),
+    }
 }
 
 /// What [`merge_libraries`] did.
@@ -810,12 +838,52 @@ pub struct MergeReport {
     pub entries: usize,
     pub categories: usize,
     pub containers: usize,
+    /// With ground truth: what `metrics.json` holds.
+    pub metrics: Option<crate::regroup::CrossSceneMetrics>,
+}
+
+/// How [`merge_libraries_with`] merges.
+#[derive(Debug, Clone, Default)]
+pub struct MergeOptions {
+    /// Group all entries again, together ([`crate::regroup`]), so that one category spans
+    /// scenes; `None` keeps every scene's own categories (prefixed).
+    pub regroup: Option<crate::regroup::RegroupOptions>,
+    /// One ground truth per input library, in the same order (empty: none): the merged
+    /// library's `metrics.json` gets the cross-scene ARI and every scene's scores.
+    pub gt: Vec<assetfield_layout::GtLayout>,
+    /// BEV IoU an entry needs to match a ground-truth box.
+    pub iou_threshold: f32,
 }
 
 /// Merge libraries that share their vertical axes, basis and decoders into one: entry,
 /// category and container names get the source folder's name as a prefix (`STEM/NAME`).
 /// Refuses libraries whose shared tensors differ, naming the tensor.
 pub fn merge_libraries(inputs: &[PathBuf], out: &Path, force: bool) -> Result<MergeReport> {
+    merge_libraries_with(
+        inputs,
+        out,
+        force,
+        &MergeOptions { iou_threshold: 0.5, ..Default::default() },
+    )
+}
+
+/// [`merge_libraries`] with options: regrouping across scenes and ground truth.
+pub fn merge_libraries_with(
+    inputs: &[PathBuf],
+    out: &Path,
+    force: bool,
+    opts: &MergeOptions,
+) -> Result<MergeReport> {
+    if !opts.gt.is_empty() && opts.gt.len() != inputs.len() {
+        return Err(MiningError::InvalidParameter {
+            name: "gt",
+            reason: format!(
+                "one ground truth per library, in the same order: {} libraries, {} ground truths",
+                inputs.len(),
+                opts.gt.len()
+            ),
+        });
+    }
     if inputs.len() < 2 {
         return Err(MiningError::InvalidParameter {
             name: "libraries",
@@ -920,8 +988,35 @@ pub fn merge_libraries(inputs: &[PathBuf], out: &Path, force: bool) -> Result<Me
             });
         }
     }
+    // which input every entry came from
+    let mut scene_of = Vec::with_capacity(index.entries.len());
+    for (k, lib) in libs.iter().enumerate() {
+        scene_of.extend(std::iter::repeat_n(k, lib.index.entries.len()));
+    }
+    if let Some(r) = &opts.regroup {
+        let merged = Library {
+            dir: out.to_path_buf(),
+            index: index.clone(),
+            patches: patches.clone(),
+            shared: libs[0].shared.clone(),
+            config: libs[0].config.clone(),
+            info: libs[0].info.clone(),
+        };
+        let g = crate::regroup::regroup(&merged, &r.group, r.blur_levels, &r.yaw)?;
+        index.entries = g.entries;
+        index.categories = g.categories;
+    }
+    let metrics = (!opts.gt.is_empty()).then(|| {
+        let names: Vec<String> = inputs.iter().map(|p| p.display().to_string()).collect();
+        crate::regroup::cross_scene_metrics(&index, &scene_of, &names, &opts.gt, opts.iou_threshold)
+    });
     let staging = StagingDir::new(out, force)?;
     write_library_files(staging.path(), &index, &patches, &libs[0].shared)?;
+    if let Some(m) = &metrics {
+        let text = serde_json::to_string_pretty(m)
+            .map_err(|e| MiningError::io("cannot serialise the merge metrics", e))?;
+        write_atomic(&staging.path().join("metrics.json"), text.as_bytes())?;
+    }
     check_interrupt()?;
     let out = staging.commit()?;
     Ok(MergeReport {
@@ -929,6 +1024,7 @@ pub fn merge_libraries(inputs: &[PathBuf], out: &Path, force: bool) -> Result<Me
         entries: index.entries.len(),
         categories: index.categories.len(),
         containers: index.containers.len(),
+        metrics,
     })
 }
 

@@ -47,4 +47,16 @@ pub enum SceneError {
     /// A library file problem.
     #[error("{}: {reason}", path.display())]
     Library { path: PathBuf, reason: String },
+
+    /// Template refinement cannot run on this library and dataset.
+    #[error("refining {}: {reason}", dir.display())]
+    Refine { dir: PathBuf, reason: String },
+
+    /// Writing a library failed.
+    #[error("writing the library {}: {source}", dir.display())]
+    WriteLibrary {
+        dir: PathBuf,
+        #[source]
+        source: Box<assetfield_mining::MiningError>,
+    },
 }

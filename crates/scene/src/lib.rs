@@ -18,6 +18,7 @@ pub mod grid;
 pub mod library;
 pub mod patch;
 pub mod raster;
+pub mod refine;
 pub mod world;
 
 pub use error::SceneError;

@@ -209,6 +209,16 @@ impl FeaturePatch {
         Some(t)
     }
 
+    /// The bilinear taps of local point `q`: for each of the four texels (index into the
+    /// patch, row-major), the object weight `b_t w_t` it contributes with and its core
+    /// weight `b_t core_t`; `None` outside the patch. What [`FeaturePatch::accumulate_with_core`]
+    /// reads, for passes that need the rasterisation's transpose (template refinement).
+    #[inline]
+    pub fn weighted_taps(&self, q: Vec2) -> Option<[(usize, f32, f32); 4]> {
+        let t = self.taps(q)?;
+        Some(std::array::from_fn(|k| (t.idx[k], t.w[k], t.b[k] * self.core[t.idx[k]])))
+    }
+
     /// Add the object's weighted features at local point `q` to `acc_d` (`nd`) and `acc_c`
     /// (`nc`): `sum_taps b_t w_t f_t` (bilinear weights times object weights: premultiplied
     /// interpolation, so features outside the object never leak in). Returns the summed

@@ -3,12 +3,14 @@
 
 use super::util::progress_bar;
 use anyhow::{Context, Result, bail};
+use assetfield_layout::GtLayout;
 use assetfield_mining::agglomerative::Linkage;
 use assetfield_mining::detect::{DetectParams, Filters, Preset};
 use assetfield_mining::group::GroupCut;
-use assetfield_mining::library::{merge_libraries, open_library};
+use assetfield_mining::library::{MergeOptions, merge_libraries_with, open_library};
 use assetfield_mining::pipeline::{GroupOn, MineOptions, Progress, YawOn, mine as run_mining};
 use assetfield_mining::planes::PlaneChoice;
+use assetfield_mining::regroup::RegroupOptions;
 use clap::{Args, Subcommand, ValueEnum};
 use indicatif::ProgressBar;
 use std::path::PathBuf;
@@ -281,8 +283,10 @@ pub enum LibraryCommand {
         lib: PathBuf,
     },
     /// Merge libraries mined from fields that share their vertical axes, basis and
-    /// decoders into one cross-scene library (names get the source folder as a prefix:
-    /// FOLDER/obj003). Libraries whose shared tensors differ are refused, naming the tensor.
+    /// decoders (scenes trained together: `train DATA_A DATA_B ...`, or fitted with `train
+    /// --share`) into one cross-scene library (names get the source folder as a prefix:
+    /// FOLDER/obj003). Libraries whose shared tensors differ are refused, naming the tensor
+    /// and the files.
     Merge {
         /// Two or more library folders.
         #[arg(required = true, num_args = 2..)]
@@ -290,6 +294,20 @@ pub enum LibraryCommand {
         /// The merged library folder.
         #[arg(long, short)]
         out: PathBuf,
+        /// Group all entries again, together (the grouping `mine` uses: colour-plane label
+        /// histograms, shape and vertical profile, average linkage, the separation cut), so
+        /// that one category spans scenes; templates are chosen and members posed anew.
+        /// Without it every scene keeps its own categories.
+        #[arg(long)]
+        regroup: bool,
+        /// One ground truth (gt_layout.json) per library, in the same order: OUT/metrics.json
+        /// gets cross_scene_ari (ARI of the matched entries of all scenes together against
+        /// their ground-truth categories) and every scene's precision, recall, F1 and ARI.
+        #[arg(long, num_args = 1..)]
+        gt: Vec<PathBuf>,
+        /// BEV IoU an entry needs to match a ground-truth box (with --gt).
+        #[arg(long, default_value_t = 0.5)]
+        iou: f32,
         /// Replace the output folder if it exists.
         #[arg(long)]
         force: bool,
@@ -487,19 +505,62 @@ pub fn library(a: LibraryArgs) -> Result<()> {
             );
             Ok(())
         }
-        LibraryCommand::Merge { libs, out, force } => {
+        LibraryCommand::Merge { libs, out, regroup, gt, iou, force } => {
             if out.exists() && !force {
                 bail!("{} already exists (pass --force to replace it)", out.display());
             }
-            let r = merge_libraries(&libs, &out, force).context("merging libraries failed")?;
+            if !gt.is_empty() && gt.len() != libs.len() {
+                bail!(
+                    "--gt takes one ground truth per library, in the same order: {} libraries, {} ground truths",
+                    libs.len(),
+                    gt.len()
+                );
+            }
+            if !(iou.is_finite() && iou > 0.0 && iou <= 1.0) {
+                bail!("--iou must lie in (0, 1]");
+            }
+            let gts = gt
+                .iter()
+                .map(|p| {
+                    GtLayout::read(p)
+                        .with_context(|| format!("reading ground truth {}", p.display()))
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let opts = MergeOptions {
+                regroup: regroup
+                    .then(|| RegroupOptions::from_mining(&MineOptions::preset(Preset::Default))),
+                gt: gts,
+                iou_threshold: iou,
+            };
+            let r = merge_libraries_with(&libs, &out, force, &opts)
+                .context("merging libraries failed")?;
             println!(
-                "wrote {}: {} entries, {} categories, {} containers from {} libraries",
+                "wrote {}: {} entries, {} categories{}, {} containers from {} libraries",
                 r.out.display(),
                 r.entries,
                 r.categories,
+                if regroup { " (grouped across scenes)" } else { "" },
                 r.containers,
                 libs.len()
             );
+            if let Some(m) = &r.metrics {
+                for s in &m.per_scene {
+                    println!(
+                        "  {}: {} entries, {}/{} matched, F1 {:.3}, ARI {:.3}",
+                        s.library, s.entries, s.matched, s.ground_truth, s.f1, s.ari
+                    );
+                }
+                println!(
+                    "cross-scene ARI {:.3} over {} matched entries; {} of {} categories span scenes; {} of {} ground-truth categories found in several scenes are one category",
+                    m.cross_scene_ari,
+                    m.matched,
+                    m.categories_spanning_scenes,
+                    m.categories,
+                    m.shared_gt_categories_united,
+                    m.shared_gt_categories
+                );
+                println!("wrote {}", r.out.join("metrics.json").display());
+            }
             Ok(())
         }
     }

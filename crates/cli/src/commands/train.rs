@@ -8,7 +8,11 @@ use assetfield_data::{
     Dataset, Format, Frame, GroundAlignment, LoadOptions, Split, bounds_from_cameras,
 };
 use assetfield_field::eval::{FieldInfo, History, keys, mean_psnr};
-use assetfield_field::{Clock, DecoderKind, FieldConfig, ModelKind, TrainConfig, Trainer};
+use assetfield_field::joint::first_shared_difference;
+use assetfield_field::{
+    Clock, DecoderKind, Field, FieldConfig, GridRule, ModelKind, TrainConfig, Trainer, share_config,
+};
+use assetfield_mining::library::{content_hash, open_library};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -27,7 +31,7 @@ pub enum ModelArg {
 }
 
 impl ModelArg {
-    fn kind(self) -> ModelKind {
+    pub(crate) fn kind(self) -> ModelKind {
         match self {
             ModelArg::S => ModelKind::Standard,
             ModelArg::I => ModelKind::Integrated,
@@ -46,7 +50,7 @@ pub enum ClockArg {
 }
 
 impl ClockArg {
-    fn clock(self) -> Clock {
+    pub(crate) fn clock(self) -> Clock {
         match self {
             ClockArg::Wall => Clock::Wall,
             ClockArg::Cpu => Clock::Cpu,
@@ -75,15 +79,32 @@ pub enum AlignArg {
 #[derive(Debug, Args)]
 pub struct TrainArgs {
     /// The dataset folder (NeRF-synthetic transforms_{train,test}.json, or nerfstudio /
-    /// instant-ngp transforms.json), e.g. one written by `assetfield synth`.
-    pub data: PathBuf,
+    /// instant-ngp transforms.json), e.g. one written by `assetfield synth`. Several folders
+    /// train together (paper Sec. 3.4): one field per scene, written as
+    /// OUT/<folder name>.safetensors, whose vertical axes, colour basis, decoders (and
+    /// I-AssetField's guidance MLPs) are one set, bit-identical in every file; each scene
+    /// keeps its own box, planes and occupancy grid, and every batch holds --batch rays of
+    /// each scene. The scenes share one voxel size (--res texels along the longest side of
+    /// any box) and one vertical range (the union of their boxes'), so that their objects can
+    /// be grouped together and moved between them (`library merge --regroup`).
+    #[arg(required = true, num_args = 1..)]
+    pub data: Vec<PathBuf>,
     /// The field file to write (safetensors), e.g. runs/cr/field.safetensors. Its checkpoint
-    /// lives next to it as FIELD.ckpt.safetensors.
+    /// lives next to it as FIELD.ckpt.safetensors. With several datasets: the folder that
+    /// receives one field (and checkpoint) per scene.
     #[arg(long, short)]
     pub out: PathBuf,
-    /// Model: s (S-AssetField), i (I-AssetField) or vm (TensoRF-VM baseline).
-    #[arg(long, value_enum, default_value = "s")]
-    pub model: ModelArg,
+    /// Model: s (S-AssetField), i (I-AssetField) or vm (TensoRF-VM baseline) [default: s;
+    /// with --share, the shared tensors' model].
+    #[arg(long, value_enum)]
+    pub model: Option<ModelArg>,
+    /// Fit a new scene against the shared tensors (vertical axes, basis, decoders) of a
+    /// field file or an asset library folder, which stay frozen: only the new scene's ground
+    /// planes train, at the shared texel size and vertical range, so that what is mined from
+    /// it joins that library (`library merge`) without retraining what the library holds
+    /// (paper Fig. 11). The model and decoder are the shared ones.
+    #[arg(long, value_name = "FIELD_OR_LIBRARY")]
+    pub share: Option<PathBuf>,
     /// Time budget in minutes. With --minutes alone there is no iteration limit; with both,
     /// training stops at whichever limit comes first. Schedules (resolution steps, learning
     /// rate decay) follow the limit that is further along.
@@ -99,14 +120,16 @@ pub struct TrainArgs {
     pub iters: Option<u64>,
     /// Final ground plane resolution (texels along the longer side of the scene box); training
     /// starts at 128/300 of it and steps up coarse to fine, as TensoRF does.
-    #[arg(long, default_value_t = 300)]
-    pub res: usize,
+    /// [default: 300; with --share, the shared texel size over this scene's box]
+    #[arg(long)]
+    pub res: Option<usize>,
     /// Rays per iteration.
     #[arg(long, default_value_t = 4096)]
     pub batch: usize,
     /// Colour decoder: mlp or sh (spherical harmonics, degree 2).
-    #[arg(long, value_enum, default_value = "mlp")]
-    pub decoder: DecoderArg,
+    /// [default: mlp; with --share, the shared decoder]
+    #[arg(long, value_enum)]
+    pub decoder: Option<DecoderArg>,
     /// Scene box xmin,ymin,zmin,xmax,ymax,zmax in world units (after --align-ground).
     /// Default, in order: synth.json's scene_aabb padded by 2% of its extent (datasets written
     /// by `assetfield synth`); the cube [-1.5, 1.5]^3 for other NeRF-synthetic folders (as
@@ -171,7 +194,7 @@ pub fn checkpoint_path(out: &Path) -> PathBuf {
 
 /// The scene box and where it came from: `recorded` is the dataset's own (synth.json's
 /// `scene_aabb`, checked by the data loader).
-fn scene_bounds(
+pub(crate) fn scene_bounds(
     recorded: Option<Aabb3>,
     format: Format,
     cameras: &[assetfield_core::Camera],
@@ -194,7 +217,7 @@ fn scene_bounds(
     Ok((b, "the region the cameras look at".into()))
 }
 
-fn bar(total_iters: Option<u64>) -> ProgressBar {
+pub(crate) fn bar(total_iters: Option<u64>) -> ProgressBar {
     let pb = ProgressBar::new(1000);
     pb.set_style(
         ProgressStyle::with_template("{spinner:.green} [{bar:30.cyan/blue}] {percent:>3}% {msg}")
@@ -226,15 +249,15 @@ impl Run {
     }
 }
 
-pub fn train(a: TrainArgs) -> Result<()> {
-    // cheap checks first, before anything is loaded
-    if a.res < 8 {
-        bail!("--res {} is too small (at least 8)", a.res);
+/// The checks every run makes before anything is loaded; the plane resolution asked for.
+pub(crate) fn check_options(a: &TrainArgs) -> Result<usize> {
+    let res = a.res.unwrap_or(DEFAULT_RES);
+    if res < 8 {
+        bail!("--res {res} is too small (at least 8)");
     }
-    if a.res > assetfield_field::config::max_plane_res() {
+    if res > assetfield_field::config::max_plane_res() {
         bail!(
-            "--res {} is too large (at most {} texels per side; raise the bound with --limit plane-res=N)",
-            a.res,
+            "--res {res} is too large (at most {} texels per side; raise the bound with --limit plane-res=N)",
             assetfield_field::config::max_plane_res()
         );
     }
@@ -257,6 +280,139 @@ pub fn train(a: TrainArgs) -> Result<()> {
     }
     if !(a.checkpoint_every_minutes.is_finite() && a.checkpoint_every_minutes >= 0.0) {
         bail!("--checkpoint-every-minutes must be 0 or more");
+    }
+    if !(a.semantic_weight.is_finite() && a.semantic_weight >= 0.0) {
+        bail!("--semantic-weight must be 0 or more");
+    }
+    Ok(res)
+}
+
+/// Final plane resolution when --res is not given.
+const DEFAULT_RES: usize = 300;
+
+/// The first plane resolution of coarse-to-fine training ending at `res` (TensoRF: 128 of
+/// 300).
+pub(crate) fn start_res(res: usize) -> usize {
+    ((res as f64 * 128.0 / 300.0).round() as usize).clamp(8, res)
+}
+
+/// The training schedule the options describe, for a run ending at plane resolution `res`.
+pub(crate) fn train_config(
+    a: &TrainArgs,
+    kind: ModelKind,
+    res: usize,
+    background: [f32; 3],
+) -> TrainConfig {
+    let seconds = a.minutes.map(|m| m * 60.0);
+    let mut tc = TrainConfig::new(kind);
+    tc.batch = a.batch;
+    tc.iters = match (a.iters, seconds) {
+        (Some(n), _) => n,
+        (None, Some(_)) => u64::MAX,
+        (None, None) => 30_000,
+    };
+    tc.seconds = seconds;
+    tc.clock = a.clock.clock();
+    tc.plane_res_final = res;
+    tc.plane_res_start = start_res(res);
+    if tc.plane_res_start == tc.plane_res_final {
+        tc.upsample_at.clear();
+    }
+    tc.background = background;
+    tc.semantic_weight = a.semantic_weight;
+    tc.seed = a.seed;
+    tc
+}
+
+/// The shared tensors a new scene is fitted against (`--share`): a field file's or an asset
+/// library's.
+pub(crate) struct SharedSource {
+    pub path: PathBuf,
+    /// A field holding them (zero planes for a library).
+    pub field: Field,
+}
+
+impl SharedSource {
+    pub(crate) fn load(path: &Path) -> Result<Self> {
+        let field = if path.is_dir() {
+            let lib = open_library(path).with_context(|| {
+                format!("--share {}: not a usable asset library", path.display())
+            })?;
+            lib.shared_field()?
+        } else {
+            Field::load(path)
+                .with_context(|| {
+                    format!(
+                        "--share {}: expected a field file written by `assetfield train` or an asset library folder",
+                        path.display()
+                    )
+                })?
+                .0
+        };
+        if field.config.kind == ModelKind::Vm {
+            bail!(
+                "--share {}: a TensoRF-VM field has no ground planes, so it has no shared tensors to fit a scene against",
+                path.display()
+            );
+        }
+        Ok(SharedSource { path: path.to_path_buf(), field })
+    }
+}
+
+/// Content hash of a field's shared tensors: the `shared.hash` a library mined from it
+/// records, equal for fields trained together.
+pub(crate) fn shared_hash(field: &Field) -> Result<String> {
+    let f = assetfield_mining::pipeline::shared_tensors(field, "")?;
+    Ok(content_hash(&f))
+}
+
+/// The model to train: --model, else the shared tensors' model (refusing a different
+/// --model), else S-AssetField.
+fn model_kind(a: &TrainArgs, shared: Option<&SharedSource>) -> Result<ModelKind> {
+    match (a.model.map(ModelArg::kind), shared) {
+        (Some(k), Some(s)) if k != s.field.config.kind => bail!(
+            "--model {} differs from the model of the shared tensors of {} ({}): a scene fitted against shared tensors has their model; drop --model",
+            k.name(),
+            s.path.display(),
+            s.field.config.kind.name()
+        ),
+        (_, Some(s)) => Ok(s.field.config.kind),
+        (Some(k), None) => Ok(k),
+        (None, None) => Ok(ModelKind::Standard),
+    }
+}
+
+pub fn train(a: TrainArgs) -> Result<()> {
+    // cheap checks first, before anything is loaded
+    let res = check_options(&a)?;
+    if a.data.len() > 1 {
+        if a.share.is_some() {
+            bail!(
+                "--share fits one new scene against frozen shared tensors; to train several scenes together, drop --share"
+            );
+        }
+        return super::train_joint::train_joint(a, res);
+    }
+    let data_path = a.data[0].clone();
+    let shared = a.share.as_deref().map(SharedSource::load).transpose()?;
+    let kind = model_kind(&a, shared.as_ref())?;
+    if let (Some(s), Some(d)) = (&shared, a.decoder) {
+        let want = match d {
+            DecoderArg::Mlp => matches!(s.field.config.decoder, DecoderKind::Mlp { .. }),
+            DecoderArg::Sh => matches!(s.field.config.decoder, DecoderKind::Sh { .. }),
+        };
+        if !want {
+            bail!(
+                "--decoder differs from the decoder of the shared tensors of {} ({:?}); drop --decoder",
+                s.path.display(),
+                s.field.config.decoder
+            );
+        }
+    }
+    if shared.is_some() && a.res.is_some() {
+        bail!(
+            "--res and --share: a scene fitted against shared tensors has their texel size; drop --res"
+        );
     }
     let background = parse_color(&a.background).context("--background")?;
     let user_aabb = a.aabb.as_deref().map(parse_aabb).transpose()?;
@@ -307,8 +463,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
         None => (background, a.downscale),
     };
     let opts = LoadOptions { background, downscale, ..LoadOptions::default() };
-    let all_cams = Dataset::load_cameras_only(&a.data, Split::All, &opts)
-        .with_context(|| format!("reading dataset {}", a.data.display()))?;
+    let all_cams = Dataset::load_cameras_only(&data_path, Split::All, &opts)
+        .with_context(|| format!("reading dataset {}", data_path.display()))?;
     let alignment = match &stored {
         Some(s) => s.ground_transform,
         None => match a.align_ground {
@@ -317,28 +473,25 @@ pub fn train(a: TrainArgs) -> Result<()> {
         },
     };
     let t_load = Instant::now();
-    let mut data = Dataset::load(&a.data, Split::Train, &opts)
-        .with_context(|| format!("loading the training views of {}", a.data.display()))?;
+    let mut data = Dataset::load(&data_path, Split::Train, &opts)
+        .with_context(|| format!("loading the training views of {}", data_path.display()))?;
     if let Some(g) = &alignment {
         g.apply_to_dataset(&mut data);
     }
     // semantic feature maps (I-AssetField)
     let model_kind = match &stored {
         Some(_) => None,
-        None => Some(a.model.kind()),
+        None => Some(kind),
     };
     let features_dir = match &a.features {
         Some(d) => Some(d.clone()),
         None => {
-            let d = a.data.join("features");
+            let d = data_path.join("features");
             (d.is_dir() && model_kind.is_none_or(|k| k == ModelKind::Integrated)).then_some(d)
         }
     };
     if a.features.is_some() && model_kind.is_some_and(|k| k != ModelKind::Integrated) {
         bail!("--features trains a semantic field, which only I-AssetField has: add --model i");
-    }
-    if !(a.semantic_weight.is_finite() && a.semantic_weight >= 0.0) {
-        bail!("--semantic-weight must be 0 or more");
     }
     let semantic_channels = match &features_dir {
         Some(d) => {
@@ -380,7 +533,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
         None => Vec::new(),
         Some(_) => {
             let vopts = LoadOptions { max_frames: Some(2), ..opts.clone() };
-            match Dataset::load(&a.data, Split::Test, &vopts) {
+            match Dataset::load(&data_path, Split::Test, &vopts) {
                 Ok(mut d) => {
                     if let Some(g) = &alignment {
                         g.apply_to_dataset(&mut d);
@@ -423,7 +576,6 @@ pub fn train(a: TrainArgs) -> Result<()> {
         }
         (t, FieldInfo { history: None, val_history: None, ..s })
     } else {
-        let kind = a.model.kind();
         let (aabb, source) = match user_aabb {
             Some(b) => (b, "--aabb".to_string()),
             None => {
@@ -439,30 +591,42 @@ pub fn train(a: TrainArgs) -> Result<()> {
             fmt_vec(aabb.min.to_array()),
             fmt_vec(aabb.max.to_array())
         );
-        let mut fc = FieldConfig::new(kind, aabb, a.res);
-        if a.decoder == DecoderArg::Sh {
-            fc.decoder = DecoderKind::Sh { degree: 2 };
-        }
-        fc.semantic_channels = semantic_channels;
+        let (fc, grid, res) = match &shared {
+            Some(s) => {
+                let (fc, grid) = share_config(&s.field.config, aabb)?;
+                let have = fc.semantic_dim();
+                if semantic_channels > 0 && semantic_channels != have {
+                    bail!(
+                        "{semantic_channels}-channel feature maps were loaded, but the shared tensors of {} decode {have} semantic channels",
+                        s.path.display()
+                    );
+                }
+                eprintln!(
+                    "fitting the ground planes against the frozen shared tensors of {} ({} texels of {:.4} x {:.4}, vertical axis {} samples over z {:.3} .. {:.3})",
+                    s.path.display(),
+                    format_args!("{} x {}", fc.res[0], fc.res[1]),
+                    fc.voxel_size().x,
+                    fc.voxel_size().y,
+                    fc.res[2],
+                    fc.aabb[0][2],
+                    fc.aabb[1][2]
+                );
+                let final_res = fc.res[0].max(fc.res[1]);
+                (fc, grid, final_res)
+            }
+            None => {
+                let mut fc = FieldConfig::new(kind, aabb, res);
+                if a.decoder == Some(DecoderArg::Sh) {
+                    fc.decoder = DecoderKind::Sh { degree: 2 };
+                }
+                fc.semantic_channels = semantic_channels;
+                (fc, GridRule::default(), res)
+            }
+        };
         // the same bounds a field file is loaded with, before anything is allocated
         fc.validate(&a.out).context("the field these options describe cannot be trained")?;
-        let mut tc = TrainConfig::new(kind);
-        tc.batch = a.batch;
-        tc.iters = match (a.iters, seconds) {
-            (Some(n), _) => n,
-            (None, Some(_)) => u64::MAX,
-            (None, None) => 30_000,
-        };
-        tc.seconds = seconds;
-        tc.clock = a.clock.clock();
-        tc.plane_res_final = a.res;
-        tc.plane_res_start = ((a.res as f64 * 128.0 / 300.0).round() as usize).clamp(8, a.res);
-        if tc.plane_res_start == tc.plane_res_final {
-            tc.upsample_at.clear();
-        }
-        tc.background = background;
-        tc.semantic_weight = a.semantic_weight;
-        tc.seed = a.seed;
+        let mut tc = train_config(&a, kind, res, background);
+        tc.grid = grid;
         let info = FieldInfo {
             dataset: Some(data.root.clone()),
             aabb: Some([aabb.min.to_array(), aabb.max.to_array()]),
@@ -472,8 +636,20 @@ pub fn train(a: TrainArgs) -> Result<()> {
             downscale: Some(downscale),
             ..FieldInfo::default()
         };
-        (Trainer::new(&data, fc, tc), info)
+        let mut t = Trainer::new(&data, fc, tc);
+        if let Some(s) = &shared {
+            t.field.copy_shared_from(&s.field);
+        }
+        (t, info)
     };
+    if let (Some(s), true) = (&shared, a.resume)
+        && let Some(name) = first_shared_difference(&s.field, &trainer.field)
+    {
+        bail!(
+            "the checkpoint's shared tensor \"{name}\" differs from that of --share {}: the run was fitted against other shared tensors",
+            s.path.display()
+        );
+    }
     let mut run = Run {
         ckpt: ckpt.clone(),
         info,
@@ -505,7 +681,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
                 "interrupted at iteration {}: checkpoint saved to {}; the field file was not written. Continue with: assetfield train {} --out {} --resume",
                 trainer.iter,
                 ckpt.display(),
-                a.data.display(),
+                data_path.display(),
                 a.out.display()
             ));
         }
@@ -593,6 +769,15 @@ pub fn train(a: TrainArgs) -> Result<()> {
         cfg.res[2],
         run.val_history.last().map(|v| format!(", test PSNR {:.2} dB", v.2)).unwrap_or_default()
     );
+    if trainer.config.grid.frozen_shared {
+        println!(
+            "shared tensors {} (frozen: those of {})",
+            shared_hash(&trainer.field)?,
+            shared
+                .as_ref()
+                .map_or_else(|| "the run's start".into(), |s| s.path.display().to_string())
+        );
+    }
     println!("wrote {}", a.out.display());
     if !a.discard_checkpoint {
         println!("checkpoint {} (extend the run with --resume --iters N)", ckpt.display());

@@ -1,0 +1,310 @@
+//! `assetfield refine`: refine a library's templates against its scene's training views
+//! (paper Sec. 3.4), writing a new library whose `layout.ron` draws every instance with its
+//! category's template.
+
+use super::train::bar;
+use super::util::fmt_duration;
+use anyhow::{Context, Result, anyhow, bail};
+use assetfield_core::fsx::{StagingDir, write_atomic};
+use assetfield_core::{Camera, GroundTransform, interrupt};
+use assetfield_data::{Dataset, Frame, LoadOptions, Split};
+use assetfield_mining::layout_out::{layout_script, script_text_checked};
+use assetfield_mining::library::{open_library, write_library_files};
+use assetfield_scene::refine::{
+    RefineOptions, TemplateRefiner, cameras_looking_at, compose_draws, own_poses, template_poses,
+};
+use assetfield_scene::{AssetLibrary, Composition, FeaturePatch};
+use clap::Args;
+use glam::Vec3;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Fewest of the training views whose central ray must pass through the library's box: a
+/// dataset of the library's own scene looks into it from every view.
+const MIN_VIEWS_LOOKING_IN: f32 = 0.5;
+
+#[derive(Debug, Args)]
+pub struct RefineArgs {
+    /// The asset library (written by `assetfield mine`) whose templates to refine.
+    pub lib: PathBuf,
+    /// The dataset of the scene the library was mined from (the training views refine
+    /// against; its test views, when present, measure the result).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// The refined library folder to write.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Time budget in minutes (with --iters too, whichever ends first).
+    #[arg(long)]
+    pub minutes: Option<f64>,
+    /// Iterations [default: 2000 unless --minutes is given].
+    #[arg(long)]
+    pub iters: Option<u64>,
+    /// Rays per iteration.
+    #[arg(long, default_value_t = 4096)]
+    pub batch: usize,
+    /// Adam's learning rate for the template features at the start (decays to a tenth).
+    #[arg(long, default_value_t = 0.005)]
+    pub lr: f32,
+    /// Downscale the images by this integer factor before refining.
+    #[arg(long, default_value_t = 1)]
+    pub downscale: u32,
+    /// Random seed of the ray batches.
+    #[arg(long, default_value_t = 20230)]
+    pub seed: u64,
+    /// Replace the output folder if it exists.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// `refine.json`.
+#[derive(Debug, Serialize)]
+struct Report {
+    iterations: u64,
+    seconds: f64,
+    templates: usize,
+    instances: usize,
+    /// Mean test-view PSNR: every instance with its own patch (the mined layout), and with
+    /// its category's template before and after refinement; `null` without test views.
+    test_psnr_own_patches: Option<f32>,
+    test_psnr_templates_before: Option<f32>,
+    test_psnr_templates_after: Option<f32>,
+    test_views: usize,
+    /// (iteration, batch PSNR) of the templates-only composition during refinement.
+    history: Vec<(u64, f32)>,
+    options: RefineOptions,
+}
+
+fn mean_psnr(comp: &Composition, views: &[Frame], bg: Vec3) -> Option<f32> {
+    if views.is_empty() {
+        return None;
+    }
+    let total: f32 = views
+        .iter()
+        .map(|f| assetfield_core::metrics::psnr(&comp.render(&f.camera, bg), &f.image.rgb))
+        .sum();
+    Some(total / views.len() as f32)
+}
+
+pub fn refine(a: RefineArgs) -> Result<()> {
+    if let Some(m) = a.minutes
+        && !(m.is_finite() && m > 0.0)
+    {
+        bail!("--minutes {m} must be a positive number");
+    }
+    if a.iters == Some(0) || a.batch == 0 || a.downscale == 0 {
+        bail!("--iters, --batch and --downscale must be at least 1");
+    }
+    if !(a.lr.is_finite() && a.lr > 0.0) {
+        bail!("--lr must be a positive number");
+    }
+    if a.out.exists() && !a.force {
+        bail!("{} already exists (pass --force to replace it)", a.out.display());
+    }
+    let lib = AssetLibrary::open(&a.lib)?;
+    if lib.index.containers.is_empty() {
+        bail!(
+            "{} has no container: refine needs the emptied scene its templates were mined from",
+            a.lib.display()
+        );
+    }
+    let opts = LoadOptions {
+        background: lib.background.to_array(),
+        downscale: a.downscale,
+        ..LoadOptions::default()
+    };
+    let bg = lib.background;
+    let load = |split: Split| -> Result<Dataset> {
+        let mut d = Dataset::load(&a.data, split, &opts)
+            .with_context(|| format!("loading the {split:?} views of {}", a.data.display()))?;
+        if let Some(g) = &lib.info.ground_transform {
+            g.apply_to_dataset(&mut d);
+        }
+        Ok(d)
+    };
+    let train = load(Split::Train)?;
+    let cams: Vec<Camera> = train.frames.iter().map(|f| f.camera).collect();
+    let looking = cameras_looking_at(&lib, &cams);
+    if looking < MIN_VIEWS_LOOKING_IN {
+        let c = &lib.index.containers[0];
+        bail!(
+            "{} does not look like the scene of {}: only {:.0}% of its {} training views look into the library's box [{:.2}, {:.2}] .. [{:.2}, {:.2}]; refine needs the views of the scene the library was mined from",
+            a.data.display(),
+            a.lib.display(),
+            looking * 100.0,
+            cams.len(),
+            c.world[0],
+            c.world[1],
+            c.world[2],
+            c.world[3]
+        );
+    }
+    if let Some(d) = &lib.info.dataset
+        && d.canonicalize().ok() != a.data.canonicalize().ok()
+    {
+        eprintln!(
+            "note: the library was mined from a field trained on {}; refining against {}",
+            d.display(),
+            a.data.display()
+        );
+    }
+    let test = match load(Split::Test) {
+        Ok(d) => d.frames,
+        Err(e) => {
+            eprintln!("note: no test views to measure with ({e:#})");
+            Vec::new()
+        }
+    };
+
+    // before: the mined layout (own patches) and the templates-only layout
+    let halo = assetfield_scene::DEFAULT_HALO;
+    let own_patches: Vec<(String, FeaturePatch)> = own_poses(&lib.index)
+        .into_iter()
+        .map(|(name, _)| Ok((name.clone(), lib.patch(&name, halo)?)))
+        .collect::<Result<_>>()?;
+    let own: Vec<(&FeaturePatch, GroundTransform)> =
+        own_patches.iter().zip(own_poses(&lib.index)).map(|((_, p), (_, t))| (p, t)).collect();
+    let psnr_own = mean_psnr(&compose_draws(&lib, &own)?, &test, bg);
+    let options = RefineOptions {
+        iters: a.iters.unwrap_or(if a.minutes.is_some() { u64::MAX } else { 2000 }),
+        seconds: a.minutes.map(|m| m * 60.0),
+        batch: a.batch,
+        lr: a.lr,
+        seed: a.seed,
+        ..RefineOptions::default()
+    };
+    let views = train.frames.iter().map(|f| (f.camera, f.image.rgb.clone())).collect();
+    let mut r = TemplateRefiner::new(&lib, views, bg, options.clone())?;
+    let templates_draws = |r: &TemplateRefiner| -> Result<Composition> {
+        let patches = r.refined_patches();
+        let draws: Vec<(&FeaturePatch, GroundTransform)> =
+            template_poses(&lib.index).into_iter().map(|(c, t)| (&patches[c].1, t)).collect();
+        Ok(compose_draws(&lib, &draws)?)
+    };
+    let psnr_before = mean_psnr(&templates_draws(&r)?, &test, bg);
+    eprintln!(
+        "refining {} templates of {} instances against {} training views{}",
+        lib.index.categories.len(),
+        lib.index.entries.len(),
+        train.len(),
+        match (psnr_own, psnr_before) {
+            (Some(o), Some(t)) =>
+                format!(" (test PSNR: own patches {o:.2} dB, templates {t:.2} dB)"),
+            _ => String::new(),
+        }
+    );
+
+    let pb = bar((options.iters != u64::MAX).then_some(options.iters));
+    let t0 = Instant::now();
+    let mut last = f32::NAN;
+    while !r.finished() {
+        if interrupt::requested() {
+            pb.finish_and_clear();
+            return Err(anyhow!("interrupted at iteration {}: nothing was written", r.iter));
+        }
+        last = r.step();
+        pb.set_position((r.progress() * 1000.0) as u64);
+        pb.set_message(format!(
+            "it {} | psnr {last:.2} | {}",
+            r.iter,
+            fmt_duration(t0.elapsed().as_secs_f64())
+        ));
+    }
+    pb.finish_and_clear();
+    let seconds = t0.elapsed().as_secs_f64();
+    let psnr_after = mean_psnr(&templates_draws(&r)?, &test, bg);
+
+    // the library with the refined template features, and a templates-only layout
+    let mut stored = open_library(&a.lib)?;
+    for (name, dd, dc) in r.deltas() {
+        let e = stored.index.entry(&name).cloned().ok_or_else(|| anyhow!("no entry {name:?}"))?;
+        let (h, w) = e.patch_size;
+        let (nd, nc) = stored.index.channels;
+        for (tensor, delta, ch) in [(&e.density, dd, nd), (&e.color, dc, nc)] {
+            let v: Vec<f32> = stored
+                .patches
+                .get_f32(tensor, &[h, w, ch])?
+                .iter()
+                .zip(&delta)
+                .map(|(a, b)| a + b)
+                .collect();
+            stored.patches.insert_f32(tensor.clone(), &[h, w, ch], v);
+        }
+    }
+    let c = &stored.index.containers[0];
+    let name =
+        a.out.file_name().map_or_else(|| "refined".into(), |s| s.to_string_lossy().into_owned());
+    let names = instance_names(&a.lib, &stored.index);
+    let script = layout_script(&stored.index, &name, c.world, ".", &names, f32::INFINITY)?;
+    let staging = StagingDir::new(&a.out, a.force)?;
+    let (text, instances) = script_text_checked(&script, &staging.path().join("layout.ron"))?;
+    write_library_files(staging.path(), &stored.index, &stored.patches, &stored.shared)?;
+    write_atomic(&staging.path().join("layout.ron"), text.as_bytes())?;
+    let report = Report {
+        iterations: r.iter,
+        seconds,
+        templates: stored.index.categories.len(),
+        instances,
+        test_psnr_own_patches: psnr_own,
+        test_psnr_templates_before: psnr_before,
+        test_psnr_templates_after: psnr_after,
+        test_views: test.len(),
+        history: r.history.clone(),
+        options,
+    };
+    write_atomic(
+        &staging.path().join("refine.json"),
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
+    let out = staging.commit()?;
+    println!(
+        "refined {} templates for {} iterations in {} (final batch PSNR {last:.2} dB)",
+        report.templates,
+        r.iter,
+        fmt_duration(seconds)
+    );
+    if let (Some(o), Some(b), Some(f)) = (psnr_own, psnr_before, psnr_after) {
+        println!(
+            "test PSNR over {} views: own patches {o:.2} dB; templates only {b:.2} -> {f:.2} dB",
+            test.len()
+        );
+    }
+    println!(
+        "wrote {} (index.ron, patches.safetensors, shared.safetensors, layout.ron: templates only, refine.json)",
+        out.display()
+    );
+    Ok(())
+}
+
+/// The instance keys of the library's own `layout.ron` by entry (what `mine --gt-names`
+/// named them, so that edit scripts written for the scene still find them): an instance
+/// stands for the entry whose pivot (own patch) or template position it is placed at.
+/// Empty when the layout is missing or does not resolve.
+fn instance_names(
+    lib: &std::path::Path,
+    index: &assetfield_mining::library::LibraryIndex,
+) -> BTreeMap<String, String> {
+    let Ok(loaded) = assetfield_layout::load(&lib.join("layout.ron")) else {
+        return BTreeMap::new();
+    };
+    let catalog = assetfield_layout::PartsCatalog::from_script(&loaded);
+    let Ok(resolved) = assetfield_layout::resolve(&loaded, &catalog) else {
+        return BTreeMap::new();
+    };
+    // the layout writes three decimals
+    let close = |p: glam::Vec2, q: glam::Vec2| (p - q).length() < 2e-3;
+    let mut names = BTreeMap::new();
+    for inst in &resolved.instances {
+        let p = inst.transform.position;
+        if let Some(e) = index.entries.iter().find(|e| {
+            !names.contains_key(&e.name)
+                && (close(e.pivot_world(), p)
+                    || close(glam::Vec2::new(e.position.0, e.position.1), p))
+        }) {
+            names.insert(e.name.clone(), inst.key.clone());
+        }
+    }
+    names
+}
