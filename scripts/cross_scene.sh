@@ -47,7 +47,7 @@ for m in s i; do
   for s in "$A" "$B"; do
     l="$OUT/lib/${s}_$m"
     [ -f "$l/metrics.json" ] || "$BIN" mine "$OUT/joint_$m/$s.safetensors" --gt "$OUT/data/$s/gt_layout.json" \
-      --out "$l" --force > "$OUT/logs/${s}_$m.mine.log" 2>&1
+      --gt-names --out "$l" --force > "$OUT/logs/${s}_$m.mine.log" 2>&1
   done
   for how in kept regroup; do
     flag=(); [ "$how" = regroup ] && flag=(--regroup)
@@ -57,6 +57,37 @@ for m in s i; do
       > "$OUT/logs/merged_${m}_$how.log" 2>&1
   done
 done
+# one container, assets of both scenes: the library room as mined (S, own patches) with the
+# living room's sofa `sofa_s` (mined from the other scene, same shared tensors) placed at
+# MOVE_TO, against `synth` of the same layout from the library's test cameras
+if [ "$A" = library ] && [ "$B" = living_room ]; then
+  MOVE_TO=${MOVE_TO:-"-1.0, 1.1"}
+  printf 'Scene(\n    base: "../../scenes/library.ron",\n    layout: [Instance(asset: "sofa", at: (%s), yaw: 90, name: "visitor")],\n)\n' "$MOVE_TO" \
+    > "$OUT/library_with_sofa.ron"
+  [ -f "$OUT/data_with_sofa/edited/transforms_test.json" ] ||
+    "$BIN" synth "scenes/$A.ron" --res 256 --edited "$OUT/library_with_sofa.ron" --out "$OUT/data_with_sofa" --force \
+      > "$OUT/logs/with_sofa.synth.log" 2>&1
+  python3 - "$OUT" "$MOVE_TO" <<'PY'
+import re, sys
+out, at = sys.argv[1], sys.argv[2]
+lib = open(f"{out}/lib/library_s/layout.ron").read().replace('path: "."', 'path: "lib/library_s"')
+other = open(f"{out}/lib/living_room_s/layout.ron").read()
+# the living room's instance named sofa_s, and the asset it uses
+m = re.search(r'Instance\(\s*asset: "([^"]+)",[^)]*?name: "sofa_s"', other, re.S)
+asset = m.group(1)
+d = re.search(r'"%s": Asset\((.*?)\n        \),' % re.escape(asset), other, re.S).group(1)
+d = d.replace('path: "."', 'path: "lib/living_room_s"')
+lib = lib.replace("assets: {", 'assets: {\n        "visitor_sofa": Asset(%s\n        ),' % d, 1)
+lib = lib.replace("layout: [", 'layout: [\n        Instance(asset: "visitor_sofa", at: (%s), name: "visitor"),' % at, 1)
+open(f"{out}/compose_with_sofa.ron", "w").write(lib)
+PY
+  [ -f "$OUT/compose_with_sofa/metrics.json" ] ||
+    "$BIN" compose "$OUT/compose_with_sofa.ron" --library "$OUT/lib/library_s" --views "$OUT/data_with_sofa/edited" \
+      --metrics --out "$OUT/compose_with_sofa" --force > "$OUT/logs/compose_with_sofa.log" 2>&1
+  [ -f "$OUT/compose_library/metrics.json" ] ||
+    "$BIN" compose "$OUT/lib/library_s/layout.ron" --library "$OUT/lib/library_s" --views "$OUT/data/$A" \
+      --metrics --out "$OUT/compose_library" --force > "$OUT/logs/compose_library.log" 2>&1
+fi
 {
   echo "| scene | S alone (dB) | S joint (dB) | I joint (dB) |"
   echo "|---|---|---|---|"
@@ -78,5 +109,10 @@ print("| %s | %s | %.3f | %d (%d) | %d of %d | %s |" % (sys.argv[2], sys.argv[3]
 PY
     done
   done
+  if [ -f "$OUT/compose_with_sofa/metrics.json" ]; then
+    echo
+    echo "library room recomposed (own patches): $(psnr "$OUT/compose_library/metrics.json") dB;" \
+      "with the living room's sofa placed in it: $(psnr "$OUT/compose_with_sofa/metrics.json") dB against synth of the same layout"
+  fi
 } > "$OUT/table.md"
 cat "$OUT/table.md"

@@ -229,6 +229,42 @@ pub struct Trainer {
     samples_per_ray: f32,
 }
 
+/// `batch` random training pixels: (view, column, row, jitter in [0, 1)) over `views` views
+/// of `width` x `height`, drawn from the SplitMix64 stream `rng`.
+pub fn random_pixels(
+    rng: &mut u64,
+    views: u64,
+    width: u64,
+    height: u64,
+    batch: usize,
+) -> Vec<(u32, u32, u32, f32)> {
+    (0..batch)
+        .map(|_| {
+            let r = split_mix(rng);
+            let v = (r % views) as u32;
+            let px = (r / views) % (width * height);
+            let j = split_mix(rng);
+            (v, (px % width) as u32, (px / width) as u32, (j >> 40) as f32 / (1u64 << 24) as f32)
+        })
+        .collect()
+}
+
+/// The summed squared error of rendered colours against their targets, and its gradient
+/// with respect to each rendered colour times `scale` (`2 / (3 N)` for the mean over `N`
+/// rays).
+pub fn colour_error(rgb: &[Vec3], targets: &[Vec3], scale: f32) -> (f32, Vec<Vec3>) {
+    let mut sse = 0.0;
+    let d = rgb
+        .iter()
+        .zip(targets)
+        .map(|(c, t)| {
+            sse += (*c - *t).length_squared();
+            (*c - *t) * scale
+        })
+        .collect();
+    (sse, d)
+}
+
 fn split_mix(s: &mut u64) -> u64 {
     *s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
     let mut z = *s;
@@ -418,15 +454,7 @@ impl Trainer {
         let batch = self.config.batch;
         let (w, h) = (self.width as u64, self.height as u64);
         let n_views = self.views.len() as u64;
-        let picks: Vec<(u32, u32, u32, f32)> = (0..batch)
-            .map(|_| {
-                let r = split_mix(&mut self.rng);
-                let v = (r % n_views) as u32;
-                let px = (r / n_views) % (w * h);
-                let j = split_mix(&mut self.rng);
-                (v, (px % w) as u32, (px / w) as u32, (j >> 40) as f32 / (1u64 << 24) as f32)
-            })
-            .collect();
+        let picks = random_pixels(&mut self.rng, n_views, w, h, batch);
         let chunk = batch.div_ceil(self.work.len());
         let bg = Vec3::from(self.config.background);
         let settings = MarchSettings::default();
@@ -464,16 +492,7 @@ impl Trainer {
                 }
                 work.want_semantic = semantic;
                 march::forward(field, occ, &rays, Some(&jitter), bg, &settings, work);
-                let mut sse = 0.0;
-                let d: Vec<Vec3> = work
-                    .rgb
-                    .iter()
-                    .zip(&targets)
-                    .map(|(c, t)| {
-                        sse += (*c - *t).length_squared();
-                        (*c - *t) * scale
-                    })
-                    .collect();
+                let (sse, d) = colour_error(&work.rgb, &targets, scale);
                 let mut sem_sse = 0.0;
                 let d_sem: Option<Vec<f32>> = semantic.then(|| {
                     work.semantic

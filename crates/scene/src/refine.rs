@@ -20,6 +20,7 @@ use crate::patch::FeaturePatch;
 use crate::raster::{Composition, DensityRule, InstanceDraw};
 use assetfield_core::{Camera, GroundTransform, Ray};
 use assetfield_field::march::{self, MarchSettings, MarchWork};
+use assetfield_field::train::{colour_error, random_pixels};
 use assetfield_mining::library::{EntryKind, LibraryIndex};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -101,21 +102,33 @@ pub struct TemplateRefiner {
     share: Vec<f32>,
     norm: Vec<f32>,
     views: Vec<(Camera, Vec<f32>)>,
+    /// Per chunk: march buffers and a gradient buffer over the composed field's parameters,
+    /// reused across iterations. Only the touched texels' plane gradients are read, so only
+    /// they are zeroed before each backward pass (the rest of the buffer is never read).
+    work: Vec<(MarchWork, Vec<f32>)>,
     background: Vec3,
     rng: u64,
     pub iter: u64,
     /// (iteration, batch PSNR) every few iterations.
     pub history: Vec<(u64, f32)>,
     started: std::time::Instant,
+    /// Seconds refined before this process (a resumed run).
+    elapsed_before: f64,
 }
 
-fn split_mix(s: &mut u64) -> u64 {
-    *s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *s;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+/// What a refinement checkpoint restores besides the tensors.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct RefineState {
+    iter: u64,
+    adam_t: i32,
+    rng: u64,
+    elapsed: f64,
+    history: Vec<(u64, f32)>,
+    options: RefineOptions,
 }
+
+/// Format tag of a refinement checkpoint.
+pub const CHECKPOINT_FORMAT: &str = "assetfield-refine-checkpoint/1";
 
 /// Where every entry of `index` is drawn in a templates-only layout: its category's
 /// template (index into `index.categories`) at the pose mining found (the template's own
@@ -273,7 +286,11 @@ impl TemplateRefiner {
         }
         start.push(taps.len() as u32);
         let n = params.len();
+        let n_field = comp.field.params.len();
+        let work =
+            (0..options.chunks).map(|_| (MarchWork::default(), vec![0.0; n_field])).collect();
         let mut r = TemplateRefiner {
+            work,
             rng: options.seed,
             options,
             comp,
@@ -293,6 +310,7 @@ impl TemplateRefiner {
             iter: 0,
             history: Vec::new(),
             started: std::time::Instant::now(),
+            elapsed_before: 0.0,
         };
         r.compose();
         r.comp.refresh_occupancy(None);
@@ -333,14 +351,89 @@ impl TemplateRefiner {
         }
     }
 
+    /// Seconds of refinement so far (across resumes).
+    pub fn elapsed(&self) -> f64 {
+        self.elapsed_before + self.started.elapsed().as_secs_f64()
+    }
+
     /// Fraction of the run done.
     pub fn progress(&self) -> f64 {
         let by_iter = self.iter as f64 / self.options.iters.max(1) as f64;
-        let by_time = self
-            .options
-            .seconds
-            .map_or(0.0, |s| self.started.elapsed().as_secs_f64() / s.max(1e-9));
+        let by_time = self.options.seconds.map_or(0.0, |s| self.elapsed() / s.max(1e-9));
         by_iter.max(by_time).min(1.0)
+    }
+
+    /// The run's state as a tensor file: the template features, Adam's moments, and the
+    /// iteration, random stream, history and options in the metadata.
+    pub fn checkpoint(&self) -> Result<assetfield_core::TensorFile, SceneError> {
+        let mut f = assetfield_core::TensorFile::new();
+        f.set_meta("format", CHECKPOINT_FORMAT);
+        let n = self.params.len();
+        f.insert_f32("params", &[n], self.params.clone());
+        f.insert_f32("adam_m", &[n], self.adam_m.clone());
+        f.insert_f32("adam_v", &[n], self.adam_v.clone());
+        let state = RefineState {
+            iter: self.iter,
+            adam_t: self.adam_t,
+            rng: self.rng,
+            elapsed: self.elapsed(),
+            history: self.history.clone(),
+            options: self.options.clone(),
+        };
+        f.set_meta_json("refine", &state).map_err(|e| SceneError::Refine {
+            dir: std::path::PathBuf::new(),
+            reason: format!("cannot describe the checkpoint: {e}"),
+        })?;
+        Ok(f)
+    }
+
+    /// Continue from a checkpoint of a run on the same library (same templates and
+    /// sizes): features, moments, iteration and random stream as they were. `iters` and
+    /// `seconds`, when given, replace the run's limits.
+    pub fn resume(
+        &mut self,
+        file: &assetfield_core::TensorFile,
+        path: &std::path::Path,
+        iters: Option<u64>,
+        seconds: Option<f64>,
+    ) -> Result<(), SceneError> {
+        let bad = |reason: String| SceneError::Library { path: path.to_path_buf(), reason };
+        if file.meta("format") != Some(CHECKPOINT_FORMAT) {
+            return Err(bad(format!(
+                "not a refinement checkpoint (format {CHECKPOINT_FORMAT:?} expected)"
+            )));
+        }
+        let state: RefineState =
+            file.meta_json("refine").map_err(|e| bad(format!("no usable state: {e}")))?;
+        let n = self.params.len();
+        let get = |name: &str| -> Result<Vec<f32>, SceneError> {
+            let v = file.get_f32(name, &[n]).map_err(|e| {
+                bad(format!("{e} (the checkpoint is of another library's templates)"))
+            })?;
+            if let Some((i, x)) = assetfield_core::first_non_finite(v) {
+                return Err(bad(format!("tensor {name:?} has a non-finite value ({x}) at {i}")));
+            }
+            Ok(v.to_vec())
+        };
+        self.params = get("params")?;
+        self.adam_m = get("adam_m")?;
+        self.adam_v = get("adam_v")?;
+        self.iter = state.iter;
+        self.adam_t = state.adam_t;
+        self.rng = state.rng;
+        self.history = state.history;
+        self.elapsed_before = state.elapsed;
+        self.started = std::time::Instant::now();
+        self.options = state.options;
+        if let Some(i) = iters {
+            self.options.iters = i;
+        }
+        if seconds.is_some() {
+            self.options.seconds = seconds;
+        }
+        self.compose();
+        self.comp.refresh_occupancy(None);
+        Ok(())
     }
 
     pub fn finished(&self) -> bool {
@@ -361,53 +454,43 @@ impl TemplateRefiner {
             (u64::from(i.width), u64::from(i.height))
         };
         let n_views = self.views.len() as u64;
-        let picks: Vec<(usize, u32, u32, f32)> = (0..batch)
-            .map(|_| {
-                let r = split_mix(&mut self.rng);
-                let v = (r % n_views) as usize;
-                let px = (r / n_views) % (w0 * h0);
-                let j = split_mix(&mut self.rng);
-                (v, (px % w0) as u32, (px / w0) as u32, (j >> 40) as f32 / (1u64 << 24) as f32)
-            })
-            .collect();
+        let picks = random_pixels(&mut self.rng, n_views, w0, h0, batch);
         let field = &self.comp.field;
         let occ = self.comp.occupancy.as_ref();
         let (views, bg) = (&self.views, self.background);
-        let n = field.params.len();
         let scale = 2.0 / (batch as f32 * 3.0);
         let chunk = batch.div_ceil(self.options.chunks);
         let settings = MarchSettings::default();
-        let results: Vec<(f32, Vec<f32>)> = picks
-            .par_chunks(chunk)
-            .map(|picks| {
-                let mut work = MarchWork::default();
-                let mut grad = vec![0.0f32; n];
+        let planes = plane_ranges(&self.comp);
+        let (nd, nc) = (self.comp.nd, self.comp.nc);
+        let touched = &self.touched;
+        let sse: Vec<f32> = self
+            .work
+            .par_iter_mut()
+            .zip(picks.par_chunks(chunk))
+            .map(|((work, grad), picks)| {
+                for &k in touched {
+                    let k = k as usize;
+                    grad[planes.0 + k * nd..][..nd].fill(0.0);
+                    grad[planes.1 + k * nc..][..nc].fill(0.0);
+                }
                 let mut rays: Vec<Ray> = Vec::with_capacity(picks.len());
                 let mut targets = Vec::with_capacity(picks.len());
                 let mut jitter = Vec::with_capacity(picks.len());
                 for &(v, i, j, jit) in picks {
-                    let (cam, rgb) = &views[v];
+                    let (cam, rgb) = &views[v as usize];
                     rays.push(cam.pixel_ray(i, j));
                     let k = (j as usize * cam.intrinsics.width as usize + i as usize) * 3;
                     targets.push(Vec3::new(rgb[k], rgb[k + 1], rgb[k + 2]));
                     jitter.push(jit);
                 }
-                march::forward(field, occ, &rays, Some(&jitter), bg, &settings, &mut work);
-                let mut sse = 0.0;
-                let d: Vec<Vec3> = work
-                    .rgb
-                    .iter()
-                    .zip(&targets)
-                    .map(|(c, t)| {
-                        sse += (*c - *t).length_squared();
-                        (*c - *t) * scale
-                    })
-                    .collect();
-                march::backward(field, bg, &d, None, &mut work, &mut grad);
-                (sse, grad)
+                march::forward(field, occ, &rays, Some(&jitter), bg, &settings, work);
+                let (sse, d) = colour_error(&work.rgb, &targets, scale);
+                march::backward(field, bg, &d, None, work, grad);
+                sse
             })
             .collect();
-        let grads: Vec<&[f32]> = results.iter().map(|r| r.1.as_slice()).collect();
+        let grads: Vec<&[f32]> = self.work.iter().map(|w| w.1.as_slice()).collect();
         let g = self.to_templates(&grads);
         // Adam
         self.adam_t += 1;
@@ -424,7 +507,7 @@ impl TemplateRefiner {
         }
         self.compose();
         self.iter += 1;
-        let sse: f32 = results.iter().map(|r| r.0).sum();
+        let sse: f32 = sse.iter().sum();
         let psnr = -10.0 * (sse / (batch as f32 * 3.0)).max(1e-12).log10();
         if self.iter.is_multiple_of(10) || self.iter == 1 {
             self.history.push((self.iter, psnr));

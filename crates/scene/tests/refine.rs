@@ -90,3 +90,24 @@ fn plane_gradients_map_onto_templates_by_the_exact_transpose() {
     r.compose();
     assert!(checked > 10, "the functional reached {checked} template features");
 }
+
+#[test]
+fn a_checkpoint_restores_the_run_and_refuses_other_templates() {
+    let lib = library("ckpt");
+    let mut r = refiner(&lib);
+    for _ in 0..3 {
+        r.step();
+    }
+    let f = r.checkpoint().unwrap();
+    let mut again = refiner(&lib);
+    again.resume(&f, std::path::Path::new("c.safetensors"), Some(10), None).unwrap();
+    assert_eq!((again.iter, again.params()), (3, r.params()));
+    assert_eq!(planes(&lib, &again), planes(&lib, &r));
+    assert_eq!(again.options.iters, 10);
+    // a checkpoint of other templates (other sizes) is refused, naming the file
+    let mut other = f.clone();
+    let n = r.params().len() + 1;
+    other.insert_f32("params", &[n], vec![0.0; n]);
+    let e = refiner(&lib).resume(&other, std::path::Path::new("c.safetensors"), None, None);
+    assert!(e.unwrap_err().to_string().contains("c.safetensors"));
+}

@@ -54,9 +54,24 @@ pub struct RefineArgs {
     /// Random seed of the ray batches.
     #[arg(long, default_value_t = 20230)]
     pub seed: u64,
+    /// Save a checkpoint (OUT.ckpt.safetensors, next to the output folder) this often, in
+    /// wall-clock minutes (0: only on Ctrl-C); it is removed once the library is written.
+    #[arg(long, default_value_t = 5.0)]
+    pub checkpoint_every_minutes: f64,
+    /// Continue the run saved in OUT.ckpt.safetensors (--iters / --minutes, when given,
+    /// replace its limits).
+    #[arg(long)]
+    pub resume: bool,
     /// Replace the output folder if it exists.
     #[arg(long)]
     pub force: bool,
+}
+
+/// `OUT` -> `OUT.ckpt.safetensors` beside it.
+fn checkpoint_path(out: &std::path::Path) -> PathBuf {
+    let name =
+        out.file_name().map_or_else(|| "refined".into(), |s| s.to_string_lossy().into_owned());
+    out.with_file_name(format!("{name}.ckpt.safetensors"))
 }
 
 /// `refine.json`.
@@ -102,6 +117,22 @@ pub fn refine(a: RefineArgs) -> Result<()> {
     }
     if a.out.exists() && !a.force {
         bail!("{} already exists (pass --force to replace it)", a.out.display());
+    }
+    if !(a.checkpoint_every_minutes.is_finite() && a.checkpoint_every_minutes >= 0.0) {
+        bail!("--checkpoint-every-minutes must be 0 or more");
+    }
+    let ckpt = checkpoint_path(&a.out);
+    if a.resume && !ckpt.is_file() {
+        bail!(
+            "--resume: no checkpoint at {}; run without --resume to start afresh",
+            ckpt.display()
+        );
+    }
+    if !a.resume && ckpt.exists() && !a.force {
+        bail!(
+            "a checkpoint of an earlier run exists at {}: continue it with --resume, or pass --force to start afresh",
+            ckpt.display()
+        );
     }
     let lib = AssetLibrary::open(&a.lib)?;
     if lib.index.containers.is_empty() {
@@ -184,6 +215,17 @@ pub fn refine(a: RefineArgs) -> Result<()> {
         Ok(compose_draws(&lib, &draws)?)
     };
     let psnr_before = mean_psnr(&templates_draws(&r)?, &test, bg);
+    if a.resume {
+        let f = assetfield_core::TensorFile::load(&ckpt)
+            .with_context(|| format!("reading checkpoint {}", ckpt.display()))?;
+        r.resume(&f, &ckpt, a.iters, options.seconds)?;
+        eprintln!("resuming at iteration {} from {}", r.iter, ckpt.display());
+    }
+    let save = |r: &TemplateRefiner| -> Result<()> {
+        r.checkpoint()?.save(&ckpt).with_context(|| format!("saving checkpoint {}", ckpt.display()))
+    };
+    let every = std::time::Duration::from_secs_f64(a.checkpoint_every_minutes * 60.0);
+    let mut last_save = Instant::now();
     eprintln!(
         "refining {} templates of {} instances against {} training views{}",
         lib.index.categories.len(),
@@ -202,9 +244,21 @@ pub fn refine(a: RefineArgs) -> Result<()> {
     while !r.finished() {
         if interrupt::requested() {
             pb.finish_and_clear();
-            return Err(anyhow!("interrupted at iteration {}: nothing was written", r.iter));
+            save(&r)?;
+            return Err(anyhow!(
+                "interrupted at iteration {}: checkpoint saved to {}; no library was written. Continue with: assetfield refine {} --data {} --out {} --resume",
+                r.iter,
+                ckpt.display(),
+                a.lib.display(),
+                a.data.display(),
+                a.out.display()
+            ));
         }
         last = r.step();
+        if !every.is_zero() && last_save.elapsed() >= every {
+            save(&r)?;
+            last_save = Instant::now();
+        }
         pb.set_position((r.progress() * 1000.0) as u64);
         pb.set_message(format!(
             "it {} | psnr {last:.2} | {}",
@@ -259,6 +313,9 @@ pub fn refine(a: RefineArgs) -> Result<()> {
         serde_json::to_string_pretty(&report)?.as_bytes(),
     )?;
     let out = staging.commit()?;
+    if ckpt.exists() {
+        std::fs::remove_file(&ckpt).with_context(|| format!("removing {}", ckpt.display()))?;
+    }
     println!(
         "refined {} templates for {} iterations in {} (final batch PSNR {last:.2} dB)",
         report.templates,
