@@ -73,12 +73,12 @@ out, at = sys.argv[1], sys.argv[2]
 lib = open(f"{out}/lib/library_s/layout.ron").read().replace('path: "."', 'path: "lib/library_s"')
 other = open(f"{out}/lib/living_room_s/layout.ron").read()
 # the living room's instance named sofa_s, and the asset it uses
-m = re.search(r'Instance\(\s*asset: "([^"]+)",[^)]*?name: "sofa_s"', other, re.S)
-asset = m.group(1)
+m = re.search(r'Instance\(\s*asset: "([^"]+)",\s*at: \([^)]*\),\s*(?:yaw: ([-0-9.]+),\s*)?name: "sofa_s"', other)
+asset, yaw = m.group(1), m.group(2) or "0.0"
 d = re.search(r'"%s": Asset\((.*?)\n        \),' % re.escape(asset), other, re.S).group(1)
 d = d.replace('path: "."', 'path: "lib/living_room_s"')
 lib = lib.replace("assets: {", 'assets: {\n        "visitor_sofa": Asset(%s\n        ),' % d, 1)
-lib = lib.replace("layout: [", 'layout: [\n        Instance(asset: "visitor_sofa", at: (%s), name: "visitor"),' % at, 1)
+lib = lib.replace("layout: [", 'layout: [\n        Instance(asset: "visitor_sofa", at: (%s), yaw: %s, name: "visitor"),' % (at, yaw), 1)
 open(f"{out}/compose_with_sofa.ron", "w").write(lib)
 PY
   [ -f "$OUT/compose_with_sofa/metrics.json" ] ||
