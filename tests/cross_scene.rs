@@ -11,31 +11,24 @@ use assetfield_mining::library::open_library;
 use assetfield_tests::{SCENE, fail, ok, scratch};
 use std::path::Path;
 
-/// `SCENE` with its objects moved and a low stand carrying a block: the same wedges and
-/// blocks, one block at another height.
-const SCENE_B: &str = r#"Scene(
-    name: "tiny_b",
-    assets: {
-        "floor": Asset(container: true, parts: [
-            Box(center: (0.0, 0.0, -0.01), size: (4.0, 3.2, 0.02), color: (0.55, 0.5, 0.45)),
-        ]),
-        "wedge": Asset(parts: [
-            Box(center: (0.0, 0.0, 0.2), size: (0.8, 0.5, 0.4), color: (0.8, 0.15, 0.1)),
-            Box(center: (-0.35, 0.0, 0.5), size: (0.1, 0.5, 0.2), color: (0.1, 0.2, 0.8)),
-        ]),
-        "block": Asset(parts: [
-            Box(center: (0.0, 0.0, 0.15), size: (0.6, 0.6, 0.3), color: (0.2, 0.7, 0.3)),
-            Box(center: (0.2, 0.2, 0.4), size: (0.2, 0.2, 0.2), color: (0.95, 0.85, 0.2)),
-        ]),
-    },
-    layout: [
+/// `SCENE`'s assets on a smaller floor (another box, so other plane sizes), placed and
+/// turned otherwise.
+fn scene_b() -> String {
+    let assets = &SCENE[..SCENE.find("    layout: [").expect("SCENE has a layout")];
+    let assets =
+        assets.replace("\"tiny\"", "\"tiny_b\"").replace("(4.6, 3.6, 0.02)", "(4.0, 3.2, 0.02)");
+    assert!(assets.contains("(4.0, 3.2, 0.02)"), "SCENE's floor changed: update scene_b");
+    format!(
+        r#"{assets}    layout: [
         Instance(asset: "floor", at: (0, 0)),
         Instance(asset: "wedge", at: (-1.0, -0.7), yaw: 45, name: "w0"),
         Instance(asset: "wedge", at: (0.9, 0.8), yaw: 160, name: "w1"),
         Instance(asset: "block", at: (-0.9, 0.7), yaw: 10, name: "b0"),
         Instance(asset: "block", at: (0.9, -0.7), yaw: 75, name: "b1"),
     ],
-)"#;
+)"#
+    )
+}
 
 fn synth(dir: &Path, name: &str, script: &str) {
     std::fs::write(dir.join(format!("{name}.ron")), script).unwrap();
@@ -58,7 +51,7 @@ fn json(path: &Path) -> serde_json::Value {
 fn scenes_trained_together_form_one_library_that_a_new_scene_joins() {
     let dir = scratch("cross-scene");
     synth(&dir, "alpha", SCENE);
-    synth(&dir, "beta", SCENE_B);
+    synth(&dir, "beta", &scene_b());
     let train = ["--iters", "1500", "--res", "64", "--batch", "2048"];
     let out = ok(&dir, &[&["train", "alpha", "beta", "--out", "joint"][..], &train].concat());
     assert!(

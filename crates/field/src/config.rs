@@ -147,7 +147,7 @@ impl FieldConfig {
             guide_hidden: 32,
             semantic_channels: 0,
             density_shift: -10.0,
-            distance_scale: 25.0 * 3.0 / aabb.extent().max_element().max(1e-6),
+            distance_scale: distance_scale_for(aabb.extent().max_element()),
             step_ratio: 0.5,
         };
         c.res = c.resolution_for(plane_res);
@@ -169,7 +169,35 @@ impl FieldConfig {
     pub fn resolution_for_voxel(&self, voxel: f32) -> [usize; 3] {
         let e = self.aabb().extent();
         let n = |len: f32, min: usize| ((len / voxel).round() as usize + 1).max(min);
-        [n(e.x, 2), n(e.y, 2), n(e.z, 32)]
+        [n(e.x, 2), n(e.y, 2), n(e.z, MIN_VERTICAL_RES)]
+    }
+
+    /// This configuration over another ground window: `cols` x `rows` plane nodes `texel`
+    /// apart from `min` (world XY); the vertical range and resolution, networks and scales
+    /// stay. A window that is this configuration's own keeps its box exactly.
+    pub fn on_ground_window(
+        &self,
+        min: glam::Vec2,
+        cols: usize,
+        rows: usize,
+        texel: glam::Vec2,
+    ) -> FieldConfig {
+        let mut config = self.clone();
+        let same = config.res[0] == cols
+            && config.res[1] == rows
+            && (config.aabb[0][0] - min.x).abs() < 1e-4 * texel.x.max(1.0)
+            && (config.aabb[0][1] - min.y).abs() < 1e-4 * texel.y.max(1.0);
+        if !same {
+            let max =
+                min + glam::Vec2::new((cols - 1) as f32 * texel.x, (rows - 1) as f32 * texel.y);
+            config.res[0] = cols;
+            config.res[1] = rows;
+            config.aabb[0][0] = min.x;
+            config.aabb[0][1] = min.y;
+            config.aabb[1][0] = max.x;
+            config.aabb[1][1] = max.y;
+        }
+        config
     }
 
     /// Whether tensor `name` is one of the ground planes, which every scene has for itself;
@@ -284,6 +312,15 @@ impl FieldConfig {
             _ => self.color_channels,
         }
     }
+}
+
+/// Fewest samples of the vertical axis: a low box still gets a usable height resolution.
+pub const MIN_VERTICAL_RES: usize = 32;
+
+/// The density's distance scale for a box whose largest extent is `extent` (world units):
+/// TensoRF's 25 for its 3-unit box, so that opacities per voxel do not depend on the unit.
+pub fn distance_scale_for(extent: f32) -> f32 {
+    25.0 * 3.0 / extent.max(1e-6)
 }
 
 /// The ground-plane tensors of the S- and I-AssetField (see [`FieldConfig::is_plane_tensor`]).

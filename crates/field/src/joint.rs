@@ -13,7 +13,7 @@
 //! extent of any box). [`share_config`] fits a new scene's box to an existing shared set in
 //! the same way, for training its planes alone against frozen shared tensors.
 
-use crate::config::{FieldConfig, ModelKind, SharingMismatch};
+use crate::config::{FieldConfig, ModelKind, SharingMismatch, distance_scale_for};
 use crate::io::FieldError;
 use crate::model::Field;
 use crate::train::{GridRule, StepStats, TrainConfig, Trainer};
@@ -21,10 +21,6 @@ use assetfield_core::Aabb3;
 use assetfield_data::Dataset;
 use std::path::Path;
 use std::time::Instant;
-
-/// TensoRF's distance scale for a 3-unit box: the density's `distance_scale` is this over the
-/// largest extent (see [`FieldConfig::new`]).
-const DISTANCE_SCALE_NUMERATOR: f32 = 75.0;
 
 /// Grow `len` to a whole number of voxels (at least one).
 fn whole_voxels(len: f32, voxel: f32) -> f32 {
@@ -75,7 +71,7 @@ pub fn joint_configs(
         .map(|b| {
             let mut c = template.clone();
             c.aabb = [b.min.to_array(), b.max.to_array()];
-            c.distance_scale = DISTANCE_SCALE_NUMERATOR / largest;
+            c.distance_scale = distance_scale_for(largest);
             c.res = c.resolution_for_voxel(voxel);
             c
         })

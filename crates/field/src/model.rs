@@ -894,15 +894,10 @@ impl Field {
     /// Copy the shared tensors (see [`Field::shared_ranges`]) of `from`, a field whose
     /// configuration can share with this one's ([`FieldConfig::sharing_mismatch`]).
     pub fn copy_shared_from(&mut self, from: &Field) {
-        for spec in &self.params.specs {
-            if FieldConfig::is_plane_tensor(&spec.name) {
-                continue;
-            }
-            let src =
-                from.params.spec(&spec.name).expect("sharing configurations have the same tensors");
-            debug_assert_eq!(src.shape, spec.shape);
-            self.params.data[spec.offset..spec.offset + spec.len]
-                .copy_from_slice(&from.params.data[src.offset..src.offset + src.len]);
+        for (name, src) in from.shared_ranges() {
+            let dst = self.params.spec(name).expect("sharing configurations have the same tensors");
+            let dst = dst.offset..dst.offset + dst.len;
+            self.params.data[dst].copy_from_slice(&from.params.data[src]);
         }
     }
 

@@ -4,7 +4,7 @@
 //! space, L1 and TV regularisers.
 
 use crate::adam::Adam;
-use crate::config::{FieldConfig, ModelKind};
+use crate::config::{FieldConfig, MIN_VERTICAL_RES, ModelKind};
 use crate::io::FieldError;
 use crate::march::{self, MarchSettings, MarchWork};
 use crate::model::Field;
@@ -175,10 +175,6 @@ pub fn process_cpu_seconds() -> Option<f64> {
     // USER_HZ is 100 on every Linux architecture
     Some(ticks / 100.0)
 }
-
-/// Fewest vertical axis samples at any stage ([`FieldConfig::resolution_for`] gives a field
-/// trained alone at least as many).
-const MIN_VERTICAL_RES: usize = 32;
 
 /// Iterations before the first occupancy grid: before that the density has not formed and
 /// a grid would mark the scene empty for good (short runs never use one).

@@ -202,26 +202,34 @@ pub struct Library {
     pub info: FieldInfo,
 }
 
+/// A field of configuration `config` with zero ground planes and every other tensor from
+/// `shared` (a library's shared file): the one way a library's shared tensors become a
+/// field (`train --share`, regrouping, the composer's canvases).
+pub fn field_with_shared(
+    config: FieldConfig,
+    shared: &TensorFile,
+) -> std::result::Result<assetfield_field::Field, assetfield_core::CoreError> {
+    let mut field = assetfield_field::Field::new(config, 0);
+    for spec in field.params.specs.clone() {
+        let data = &mut field.params.data[spec.offset..spec.offset + spec.len];
+        if FieldConfig::is_plane_tensor(&spec.name) {
+            data.fill(0.0);
+        } else {
+            data.copy_from_slice(shared.get_f32(&spec.name, &spec.shape)?);
+        }
+    }
+    Ok(field)
+}
+
 impl Library {
     /// A field of the library's shared configuration holding its shared tensors (vertical
     /// axes, basis, guidance MLPs, decoders) and zero ground planes: what a new scene is
     /// fitted against (`train --share LIB`).
     pub fn shared_field(&self) -> Result<assetfield_field::Field> {
-        let mut field = assetfield_field::Field::new(self.config.clone(), 0);
-        let path = self.dir.join(&self.index.shared.file).display().to_string();
-        for spec in field.params.specs.clone() {
-            let data = &mut field.params.data[spec.offset..spec.offset + spec.len];
-            if FieldConfig::is_plane_tensor(&spec.name) {
-                data.fill(0.0);
-                continue;
-            }
-            let v = self
-                .shared
-                .get_f32(&spec.name, &spec.shape)
-                .map_err(|e| MiningError::Format { path: path.clone(), message: e.to_string() })?;
-            data.copy_from_slice(v);
-        }
-        Ok(field)
+        field_with_shared(self.config.clone(), &self.shared).map_err(|e| MiningError::Format {
+            path: self.dir.join(&self.index.shared.file).display().to_string(),
+            message: e.to_string(),
+        })
     }
 }
 
@@ -839,7 +847,7 @@ pub struct MergeReport {
     pub categories: usize,
     pub containers: usize,
     /// With ground truth: what `metrics.json` holds.
-    pub metrics: Option<crate::regroup::CrossSceneMetrics>,
+    pub metrics: Option<crate::metrics::CrossSceneMetrics>,
 }
 
 /// How [`merge_libraries_with`] merges.
@@ -994,21 +1002,23 @@ pub fn merge_libraries_with(
         scene_of.extend(std::iter::repeat_n(k, lib.index.entries.len()));
     }
     if let Some(r) = &opts.regroup {
-        let merged = Library {
+        // the merged library as it will be written (moved in and out, not copied)
+        let mut merged = Library {
             dir: out.to_path_buf(),
-            index: index.clone(),
-            patches: patches.clone(),
+            index,
+            patches,
             shared: libs[0].shared.clone(),
             config: libs[0].config.clone(),
             info: libs[0].info.clone(),
         };
-        let g = crate::regroup::regroup(&merged, &r.group, r.blur_levels, &r.yaw)?;
-        index.entries = g.entries;
-        index.categories = g.categories;
+        let g = crate::regroup::regroup(&merged, r)?;
+        merged.index.entries = g.entries;
+        merged.index.categories = g.categories;
+        (index, patches) = (merged.index, merged.patches);
     }
     let metrics = (!opts.gt.is_empty()).then(|| {
         let names: Vec<String> = inputs.iter().map(|p| p.display().to_string()).collect();
-        crate::regroup::cross_scene_metrics(&index, &scene_of, &names, &opts.gt, opts.iou_threshold)
+        crate::metrics::cross_scene_metrics(&index, &scene_of, &names, &opts.gt, opts.iou_threshold)
     });
     let staging = StagingDir::new(out, force)?;
     write_library_files(staging.path(), &index, &patches, &libs[0].shared)?;

@@ -306,6 +306,143 @@ impl Metrics {
     }
 }
 
+/// One scene's scores in a merged library (its entries against its ground truth).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SceneScore {
+    pub library: String,
+    pub entries: usize,
+    pub ground_truth: usize,
+    pub matched: usize,
+    pub precision: f32,
+    pub recall: f32,
+    pub f1: f32,
+    /// ARI of the scene's matched entries under the merged library's categories.
+    pub ari: f32,
+}
+
+/// `metrics.json` of a merged library with ground truth.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CrossSceneMetrics {
+    /// ARI over the matched entries of every scene together, against their ground-truth
+    /// categories (category names shared between the scenes' ground truths).
+    pub cross_scene_ari: f32,
+    /// Matched entries of all scenes.
+    pub matched: usize,
+    pub categories: usize,
+    /// Categories with members from more than one scene.
+    pub categories_spanning_scenes: usize,
+    /// Ground-truth categories found in more than one scene, and how many of them the
+    /// merged library puts in one category (all their matched entries together).
+    pub shared_gt_categories: usize,
+    pub shared_gt_categories_united: usize,
+    pub iou_threshold: f32,
+    pub per_scene: Vec<SceneScore>,
+    /// Per matched entry: (entry, ground-truth category, merged category).
+    pub matches: Vec<(String, String, String)>,
+}
+
+/// Score a merged library: each scene's entries (`scene_of[i]`: the input of entry `i`)
+/// against that scene's ground truth (BEV IoU at least `iou_threshold`), and the ARI over
+/// all matched entries together.
+pub fn cross_scene_metrics(
+    index: &crate::library::LibraryIndex,
+    scene_of: &[usize],
+    names: &[String],
+    gts: &[GtLayout],
+    iou_threshold: f32,
+) -> CrossSceneMetrics {
+    use std::collections::BTreeSet;
+    let cat_index: BTreeMap<&str, usize> =
+        index.categories.iter().enumerate().map(|(k, c)| (c.name.as_str(), k)).collect();
+    let mut matches = Vec::new();
+    let mut per_scene = Vec::new();
+    for (s, gt) in gts.iter().enumerate() {
+        let ids: Vec<usize> =
+            (0..index.entries.len()).filter(|&i| scene_of.get(i) == Some(&s)).collect();
+        let local: BTreeMap<&str, usize> =
+            ids.iter().enumerate().map(|(k, &i)| (index.entries[i].name.as_str(), k)).collect();
+        let preds: Vec<Predicted> = ids
+            .iter()
+            .enumerate()
+            .map(|(k, &i)| {
+                let e = &index.entries[i];
+                let b = e.source_box;
+                let category = cat_index.get(e.category.as_str()).copied().unwrap_or(usize::MAX);
+                let template = index
+                    .categories
+                    .get(category)
+                    .and_then(|c| local.get(c.template.as_str()).copied())
+                    .unwrap_or(k);
+                Predicted {
+                    world: Rect2::new(Vec2::new(b[0], b[1]), Vec2::new(b[2], b[3])),
+                    category,
+                    template,
+                    yaw_rel: e.yaw_deg,
+                    position: e.pivot_world(),
+                }
+            })
+            .collect();
+        let m = evaluate(&preds, gt, iou_threshold);
+        for inst in &m.per_instance {
+            if let Some(g) = &inst.gt_category {
+                let e = &index.entries[ids[inst.detection]];
+                matches.push((e.name.clone(), g.clone(), e.category.clone()));
+            }
+        }
+        per_scene.push(SceneScore {
+            library: names.get(s).cloned().unwrap_or_default(),
+            entries: ids.len(),
+            ground_truth: m.ground_truth,
+            matched: m.matched,
+            precision: m.precision,
+            recall: m.recall,
+            f1: m.f1,
+            ari: m.ari,
+        });
+    }
+    let gt_labels: Vec<&str> = matches.iter().map(|m| m.1.as_str()).collect();
+    let ours: Vec<&str> = matches.iter().map(|m| m.2.as_str()).collect();
+    let cross_scene_ari =
+        if matches.is_empty() { 0.0 } else { adjusted_rand_index(&ours, &gt_labels) };
+    let scene_by_name: BTreeMap<&str, usize> = index
+        .entries
+        .iter()
+        .enumerate()
+        .map(|(i, e)| (e.name.as_str(), scene_of.get(i).copied().unwrap_or(0)))
+        .collect();
+    let spanning = index
+        .categories
+        .iter()
+        .filter(|c| {
+            c.members
+                .iter()
+                .filter_map(|m| scene_by_name.get(m.as_str()))
+                .collect::<BTreeSet<_>>()
+                .len()
+                > 1
+        })
+        .count();
+    // ground-truth categories matched in several scenes, and whether they stay together
+    let mut by_gt: BTreeMap<&str, (BTreeSet<usize>, BTreeSet<&str>)> = BTreeMap::new();
+    for (name, g, c) in &matches {
+        let e = by_gt.entry(g.as_str()).or_default();
+        e.0.insert(scene_by_name.get(name.as_str()).copied().unwrap_or(0));
+        e.1.insert(c.as_str());
+    }
+    let shared: Vec<_> = by_gt.values().filter(|(scenes, _)| scenes.len() > 1).collect();
+    CrossSceneMetrics {
+        cross_scene_ari,
+        matched: matches.len(),
+        categories: index.categories.len(),
+        categories_spanning_scenes: spanning,
+        shared_gt_categories: shared.len(),
+        shared_gt_categories_united: shared.iter().filter(|(_, cats)| cats.len() == 1).count(),
+        iou_threshold,
+        per_scene,
+        matches,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -21,7 +21,7 @@ use crate::world::Composer;
 use assetfield_core::{Rect2, TensorFile};
 use assetfield_field::{Field, FieldConfig};
 use assetfield_layout::{AssetCatalog, AssetInfo, LoadedScript, PartsCatalog};
-use assetfield_mining::library::{Entry, LibraryIndex, open_library};
+use assetfield_mining::library::{Entry, LibraryIndex, field_with_shared, open_library};
 use assetfield_mining::{Mask, dilate};
 use glam::{Vec2, Vec3};
 use std::collections::BTreeMap;
@@ -115,35 +115,13 @@ impl AssetLibrary {
     /// A field with the library's shared tensors on a plane grid of `cols x rows` texel
     /// nodes starting at `min` (its planes zero).
     fn field_on(&self, min: Vec2, rows: usize, cols: usize) -> Result<Field, SceneError> {
-        let mut config = self.config.clone();
-        let texel = self.texel();
-        let max = min + Vec2::new((cols - 1) as f32 * texel.x, (rows - 1) as f32 * texel.y);
-        let same = config.res[0] == cols
-            && config.res[1] == rows
-            && (config.aabb[0][0] - min.x).abs() < 1e-4 * texel.x.max(1.0)
-            && (config.aabb[0][1] - min.y).abs() < 1e-4 * texel.y.max(1.0);
-        if !same {
-            config.res[0] = cols;
-            config.res[1] = rows;
-            config.aabb[0][0] = min.x;
-            config.aabb[0][1] = min.y;
-            config.aabb[1][0] = max.x;
-            config.aabb[1][1] = max.y;
-        }
-        let mut field = Field::new(config, 0);
-        let shared_path = self.dir.join(&self.index.shared.file);
-        for spec in field.params.specs.clone() {
-            let data = &mut field.params.data[spec.offset..spec.offset + spec.len];
-            if spec.name == "density.plane" || spec.name == "color.plane" {
-                data.fill(0.0);
-                continue;
-            }
-            let v = self.shared.get_f32(&spec.name, &spec.shape).map_err(|e| {
-                lib_err(&shared_path, format!("{e} (the shared tensors do not fit their config)"))
-            })?;
-            data.copy_from_slice(v);
-        }
-        Ok(field)
+        let config = self.config.on_ground_window(min, cols, rows, self.texel());
+        field_with_shared(config, &self.shared).map_err(|e| {
+            lib_err(
+                &self.dir.join(&self.index.shared.file),
+                format!("{e} (the shared tensors do not fit their config)"),
+            )
+        })
     }
 
     /// Build the composition for `canvas`.

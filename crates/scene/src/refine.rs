@@ -17,14 +17,17 @@
 use crate::error::SceneError;
 use crate::library::{AssetLibrary, Canvas};
 use crate::patch::FeaturePatch;
-use crate::raster::{Composition, DensityRule, InstanceDraw};
+use crate::raster::{Composition, InstanceDraw};
 use assetfield_core::{Camera, GroundTransform, Ray};
+use assetfield_field::adam::Adam;
 use assetfield_field::march::{self, MarchSettings, MarchWork};
+use assetfield_field::params::{Group, ParamSet};
 use assetfield_field::train::{colour_error, random_pixels};
 use assetfield_mining::library::{EntryKind, LibraryIndex};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 /// Settings of a refinement run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -39,8 +42,6 @@ pub struct RefineOptions {
     pub lr: f32,
     /// The rate decays exponentially to this fraction at the end.
     pub lr_decay_target: f32,
-    /// The halo of the patches (texels; the ring `mine` filled in the container).
-    pub halo: usize,
     /// Rebuild the composed field's occupancy grid every this many iterations.
     pub occupancy_every: u64,
     /// Chunks per batch (fixed, so that a seed gives the same result on any thread count).
@@ -56,7 +57,6 @@ impl Default for RefineOptions {
             batch: 4096,
             lr: 0.005,
             lr_decay_target: 0.1,
-            halo: crate::library::DEFAULT_HALO,
             occupancy_every: 100,
             chunks: 4,
             seed: 20230,
@@ -88,11 +88,9 @@ pub struct TemplateRefiner {
     pub options: RefineOptions,
     pub comp: Composition,
     templates: Vec<Template>,
-    /// Per template texel: `nd` density then `nc` colour features.
-    params: Vec<f32>,
-    adam_m: Vec<f32>,
-    adam_v: Vec<f32>,
-    adam_t: i32,
+    /// One tensor, `templates`: per template texel `nd` density then `nc` colour features.
+    params: ParamSet,
+    adam: Adam,
     /// Composed texels that some instance reaches, with their taps (CSR: `start[j]..start[j +
     /// 1]` of `taps`) and their canvas shares.
     touched: Vec<u32>,
@@ -120,7 +118,7 @@ pub struct TemplateRefiner {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 struct RefineState {
     iter: u64,
-    adam_t: i32,
+    adam_t: u32,
     rng: u64,
     elapsed: f64,
     history: Vec<(u64, f32)>,
@@ -202,11 +200,13 @@ fn container_composition(lib: &AssetLibrary) -> Result<Composition, SceneError> 
 }
 
 impl TemplateRefiner {
-    /// Prepare refining `lib`'s templates against training views (camera and RGB pixels,
-    /// row-major, in the library's frame: its ground alignment applied), composited on
-    /// `background`.
+    /// Prepare refining `lib`'s templates (their patches taken from `patches`, the
+    /// library's patches by entry, [`AssetLibrary::patches`]) against training views (camera
+    /// and RGB pixels, row-major, in the library's frame: its ground alignment applied),
+    /// composited on `background`.
     pub fn new(
         lib: &AssetLibrary,
+        patches: &BTreeMap<String, FeaturePatch>,
         views: Vec<(Camera, Vec<f32>)>,
         background: Vec3,
         options: RefineOptions,
@@ -223,24 +223,27 @@ impl TemplateRefiner {
         if options.batch == 0 || options.chunks == 0 {
             return Err(refuse("the batch and its chunks must not be empty".into()));
         }
-        let mut comp = container_composition(lib)?;
-        comp.density_rule = DensityRule::Add;
+        let comp = container_composition(lib)?;
         let (nd, nc) = (comp.nd, comp.nc);
         let mut templates = Vec::new();
         let mut first_texel = 0;
         for c in &lib.index.categories {
-            let patch = lib.patch(&c.template, options.halo)?;
+            let patch = patches.get(&c.template).cloned().ok_or_else(|| {
+                refuse(format!("no patch for template {:?} of {:?}", c.template, c.name))
+            })?;
             let n = patch.rows * patch.cols;
             templates.push(Template { entry: c.template.clone(), patch, first_texel });
             first_texel += n;
         }
-        let mut params = Vec::with_capacity(first_texel * (nd + nc));
+        let mut flat = Vec::with_capacity(first_texel * (nd + nc));
         for t in &templates {
             for k in 0..t.patch.rows * t.patch.cols {
-                params.extend_from_slice(&t.patch.density[k * nd..][..nd]);
-                params.extend_from_slice(&t.patch.color[k * nc..][..nc]);
+                flat.extend_from_slice(&t.patch.density[k * nd..][..nd]);
+                flat.extend_from_slice(&t.patch.color[k * nc..][..nc]);
             }
         }
+        let mut params = ParamSet::default();
+        params.add("templates", &[first_texel, nd + nc], Group::Grid, |k| flat[k]);
         // the taps of every instance, per composed texel
         let grid = comp.grid;
         let mut raw: Vec<(u32, Tap, f32)> = Vec::new();
@@ -296,9 +299,7 @@ impl TemplateRefiner {
             comp,
             templates,
             params,
-            adam_m: vec![0.0; n],
-            adam_v: vec![0.0; n],
-            adam_t: 0,
+            adam: Adam::new(n),
             touched,
             start,
             taps,
@@ -335,7 +336,7 @@ impl TemplateRefiner {
                 *o = v * self.share[j];
             }
             for tap in &self.taps[self.start[j] as usize..self.start[j + 1] as usize] {
-                let p = &self.params[tap.texel as usize * stride..][..stride];
+                let p = &self.params.data[tap.texel as usize * stride..][..stride];
                 d.iter_mut().zip(&p[..nd]).for_each(|(a, v)| *a += tap.weight * v);
                 c.iter_mut().zip(&p[nd..]).for_each(|(a, v)| *a += tap.weight * v);
             }
@@ -369,12 +370,13 @@ impl TemplateRefiner {
         let mut f = assetfield_core::TensorFile::new();
         f.set_meta("format", CHECKPOINT_FORMAT);
         let n = self.params.len();
-        f.insert_f32("params", &[n], self.params.clone());
-        f.insert_f32("adam_m", &[n], self.adam_m.clone());
-        f.insert_f32("adam_v", &[n], self.adam_v.clone());
+        let (m, v, adam_t) = self.adam.state();
+        f.insert_f32("params", &[n], self.params.data.clone());
+        f.insert_f32("adam_m", &[n], m.to_vec());
+        f.insert_f32("adam_v", &[n], v.to_vec());
         let state = RefineState {
             iter: self.iter,
-            adam_t: self.adam_t,
+            adam_t,
             rng: self.rng,
             elapsed: self.elapsed(),
             history: self.history.clone(),
@@ -415,11 +417,9 @@ impl TemplateRefiner {
             }
             Ok(v.to_vec())
         };
-        self.params = get("params")?;
-        self.adam_m = get("adam_m")?;
-        self.adam_v = get("adam_v")?;
+        self.params.data = get("params")?;
+        self.adam.set_state(get("adam_m")?, get("adam_v")?, state.adam_t);
         self.iter = state.iter;
-        self.adam_t = state.adam_t;
         self.rng = state.rng;
         self.history = state.history;
         self.elapsed_before = state.elapsed;
@@ -492,19 +492,8 @@ impl TemplateRefiner {
             .collect();
         let grads: Vec<&[f32]> = self.work.iter().map(|w| w.1.as_slice()).collect();
         let g = self.to_templates(&grads);
-        // Adam
-        self.adam_t += 1;
-        let (b1, b2, eps) = (0.9f32, 0.99f32, 1e-8f32);
         let lr = self.options.lr * self.options.lr_decay_target.powf(progress as f32);
-        let alpha = lr / (1.0 - b1.powi(self.adam_t));
-        let c2 = 1.0 - b2.powi(self.adam_t);
-        for (((p, g), m), v) in
-            self.params.iter_mut().zip(&g).zip(&mut self.adam_m).zip(&mut self.adam_v)
-        {
-            *m = b1 * *m + (1.0 - b1) * g;
-            *v = b2 * *v + (1.0 - b2) * g * g;
-            *p -= alpha * *m / ((*v / c2).sqrt() + eps);
-        }
+        self.adam.step(&mut self.params, &g, |_| lr);
         self.compose();
         self.iter += 1;
         let sse: f32 = sse.iter().sum();
@@ -546,13 +535,13 @@ impl TemplateRefiner {
     /// The template features being refined: per template texel (templates in category
     /// order, texels row-major), `nd` density then `nc` colour features.
     pub fn params(&self) -> &[f32] {
-        &self.params
+        &self.params.data
     }
 
     /// Mutable access to [`TemplateRefiner::params`]; call [`TemplateRefiner::compose`]
     /// after changing them.
     pub fn params_mut(&mut self) -> &mut [f32] {
-        &mut self.params
+        &mut self.params.data
     }
 
     /// The refined template patches (entry name, patch with the refined features).
@@ -564,7 +553,7 @@ impl TemplateRefiner {
             .map(|t| {
                 let mut p = t.patch.clone();
                 for k in 0..p.rows * p.cols {
-                    let src = &self.params[(t.first_texel + k) * stride..][..stride];
+                    let src = &self.params.data[(t.first_texel + k) * stride..][..stride];
                     p.density[k * nd..][..nd].copy_from_slice(&src[..nd]);
                     p.color[k * nc..][..nc].copy_from_slice(&src[nd..]);
                 }
@@ -577,13 +566,21 @@ impl TemplateRefiner {
     /// colour)` deltas in the patch's layout, to add to the library's stored tensors (a
     /// patch's ring holds the stored features minus the container's; the delta is the same).
     pub fn deltas(&self) -> Vec<(String, Vec<f32>, Vec<f32>)> {
-        self.refined_patches()
-            .into_iter()
-            .zip(&self.templates)
-            .map(|((name, p), t)| {
-                let dd = p.density.iter().zip(&t.patch.density).map(|(a, b)| a - b).collect();
-                let dc = p.color.iter().zip(&t.patch.color).map(|(a, b)| a - b).collect();
-                (name, dd, dc)
+        let (nd, nc) = (self.comp.nd, self.comp.nc);
+        let stride = nd + nc;
+        self.templates
+            .iter()
+            .map(|t| {
+                let n = t.patch.rows * t.patch.cols;
+                let (mut dd, mut dc) = (Vec::with_capacity(n * nd), Vec::with_capacity(n * nc));
+                for k in 0..n {
+                    let now = &self.params.data[(t.first_texel + k) * stride..][..stride];
+                    let (d0, c0) =
+                        (&t.patch.density[k * nd..][..nd], &t.patch.color[k * nc..][..nc]);
+                    dd.extend(now[..nd].iter().zip(d0).map(|(a, b)| a - b));
+                    dc.extend(now[nd..].iter().zip(c0).map(|(a, b)| a - b));
+                }
+                (t.entry.clone(), dd, dc)
             })
             .collect()
     }

@@ -6,14 +6,14 @@ use super::train::bar;
 use super::util::fmt_duration;
 use anyhow::{Context, Result, anyhow, bail};
 use assetfield_core::fsx::{StagingDir, write_atomic};
-use assetfield_core::{Camera, GroundTransform, interrupt};
+use assetfield_core::{Camera, interrupt};
 use assetfield_data::{Dataset, Frame, LoadOptions, Split};
 use assetfield_mining::layout_out::{layout_script, script_text_checked};
 use assetfield_mining::library::{open_library, write_library_files};
 use assetfield_scene::refine::{
-    RefineOptions, TemplateRefiner, cameras_looking_at, compose_draws, own_poses, template_poses,
+    RefineOptions, TemplateRefiner, cameras_looking_at, compose_draws, own_poses,
 };
-use assetfield_scene::{AssetLibrary, Composition, FeaturePatch};
+use assetfield_scene::{AssetLibrary, Composition};
 use clap::Args;
 use glam::Vec3;
 use serde::Serialize;
@@ -190,13 +190,14 @@ pub fn refine(a: RefineArgs) -> Result<()> {
     };
 
     // before: the mined layout (own patches) and the templates-only layout
-    let halo = assetfield_scene::DEFAULT_HALO;
-    let own_patches: Vec<(String, FeaturePatch)> = own_poses(&lib.index)
+    let patches = lib.patches(assetfield_scene::DEFAULT_HALO)?;
+    let own = own_poses(&lib.index)
         .into_iter()
-        .map(|(name, _)| Ok((name.clone(), lib.patch(&name, halo)?)))
-        .collect::<Result<_>>()?;
-    let own: Vec<(&FeaturePatch, GroundTransform)> =
-        own_patches.iter().zip(own_poses(&lib.index)).map(|((_, p), (_, t))| (p, t)).collect();
+        .map(|(name, t)| {
+            let p = patches.get(&name).ok_or_else(|| anyhow!("no patch for entry {name:?}"))?;
+            Ok((p, t))
+        })
+        .collect::<Result<Vec<_>>>()?;
     let psnr_own = mean_psnr(&compose_draws(&lib, &own)?, &test, bg);
     let options = RefineOptions {
         iters: a.iters.unwrap_or(if a.minutes.is_some() { u64::MAX } else { 2000 }),
@@ -207,14 +208,9 @@ pub fn refine(a: RefineArgs) -> Result<()> {
         ..RefineOptions::default()
     };
     let views = train.frames.iter().map(|f| (f.camera, f.image.rgb.clone())).collect();
-    let mut r = TemplateRefiner::new(&lib, views, bg, options.clone())?;
-    let templates_draws = |r: &TemplateRefiner| -> Result<Composition> {
-        let patches = r.refined_patches();
-        let draws: Vec<(&FeaturePatch, GroundTransform)> =
-            template_poses(&lib.index).into_iter().map(|(c, t)| (&patches[c].1, t)).collect();
-        Ok(compose_draws(&lib, &draws)?)
-    };
-    let psnr_before = mean_psnr(&templates_draws(&r)?, &test, bg);
+    let mut r = TemplateRefiner::new(&lib, &patches, views, bg, options.clone())?;
+    // the refiner composes the templates-only layout itself (its taps are the rasteriser's)
+    let psnr_before = mean_psnr(&r.comp, &test, bg);
     if a.resume {
         let f = assetfield_core::TensorFile::load(&ckpt)
             .with_context(|| format!("reading checkpoint {}", ckpt.display()))?;
@@ -268,7 +264,8 @@ pub fn refine(a: RefineArgs) -> Result<()> {
     }
     pb.finish_and_clear();
     let seconds = t0.elapsed().as_secs_f64();
-    let psnr_after = mean_psnr(&templates_draws(&r)?, &test, bg);
+    r.comp.refresh_occupancy(None);
+    let psnr_after = mean_psnr(&r.comp, &test, bg);
 
     // the library with the refined template features, and a templates-only layout
     let mut stored = open_library(&a.lib)?;

@@ -240,12 +240,48 @@ struct Run {
 
 impl Run {
     fn save_checkpoint(&self, t: &Trainer) -> Result<()> {
-        let mut f: TensorFile = t.checkpoint()?;
-        let mut info = self.info.clone();
-        info.val_history = Some(self.val_history.clone());
-        info.write(&mut f)?;
-        f.save(&self.ckpt).with_context(|| format!("saving checkpoint {}", self.ckpt.display()))?;
-        Ok(())
+        let info = FieldInfo { val_history: Some(self.val_history.clone()), ..self.info.clone() };
+        save_checkpoint(t, &info, &self.ckpt)
+    }
+}
+
+/// Save `t`'s checkpoint with the run's `info` at `path` (atomically).
+pub(crate) fn save_checkpoint(t: &Trainer, info: &FieldInfo, path: &Path) -> Result<()> {
+    let mut f: TensorFile = t.checkpoint()?;
+    info.write(&mut f)?;
+    f.save(path).with_context(|| format!("saving checkpoint {}", path.display()))
+}
+
+/// Write `t`'s field at `path` with the run's `info` completed by the training history,
+/// iterations and time, and the training configuration.
+pub(crate) fn write_field(t: &Trainer, info: FieldInfo, path: &Path) -> Result<()> {
+    let mut file = t.field.to_tensor_file(t.occupancy.as_ref())?;
+    let info = FieldInfo {
+        history: Some(t.history.clone()),
+        iterations: Some(t.iter),
+        seconds: Some(t.elapsed()),
+        ..info
+    };
+    info.write(&mut file)?;
+    file.set_meta_json(keys::TRAIN_CONFIG, &t.config)?;
+    file.save(path).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Seconds left: by the iteration limit at `step_time` per iteration, or by the time budget,
+/// whichever ends first (NaN without either).
+pub(crate) fn time_left(
+    limit_iters: Option<u64>,
+    iter: u64,
+    step_time: f64,
+    budget: Option<f64>,
+    elapsed: f64,
+) -> f64 {
+    let by_iters = limit_iters.map(|n| n.saturating_sub(iter) as f64 * step_time);
+    let by_time = budget.map(|b| (b - elapsed).max(0.0));
+    match (by_iters, by_time) {
+        (Some(x), Some(y)) => x.min(y),
+        (Some(x), None) | (None, Some(x)) => x,
+        (None, None) => f64::NAN,
     }
 }
 
@@ -703,13 +739,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
             run.save_checkpoint(&trainer)?;
             last_ckpt = Instant::now();
         }
-        let left_iters = limit_iters.map(|n| n.saturating_sub(s.iter) as f64 * step_time);
-        let left_time = trainer.config.seconds.map(|b| (b - trainer.elapsed()).max(0.0));
-        let left = match (left_iters, left_time) {
-            (Some(x), Some(y)) => x.min(y),
-            (Some(x), None) | (None, Some(x)) => x,
-            (None, None) => f64::NAN,
-        };
+        let left =
+            time_left(limit_iters, s.iter, step_time, trainer.config.seconds, trainer.elapsed());
         pb.set_position((trainer.progress() * 1000.0) as u64);
         pb.set_message(format!(
             "it {}{} | loss {:.5} | psnr {:.2}{} | {:.2} M rays/s | plane {} | left {}{val_text}",
@@ -730,15 +761,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
     // the final checkpoint first, then the field file, then (with --discard-checkpoint) the
     // checkpoint's removal: a kill at any moment leaves a checkpoint or the field, never neither
     run.save_checkpoint(&trainer)?;
-    let mut file = trainer.field.to_tensor_file(trainer.occupancy.as_ref())?;
-    let mut info = run.info.clone();
-    info.history = Some(trainer.history.clone());
-    info.val_history = (!run.val_history.is_empty()).then(|| run.val_history.clone());
-    info.iterations = Some(trainer.iter);
-    info.seconds = Some(trainer.elapsed());
-    info.write(&mut file)?;
-    file.set_meta_json(keys::TRAIN_CONFIG, &trainer.config)?;
-    file.save(&a.out).with_context(|| format!("writing {}", a.out.display()))?;
+    let val_history = (!run.val_history.is_empty()).then(|| run.val_history.clone());
+    write_field(&trainer, FieldInfo { val_history, ..run.info.clone() }, &a.out)?;
     if a.discard_checkpoint && ckpt.exists() {
         std::fs::remove_file(&ckpt).with_context(|| format!("removing {}", ckpt.display()))?;
     }

@@ -3,7 +3,8 @@
 //! [`assetfield_field::joint`]); checkpoints per scene, resume, Ctrl-C as a single run.
 
 use super::train::{
-    AlignArg, DecoderArg, TrainArgs, bar, checkpoint_path, scene_bounds, shared_hash, train_config,
+    AlignArg, DecoderArg, TrainArgs, bar, checkpoint_path, save_checkpoint, scene_bounds,
+    shared_hash, time_left, train_config, write_field,
 };
 use super::util::{fmt_duration, fmt_vec, parse_color};
 use anyhow::{Context, Result, anyhow, bail};
@@ -227,9 +228,7 @@ pub fn train_joint(a: TrainArgs, res: usize) -> Result<()> {
 
     let save_checkpoints = |j: &JointTrainer, scenes: &[Scene]| -> Result<()> {
         for (t, s) in j.scenes.iter().zip(scenes) {
-            let mut f = t.checkpoint()?;
-            s.info.write(&mut f)?;
-            f.save(&s.ckpt).with_context(|| format!("saving checkpoint {}", s.ckpt.display()))?;
+            save_checkpoint(t, &s.info, &s.ckpt)?;
         }
         Ok(())
     };
@@ -272,13 +271,8 @@ pub fn train_joint(a: TrainArgs, res: usize) -> Result<()> {
             last_ckpt = Instant::now();
         }
         let it = joint.iter();
-        let left_iters = limit_iters.map(|n| n.saturating_sub(it) as f64 * step_time);
-        let left_time = joint.scenes[0].config.seconds.map(|b| (b - joint.elapsed()).max(0.0));
-        let left = match (left_iters, left_time) {
-            (Some(x), Some(y)) => x.min(y),
-            (Some(x), None) | (None, Some(x)) => x,
-            (None, None) => f64::NAN,
-        };
+        let left =
+            time_left(limit_iters, it, step_time, joint.scenes[0].config.seconds, joint.elapsed());
         let psnrs: Vec<String> = last_psnr.iter().map(|p| format!("{p:.2}")).collect();
         pb.set_position((joint.progress() * 1000.0) as u64);
         pb.set_message(format!(
@@ -297,14 +291,7 @@ pub fn train_joint(a: TrainArgs, res: usize) -> Result<()> {
     // checkpoints first, then the fields (a kill at any moment leaves one or the other)
     save_checkpoints(&joint, &scenes)?;
     for (t, s) in joint.scenes.iter().zip(&scenes) {
-        let mut file = t.field.to_tensor_file(t.occupancy.as_ref())?;
-        let mut info = s.info.clone();
-        info.history = Some(t.history.clone());
-        info.iterations = Some(t.iter);
-        info.seconds = Some(t.elapsed());
-        info.write(&mut file)?;
-        file.set_meta_json(keys::TRAIN_CONFIG, &t.config)?;
-        file.save(&s.field).with_context(|| format!("writing {}", s.field.display()))?;
+        write_field(t, s.info.clone(), &s.field)?;
     }
     if a.discard_checkpoint {
         for s in &scenes {
