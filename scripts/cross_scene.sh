@@ -5,6 +5,10 @@
 #
 #   scripts/cross_scene.sh [ITERS] [SCENE_A SCENE_B]
 #
+# SCENE_A, SCENE_B: names under scenes/, or random:SEED for `synth --random SEED` (the
+# validation pair of the README is random:1001 random:1010). Output under $CROSS_OUT
+# (default runs/cross).
+#
 # For each scene: synthesise it (256 x 256 views); train an S-AssetField alone; train both
 # scenes together as S- and as I-AssetField (`train A B --out DIR`, ITERS iterations each,
 # default 3000); evaluate every field on its test views (jointly against alone); mine every
@@ -19,11 +23,16 @@ A=${2:-library}
 B=${3:-living_room}
 BIN=${BIN:-target/release/assetfield}
 [ -x "$BIN" ] || cargo build --release --locked
-OUT=runs/cross
+OUT=${CROSS_OUT:-runs/cross}
 mkdir -p "$OUT/data" "$OUT/logs" "$OUT/alone" "$OUT/eval" "$OUT/lib"
-for s in "$A" "$B"; do
+# a scene of the suite, or random:SEED (its folders are named random_SEED)
+source_of() { case "$1" in random:*) echo --random "${1#random:}" ;; *) echo "scenes/$1.ron" ;; esac; }
+SRC_A=$(source_of "$A"); SRC_B=$(source_of "$B")
+A=${A/:/_}; B=${B/:/_}
+for pair in "$A|$SRC_A" "$B|$SRC_B"; do
+  s=${pair%%|*}; read -r -a src <<< "${pair#*|}"
   [ -f "$OUT/data/$s/transforms_test.json" ] ||
-    "$BIN" synth "scenes/$s.ron" --res 256 --out "$OUT/data/$s" --force > "$OUT/logs/$s.synth.log" 2>&1
+    "$BIN" synth "${src[@]}" --res 256 --out "$OUT/data/$s" --force > "$OUT/logs/$s.synth.log" 2>&1
 done
 for s in "$A" "$B"; do
   f="$OUT/alone/${s}_s.safetensors"

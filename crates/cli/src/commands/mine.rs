@@ -294,10 +294,12 @@ pub enum LibraryCommand {
         /// The merged library folder.
         #[arg(long, short)]
         out: PathBuf,
-        /// Group all entries again, together (the grouping `mine` uses: colour-plane label
-        /// histograms, shape and vertical profile, average linkage, the separation cut), so
-        /// that one category spans scenes; templates are chosen and members posed anew.
-        /// Without it every scene keeps its own categories.
+        /// Unite categories across scenes: every entry is described as `mine` describes
+        /// objects (colour-plane label histograms, shape, vertical profile) and categories of
+        /// different scenes closer than mine's separation cut (average linkage) become one,
+        /// so that one category spans scenes; a scene's own categories are never split or
+        /// joined with each other. Templates are chosen and members posed anew. Without it
+        /// every scene keeps its own categories.
         #[arg(long)]
         regroup: bool,
         /// One ground truth (gt_layout.json) per library, in the same order: OUT/metrics.json
