@@ -210,23 +210,12 @@ mod tests {
 
     fn entry(name: &str, cat: &str, kind: EntryKind, pos: (f32, f32), yaw: f32) -> Entry {
         Entry {
-            name: name.into(),
-            category: cat.into(),
             kind,
-            density: format!("{name}.density"),
-            color: format!("{name}.color"),
-            mask: format!("{name}.mask"),
             patch_size: (10, 10),
             extent: (1.0, 0.6, 0.75),
-            base: 0.0,
-            source_box: [0.0; 4],
             position: pos,
-            pivot: None,
             yaw_deg: yaw,
-            residual: 0.0,
-            matched_on: None,
-            supported_by: None,
-            source: 0,
+            ..Entry::named(name, cat)
         }
     }
 

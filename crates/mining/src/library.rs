@@ -94,6 +94,31 @@ pub struct Entry {
 }
 
 impl Entry {
+    /// An instance of `category` whose tensors are `NAME.density`, `NAME.color` and
+    /// `NAME.mask`: one texel at the origin, unposed, from the first source; set the rest
+    /// with struct update syntax.
+    pub fn named(name: &str, category: &str) -> Self {
+        Entry {
+            name: name.into(),
+            category: category.into(),
+            kind: EntryKind::Instance,
+            density: format!("{name}.density"),
+            color: format!("{name}.color"),
+            mask: format!("{name}.mask"),
+            patch_size: (1, 1),
+            extent: (0.0, 0.0, 0.0),
+            base: 0.0,
+            source_box: [0.0; 4],
+            position: (0.0, 0.0),
+            pivot: None,
+            yaw_deg: 0.0,
+            residual: 0.0,
+            matched_on: None,
+            supported_by: None,
+            source: 0,
+        }
+    }
+
     /// World centre of the object's box (and of its patch).
     pub fn box_centre(&self) -> Vec2 {
         let b = self.source_box;
@@ -753,23 +778,13 @@ pub fn write_sample_library(dir: &Path, bias: f32) -> Result<()> {
         patches.insert_f32(format!("{name}.color"), &[2, 3, nc], vec![0.2; 6 * nc]);
         patches.insert_u8(format!("{name}.mask"), &[2, 3], vec![1; 6]);
         entries.push(Entry {
-            name: name.to_string(),
-            category: "cat0".into(),
             kind: if k == 0 { EntryKind::Template } else { EntryKind::Instance },
-            density: format!("{name}.density"),
-            color: format!("{name}.color"),
-            mask: format!("{name}.mask"),
             patch_size: (2, 3),
             extent: (0.3, 0.2, 0.5),
-            base: 0.0,
             source_box: [0.0, 0.0, 0.3, 0.2],
             position: (0.15, 0.1),
-            pivot: None,
-            matched_on: None,
             yaw_deg: 90.0 * k as f32,
-            residual: 0.0,
-            supported_by: None,
-            source: 0,
+            ..Entry::named(name, "cat0")
         });
     }
     patches.insert_f32("container.density", &[4, 5, nd], vec![0.0; 20 * nd]);

@@ -215,48 +215,66 @@ pub fn unite_across_sources(
             right: n,
         });
     }
-    // the starting groups: one per category name, in order of first appearance
-    let mut names: Vec<&str> = Vec::new();
-    let mut start = Vec::with_capacity(n);
-    for e in entries {
-        let g = match names.iter().position(|&c| c == e.category) {
-            Some(g) => g,
-            None => {
-                names.push(&e.category);
-                names.len() - 1
-            }
-        };
-        start.push(g);
-    }
-    struct Group {
+    struct Group<'a> {
+        name: &'a str,
+        /// Merge id (see [`Merge`]).
         id: usize,
         members: Vec<usize>,
         sources: BTreeSet<usize>,
     }
-    let mut groups: Vec<Group> = (0..names.len())
-        .map(|g| {
-            let members: Vec<usize> = (0..n).filter(|&i| start[i] == g).collect();
-            let sources = members.iter().map(|&i| entries[i].source).collect();
-            Group { id: g, members, sources }
+    // the starting groups: one per category name, in order of first appearance
+    let mut groups: Vec<Group> = Vec::new();
+    for (i, e) in entries.iter().enumerate() {
+        match groups.iter_mut().find(|g| g.name == e.category) {
+            Some(g) => {
+                g.members.push(i);
+                g.sources.insert(e.source);
+            }
+            None => groups.push(Group {
+                name: &e.category,
+                id: groups.len(),
+                members: vec![i],
+                sources: BTreeSet::from([e.source]),
+            }),
+        }
+    }
+    let starting = groups.len();
+    // sum of the entry distances between every two groups (a merge adds one group's row and
+    // column to the other's); the average linkage is the sum over the product of the sizes
+    let mut sum: Vec<Vec<f64>> = groups
+        .iter()
+        .map(|a| {
+            groups
+                .iter()
+                .map(|b| {
+                    a.members
+                        .iter()
+                        .flat_map(|&i| b.members.iter().map(move |&j| (i, j)))
+                        .map(|(i, j)| distance.get(i, j).unwrap_or(f64::INFINITY))
+                        .sum()
+                })
+                .collect()
         })
         .collect();
-    let linkage = |a: &Group, b: &Group| -> f64 {
-        let sum: f64 = a
-            .members
-            .iter()
-            .flat_map(|&i| b.members.iter().map(move |&j| (i, j)))
-            .map(|(i, j)| distance.get(i, j).unwrap_or(f64::INFINITY))
-            .sum();
-        sum / (a.members.len() * b.members.len()) as f64
+    let linkage = |groups: &[Group], sum: &[Vec<f64>], a: usize, b: usize| {
+        sum[a][b] / (groups[a].members.len() * groups[b].members.len()) as f64
     };
-    for (a, ga) in groups.iter().enumerate() {
-        let nearest = (0..groups.len())
-            .filter(|&b| b != a && ga.sources.is_disjoint(&groups[b].sources))
-            .map(|b| (linkage(ga, &groups[b]), names[groups[b].id]))
-            .min_by(|x, y| x.0.total_cmp(&y.0));
-        if let Some((d, other)) = nearest {
+    // the pairs that may unite (no scene in common), nearest first
+    let candidates = |groups: &[Group], sum: &[Vec<f64>]| {
+        let mut pairs: Vec<(usize, usize, f64)> = (0..groups.len())
+            .flat_map(|a| (a + 1..groups.len()).map(move |b| (a, b)))
+            .filter(|&(a, b)| groups[a].sources.is_disjoint(&groups[b].sources))
+            .map(|(a, b)| (a, b, linkage(groups, sum, a, b)))
+            .collect();
+        pairs.sort_by(|x, y| x.2.total_cmp(&y.2));
+        pairs
+    };
+    let pairs = candidates(&groups, &sum);
+    for (a, g) in groups.iter().enumerate() {
+        if let Some(&(x, y, d)) = pairs.iter().find(|&&(x, y, _)| x == a || y == a) {
+            let other = groups[if x == a { y } else { x }].name;
             tracing::debug!(
-                category = names[ga.id],
+                category = g.name,
                 nearest = other,
                 linkage = d,
                 threshold,
@@ -265,20 +283,18 @@ pub fn unite_across_sources(
         }
     }
     let mut merges = Vec::new();
-    loop {
-        let mut best: Option<(usize, usize, f64)> = None;
-        for a in 0..groups.len() {
-            for b in a + 1..groups.len() {
-                if !groups[a].sources.is_disjoint(&groups[b].sources) {
-                    continue;
-                }
-                let d = linkage(&groups[a], &groups[b]);
-                if d < threshold && best.is_none_or(|(_, _, bd)| d < bd) {
-                    best = Some((a, b, d));
-                }
-            }
+    while let Some(&(a, b, d)) = candidates(&groups, &sum).first().filter(|p| p.2 < threshold) {
+        // b (> a) joins a: its column and row add to a's, then go
+        for row in sum.iter_mut() {
+            row[a] += row[b];
         }
-        let Some((a, b, d)) = best else { break };
+        let row_b = sum.remove(b);
+        for (v, vb) in sum[a].iter_mut().zip(&row_b) {
+            *v += vb;
+        }
+        for row in sum.iter_mut() {
+            row.remove(b);
+        }
         let gb = groups.remove(b);
         let ga = &mut groups[a];
         merges.push(Merge {
@@ -287,28 +303,17 @@ pub fn unite_across_sources(
             distance: d,
             size: ga.members.len() + gb.members.len(),
         });
-        ga.id = names.len() + merges.len() - 1;
+        ga.id = starting + merges.len() - 1;
         ga.members.extend(gb.members);
         ga.sources.extend(gb.sources);
     }
-    // categories in order of first appearance
-    let mut of_entry = vec![0usize; n];
-    for (g, group) in groups.iter().enumerate() {
-        for &i in &group.members {
-            of_entry[i] = g;
+    // groups keep the order of their first member, so their index is the category
+    let mut category = vec![0usize; n];
+    for (k, g) in groups.iter().enumerate() {
+        for &i in &g.members {
+            category[i] = k;
         }
     }
-    let mut order: Vec<Option<usize>> = vec![None; groups.len()];
-    let mut next = 0;
-    let category = of_entry
-        .iter()
-        .map(|&g| {
-            *order[g].get_or_insert_with(|| {
-                next += 1;
-                next - 1
-            })
-        })
-        .collect();
     Ok((category, merges))
 }
 
@@ -386,25 +391,7 @@ mod tests {
     use super::*;
 
     fn entry(name: &str, category: &str, source: usize) -> Entry {
-        Entry {
-            name: name.into(),
-            category: category.into(),
-            kind: EntryKind::Instance,
-            density: format!("{name}.density"),
-            color: format!("{name}.color"),
-            mask: format!("{name}.mask"),
-            patch_size: (4, 4),
-            extent: (1.0, 1.0, 1.0),
-            base: 0.0,
-            source_box: [0.0, 0.0, 1.0, 1.0],
-            position: (0.5, 0.5),
-            pivot: None,
-            yaw_deg: 0.0,
-            residual: 0.0,
-            matched_on: None,
-            supported_by: None,
-            source,
-        }
+        Entry { source, ..Entry::named(name, category) }
     }
 
     /// Entries a0, a1 (scene 0, category A), b0 (scene 0, category B), c0, c1 (scene 1,
