@@ -160,6 +160,46 @@ pub fn estimate_yaw_weighted(
     })
 }
 
+/// [`estimate_yaw_weighted`] without the coarse scan: the pose is refined from `start_deg`
+/// only (golden-section over one coarse step either side, then the offset rounds), so the
+/// basin is the caller's (e.g. chosen on other patches of the same pair) and only the optimum
+/// within it is found here. The yaw is reported in `[0, period_deg)`.
+pub fn estimate_yaw_near(
+    template: &PlaneImage,
+    template_weights: Option<&[f32]>,
+    instance: &PlaneImage,
+    instance_weights: Option<&[f32]>,
+    start_deg: f32,
+    opts: &YawOptions,
+) -> Result<YawFit> {
+    check_options(opts)?;
+    if !start_deg.is_finite() {
+        return Err(MiningError::InvalidParameter {
+            name: "start_deg",
+            reason: format!("must be finite, got {start_deg}"),
+        });
+    }
+    let p = Problem::new(template, template_weights, instance, instance_weights, opts)?;
+    let theta = f64::from(start_deg);
+    let r = p.residual(theta, (0.0, 0.0));
+    if !r.is_finite() {
+        return Err(MiningError::NoOverlap);
+    }
+    let best = refine(
+        &p,
+        Pose { theta, delta: (0.0, 0.0), r },
+        f64::from(opts.step_deg),
+        f64::from(opts.tol_deg),
+        opts.max_offset,
+    );
+    let period = f64::from(opts.period_deg);
+    Ok(YawFit {
+        yaw_deg: best.theta.rem_euclid(period) as f32 % opts.period_deg,
+        offset: p.offset(best.theta, best.delta),
+        residual: best.r as f32,
+    })
+}
+
 /// Golden-section refinement of the angle at zero offset, then the sub-texel offset (a 5 x 5
 /// grid over `±max_offset`), then rounds alternating a compass search of the offset with
 /// angle passes over shrinking brackets.
