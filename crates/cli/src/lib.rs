@@ -7,8 +7,8 @@ use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 
 pub use commands::{
-    BenchArgs, ComposeArgs, DemoArgs, EvalArgs, InspectArgs, LayoutArgs, LibraryArgs, MineArgs,
-    PlanesArgs, RefineArgs, RenderArgs, SynthArgs, TrainArgs,
+    BenchArgs, ComposeArgs, DemoArgs, EditArgs, EvalArgs, InspectArgs, LayoutArgs, LibraryArgs,
+    MineArgs, PlanesArgs, RefineArgs, RenderArgs, SynthArgs, TrainArgs,
 };
 
 /// AssetField: editable neural scenes on ground feature planes.
@@ -185,6 +185,18 @@ pub enum Command {
     /// patches) and of the templates-only layout before and after. The dataset must be the
     /// library's scene: views that do not look into its box are refused.
     Refine(RefineArgs),
+    /// Edit a library's layout in the browser: a local web server and its page.
+    ///
+    /// The page shows the bird's-eye view (the composed ground plane with every instance's
+    /// footprint: click to select, drag to move, Q/E or the handle to turn, Shift for 15
+    /// degree steps, Delete, Ctrl-D to duplicate, +/- to scale), a 3D view rendered from an
+    /// orbit camera after every edit (a coarse preview first), the library's assets and
+    /// categories (insert, replace a category's template, remove a category), undo / redo,
+    /// the edit log as RON (the language `compose --edits` reads) and Save. The first line
+    /// on stdout is the page's URL with its token; the same token guards the HTTP API
+    /// (GET /api/layout, POST /api/edits, /api/undo, /api/redo, GET /api/render,
+    /// /api/bev, POST /api/save) for scripts. Binds 127.0.0.1 unless --host says otherwise.
+    Edit(EditArgs),
     /// Measure composed-scene rendering and re-composition on the GPU or the CPU
     /// (`bench render`, `bench reconfigure`).
     ///
@@ -322,6 +334,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(a) => commands::render(a),
         Command::Compose(a) => commands::compose(a),
         Command::Refine(a) => commands::refine(a),
+        Command::Edit(a) => commands::edit(a),
         Command::Bench(a) => commands::bench(a),
         Command::Planes(a) => commands::planes(a),
         Command::Mine(a) => commands::mine(a),

@@ -99,6 +99,21 @@ pub enum LayoutError {
     GtFormat { path: PathBuf, message: String },
 }
 
+impl LayoutError {
+    /// The place in a script the error is about, when it has one.
+    pub fn location(&self) -> Option<&Location> {
+        match self {
+            LayoutError::Syntax { location, .. }
+            | LayoutError::Semantic { location, .. }
+            | LayoutError::Limit { location, .. } => Some(location),
+            LayoutError::Invalid(v) => Some(&v.location),
+            LayoutError::NotAFile { referenced_at, .. }
+            | LayoutError::TooLarge { referenced_at, .. } => referenced_at.as_ref(),
+            _ => None,
+        }
+    }
+}
+
 /// `"file:line:col: "` for a reference's place, or nothing.
 fn at_prefix(location: &Option<Location>) -> String {
     location.as_ref().map(|l| format!("{l}: ")).unwrap_or_default()

@@ -36,5 +36,6 @@ pub use script::{
     Variation, ViewSettings,
 };
 pub use source::{
-    LoadedScript, append_edits, load, load_str, load_str_with, load_with, read_script_file,
+    LoadedScript, append_edits, append_edits_str, load, load_str, load_str_with, load_with,
+    read_script_file,
 };

@@ -1258,6 +1258,33 @@ impl<'a> Resolver<'a> {
                     self.refresh(&[k]);
                 }
             }
+            Edit::Add { asset, at, yaw, scale, name } => {
+                let src = &self.script.files[node.file];
+                let info = self.info_at(asset, &src.find_string_after(asset, node.offset))?;
+                self.reserve(1, loc, || "Add would place 1 instance".into())?;
+                let key = match name {
+                    Some(k) if self.keys.contains_key(k) => {
+                        return Err(semantic(
+                            loc,
+                            format!(
+                                "an instance keyed \"{k}\" exists already; name the new one otherwise"
+                            ),
+                        ));
+                    }
+                    Some(k) => k.clone(),
+                    None => (1u64..)
+                        .map(|n| format!("{asset}+new{n}"))
+                        .find(|k| !self.keys.contains_key(k))
+                        .unwrap_or_else(|| format!("{asset}+new")),
+                };
+                let world = GroundTransform::new(
+                    (*at).into(),
+                    yaw.unwrap_or(0.0),
+                    scale.unwrap_or(1.0),
+                    0.0,
+                );
+                self.push(key, asset, &info, world, None, loc);
+            }
             Edit::Duplicate { target, at, by, yaw, name } => {
                 if at.is_some() && by.is_some() {
                     return Err(semantic(loc, "Duplicate takes `at` or `by`, not both".into()));

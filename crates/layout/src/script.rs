@@ -530,6 +530,18 @@ pub enum Edit {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         name: Option<String>,
     },
+    /// Place a new instance of `asset` on the ground at `at` (turned to `yaw`, scaled by
+    /// `scale`), keyed `name` (default: the asset's name with a number, `chair+new1`).
+    Add {
+        asset: String,
+        at: V2,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        yaw: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        scale: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
+    },
     /// Set any of an instance's properties.
     Override {
         target: String,
@@ -556,6 +568,7 @@ impl Edit {
             Edit::Rotate { .. } => "Rotate",
             Edit::Scale { .. } => "Scale",
             Edit::Duplicate { .. } => "Duplicate",
+            Edit::Add { .. } => "Add",
             Edit::Override { .. } => "Override",
         }
     }

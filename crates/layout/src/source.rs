@@ -574,9 +574,128 @@ pub fn append_edits(script: &mut LoadedScript, path: &Path) -> Result<usize, Lay
     Ok(n)
 }
 
+/// Append edits given as text to `script` (after its edits): a bare edit list
+/// (`[Move(target: "obj3", by: (0.5, 0.0)), ...]`) or a script holding `edits` only (its `base`
+/// ignored, as [`append_edits`] does). `name` names the text in messages (`name:line:col`).
+/// On error the script is unchanged. Returns how many edits were added.
+pub fn append_edits_str(
+    script: &mut LoadedScript,
+    name: &Path,
+    text: &str,
+) -> Result<usize, LayoutError> {
+    let size = u64::try_from(text.len()).unwrap_or(u64::MAX);
+    if size > script.limits.max_file_bytes {
+        return Err(LayoutError::TooLarge {
+            path: name.to_path_buf(),
+            size,
+            limit: script.limits.max_file_bytes,
+            referenced_at: None,
+        });
+    }
+    let src = SourceFile::new(name.to_path_buf(), text.to_string());
+    let first = strip_comments_and_space(text);
+    let edits = if first.starts_with('[') {
+        ron_options().from_str::<Vec<Edit>>(text).map_err(|e| LayoutError::Syntax {
+            location: Location {
+                file: name.to_path_buf(),
+                line: e.span.start.line,
+                col: e.span.start.col,
+            },
+            message: e.code.to_string(),
+        })?
+    } else {
+        let parsed = parse_script(name, text)?;
+        if !parsed.layout.is_empty() || !parsed.assets.is_empty() || !parsed.include.is_empty() {
+            return Err(LayoutError::Semantic {
+                location: src.location(0),
+                message: "an edit list may only hold edits: write `[Move(...), ...]` or `Scene(edits: [...])`"
+                    .into(),
+            });
+        }
+        parsed.edits
+    };
+    let file = script.files.len();
+    let located = locate_edits(&src, file, edits, &mut HashMap::new());
+    validate::edits(&located)?;
+    let n = located.len();
+    script.files.push(src);
+    script.edits.extend(located);
+    Ok(n)
+}
+
+/// `text` after leading whitespace and `//` or `/* */` comments (and a `#![...]` attribute).
+fn strip_comments_and_space(mut text: &str) -> &str {
+    loop {
+        let t = text.trim_start();
+        if let Some(rest) = t.strip_prefix("//") {
+            text = rest.split_once('\n').map_or("", |(_, r)| r);
+        } else if let Some(rest) = t.strip_prefix("/*") {
+            text = rest.split_once("*/").map_or("", |(_, r)| r);
+        } else if let Some(rest) = t.strip_prefix("#![") {
+            text = rest.split_once(']').map_or("", |(_, r)| r);
+        } else {
+            return t;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn edits_from_text_are_located_in_the_text_and_a_bad_one_changes_nothing() {
+        let scene = "Scene(\n  assets: {\n    \"a\": Asset(parts: [Box(center: (0, 0, 0.5), size: (1, 1, 1), color: (1, 0, 0))]),\n  },\n  layout: [\n    Row(asset: \"a\", from: (0, 0), to: (4, 0), count: 3, name: \"r\"),\n  ],\n)\n";
+        let mut script = load_str(Path::new("s.ron"), scene).unwrap();
+        let req = Path::new("request");
+        let n = append_edits_str(
+            &mut script,
+            req,
+            "// a move\n[\n  Move(target: \"r[0]\", by: (1, 0)),\n  Remove(\"r[1]\"),\n]",
+        )
+        .unwrap();
+        assert_eq!(n, 2);
+        assert_eq!(script.edits[0].location.to_string(), "request:3:3");
+        let n =
+            append_edits_str(&mut script, req, "Scene(edits: [Rotate(target: \"r[2]\", by: 90)])")
+                .unwrap();
+        assert_eq!(n, 1);
+        let before = script.edits.len();
+        let e = append_edits_str(
+            &mut script,
+            req,
+            "[\n  Move(target: \"r[0]\", by: (1, 0),\n  Nonsense(1),\n]",
+        )
+        .unwrap_err();
+        let at = e.location().expect("a syntax error has a place");
+        assert_eq!((at.file.as_path(), at.line), (req, 3), "{e}");
+        assert_eq!(script.edits.len(), before, "nothing added");
+        let e = append_edits_str(
+            &mut script,
+            req,
+            "Scene(layout: [Instance(asset: \"a\", at: (0, 0))])",
+        )
+        .unwrap_err();
+        assert!(e.to_string().starts_with("request:1:1"), "{e}");
+        assert_eq!(script.edits.len(), before);
+        let catalog = crate::PartsCatalog::from_script(&script);
+        let layout = crate::resolve(&script, &catalog).unwrap();
+        let keys: Vec<&str> = layout.instances.iter().map(|i| i.key.as_str()).collect();
+        assert_eq!(keys, ["r[0]", "r[2]"]);
+        // Add places a new instance on the ground, keyed after its asset unless named
+        let text =
+            "[Add(asset: \"a\", at: (1, 2), yaw: 30), Add(asset: \"a\", at: (3, 2), name: \"n\")]";
+        append_edits_str(&mut script, req, text).unwrap();
+        let layout = crate::resolve(&script, &catalog).unwrap();
+        let added = layout.instances.iter().find(|i| i.key == "a+new1").expect("a+new1");
+        assert_eq!(added.transform.position, glam::Vec2::new(1.0, 2.0));
+        assert_eq!((added.transform.yaw_deg, added.transform.scale), (30.0, 1.0));
+        assert!(layout.instances.iter().any(|i| i.key == "n"));
+        // a key that exists is refused, naming the edit
+        append_edits_str(&mut script, req, "[Add(asset: \"a\", at: (0, 0), name: \"n\")]").unwrap();
+        let e = crate::resolve(&script, &catalog).unwrap_err().to_string();
+        assert!(e.contains("request:1:2") && e.contains("exists already"), "{e}");
+    }
 
     #[test]
     fn appended_edits_apply_after_the_scripts_own_and_locate_instances() {

@@ -230,6 +230,11 @@ fn edit(edit: &Edit, location: &Location) -> Result<(), LayoutError> {
             point("by", by)?;
             finite("yaw", yaw)
         }
+        Edit::Add { at, yaw, scale, .. } => {
+            c.point("at", *at)?;
+            finite("yaw", yaw)?;
+            positive("scale", scale)
+        }
         Edit::Override { at, yaw, scale, base, .. } => {
             point("at", at)?;
             finite("yaw", yaw)?;

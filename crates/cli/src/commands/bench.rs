@@ -42,6 +42,10 @@ pub enum BenchCommand {
     /// (dirty rectangles redrawn, occupancy refreshed) against redrawing every texel, to see
     /// how both grow with the instance count.
     Reconfigure(BenchReconfigureArgs),
+    /// What the editor (`assetfield edit`) costs after a one-instance move on a library's
+    /// layout padded to --instances instances: the composed planes brought up to date, then
+    /// each --res view rendered (medians of --moves moves).
+    Edit(super::bench_edit::BenchEditArgs),
 }
 
 /// What renders: `gpu` (error without an adapter), `cpu`, or `auto`.
@@ -115,6 +119,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     match a.what {
         BenchCommand::Render(r) => bench_render(r),
         BenchCommand::Reconfigure(r) => bench_reconfigure(r),
+        BenchCommand::Edit(e) => super::bench_edit::bench_edit(e),
     }
 }
 

@@ -1,8 +1,10 @@
 //! The subcommands, one module per group; shared helpers in `util`.
 
 mod bench;
+mod bench_edit;
 mod compose;
 mod demo;
+mod edit;
 mod eval;
 mod mine;
 mod planes;
@@ -16,6 +18,7 @@ mod util;
 pub use bench::{BenchArgs, bench};
 pub use compose::{ComposeArgs, compose};
 pub use demo::{DemoArgs, demo};
+pub use edit::{EditArgs, edit};
 pub use eval::{EvalArgs, eval};
 pub use mine::{LibraryArgs, MineArgs, library, mine};
 pub use planes::{PlanesArgs, planes};

@@ -228,15 +228,45 @@ pub struct LayoutArgs {
     pub json: bool,
 }
 
+/// A script whose assets are neural (library entries, as `mine` and `assetfield edit`
+/// write them) resolved against the library its first library asset names: the footprints
+/// are the library's.
+fn load_neural_scene(
+    path: &Path,
+) -> Result<(assetfield_layout::LoadedScript, assetfield_layout::ResolvedLayout)> {
+    let script = assetfield_layout::load(path)?;
+    let dir = script
+        .assets
+        .values()
+        .find_map(|e| e.def.library.as_ref().map(|l| e.base_dir(&script).join(&l.path)))
+        .context("no library asset")?;
+    let lib = assetfield_scene::AssetLibrary::open(&dir)
+        .with_context(|| format!("opening the asset library {}", dir.display()))?;
+    let assets =
+        assetfield_scene::ScriptAssets::resolve(&script, &lib, assetfield_scene::DEFAULT_HALO)?;
+    let layout = assetfield_layout::resolve(&script, &assets)?;
+    Ok((script, layout))
+}
+
 pub fn layout(a: LayoutArgs) -> Result<()> {
-    let (script, assets, layout) = assetfield_synth::load_scene(&a.scene)
-        .with_context(|| format!("resolving {}", a.scene.display()))?;
+    let (script, sources, layout) = match assetfield_synth::load_scene(&a.scene) {
+        Ok((script, assets, layout)) => (script, assets.sources, layout),
+        Err(assetfield_synth::SynthError::LibraryAsset { .. }) => {
+            let (script, layout) = load_neural_scene(&a.scene)
+                .with_context(|| format!("resolving {}", a.scene.display()))?;
+            (script, Default::default(), layout)
+        }
+        Err(e) => {
+            return Err(anyhow::Error::new(e))
+                .with_context(|| format!("resolving {}", a.scene.display()));
+        }
+    };
     if let Some(p) = &a.picture {
         assetfield_synth::synth::layout_picture(&layout, p)?;
     }
     if a.json {
         let gt = assetfield_layout::GtLayout::from_resolved(&layout);
-        println!("{}", gt.to_json_with(script.units_per_metre, &assets.sources));
+        println!("{}", gt.to_json_with(script.units_per_metre, &sources));
         return Ok(());
     }
     println!(

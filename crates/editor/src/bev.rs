@@ -1,0 +1,107 @@
+//! The bird's-eye view: the composed scene's column opacity seen from above, enlarged to a
+//! comfortable size, with the instances' footprints outlined in their category's colour.
+
+use assetfield_field::pictures::{Picture, density_picture};
+use glam::Vec2;
+use serde::Serialize;
+
+use crate::session::EditSession;
+
+/// The bird's-eye picture is enlarged (nearest neighbour, texels stay visible) until its
+/// longer side holds at least this many pixels, at most [`BEV_MAX_ZOOM`] times.
+pub const BEV_TARGET_SIDE: u32 = 640;
+/// Largest enlargement of the bird's-eye picture (pixels per texel).
+pub const BEV_MAX_ZOOM: u32 = 8;
+
+/// How pixels of `GET /api/bev` map to the world: pixel `(u, v)` (continuous, `u` to the
+/// right, `v` down, the image's top-left corner at `(0, 0)`) is world
+/// `(x0 + u * sx, y0 - v * sy)`.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct BevMapping {
+    pub width: u32,
+    pub height: u32,
+    pub x0: f32,
+    pub y0: f32,
+    pub sx: f32,
+    pub sy: f32,
+}
+
+impl BevMapping {
+    /// The mapping of the session's bird's-eye picture.
+    pub fn of(s: &EditSession) -> Self {
+        let g = s.composer().composition().grid;
+        let side = g.cols.max(g.rows).max(1) as u32;
+        let zoom = BEV_TARGET_SIDE.div_ceil(side).clamp(1, BEV_MAX_ZOOM);
+        BevMapping {
+            width: g.cols as u32 * zoom,
+            height: g.rows as u32 * zoom,
+            x0: g.min.x - 0.5 * g.step.x,
+            y0: g.min.y + (g.rows as f32 - 0.5) * g.step.y,
+            sx: g.step.x / zoom as f32,
+            sy: g.step.y / zoom as f32,
+        }
+    }
+
+    /// Pixel of a world point.
+    pub fn pixel(&self, p: Vec2) -> Vec2 {
+        Vec2::new((p.x - self.x0) / self.sx, (self.y0 - p.y) / self.sy)
+    }
+
+    /// World point of a pixel.
+    pub fn world(&self, u: f32, v: f32) -> Vec2 {
+        Vec2::new(self.x0 + u * self.sx, self.y0 - v * self.sy)
+    }
+}
+
+/// A category's outline colour: evenly spaced hues, the same the page uses.
+pub fn category_colour(index: usize) -> [u8; 3] {
+    const PALETTE: [[u8; 3]; 10] = [
+        [230, 25, 75],
+        [60, 180, 75],
+        [0, 130, 200],
+        [245, 130, 48],
+        [145, 30, 180],
+        [70, 240, 240],
+        [240, 50, 230],
+        [210, 245, 60],
+        [250, 190, 212],
+        [255, 225, 25],
+    ];
+    PALETTE[index % PALETTE.len()]
+}
+
+/// The bird's-eye picture and its mapping.
+pub fn bev_picture(s: &EditSession, footprints: bool) -> (Picture, BevMapping) {
+    let m = BevMapping::of(s);
+    let base = density_picture(&s.composer().composition().field);
+    let zoom = if base.width == 0 { 1 } else { m.width / base.width.max(1) };
+    let mut pic = base.upscaled(zoom.max(1));
+    if footprints {
+        let view = s.view();
+        let names: Vec<&str> = view.categories.iter().map(|c| c.name.as_str()).collect();
+        for inst in &view.instances {
+            let k = names.iter().position(|n| *n == inst.category).unwrap_or(names.len());
+            let colour = category_colour(k);
+            let pts: Vec<Vec2> =
+                inst.footprint.iter().map(|&[x, y]| m.pixel(Vec2::new(x, y))).collect();
+            for i in 0..pts.len() {
+                draw_line(&mut pic, pts[i], pts[(i + 1) % pts.len()], colour);
+            }
+        }
+    }
+    (pic, m)
+}
+
+/// A two-pixel line from `a` to `b` (pixel coordinates), clipped to the picture.
+fn draw_line(pic: &mut Picture, a: Vec2, b: Vec2, colour: [u8; 3]) {
+    let steps = (b - a).abs().max_element().ceil().clamp(1.0, 1.0e5) as usize;
+    for i in 0..=steps {
+        let p = a + (b - a) * (i as f32 / steps as f32);
+        for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+            let (x, y) = ((p.x - 0.5 + dx).floor(), (p.y - 0.5 + dy).floor());
+            if x >= 0.0 && y >= 0.0 && (x as u32) < pic.width && (y as u32) < pic.height {
+                pic.pixels[y as usize * pic.width as usize + x as usize] = colour;
+            }
+        }
+    }
+}

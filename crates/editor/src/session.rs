@@ -1,0 +1,615 @@
+//! An editing session: a library, the layout being edited (a base script plus edit batches),
+//! the composer that keeps the composed planes up to date, undo and redo, renders and save.
+//!
+//! Every change goes through [`EditSession::apply`] (one batch of edits in the layout
+//! language), [`EditSession::undo`] or [`EditSession::redo`]; each resolves the whole
+//! script again (milliseconds for a room) and hands the resolved layout to the composer,
+//! which redraws only the instances whose placement or asset changed. A batch that does not
+//! parse or resolve, or that the composer refuses, changes nothing.
+
+use std::path::{Path, PathBuf};
+
+use assetfield_core::{Aabb3, Camera};
+use assetfield_field::eval::{Orbit, fitting_radius};
+use assetfield_gpu::{FieldRenderer, GpuContext};
+use assetfield_layout::{Edit, LoadedScript, ResolvedLayout, Script, resolve};
+use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, ScriptAssets};
+use glam::{Vec2, Vec3};
+use serde::Serialize;
+
+use crate::bev::{BevMapping, bev_picture};
+use crate::error::{EditorError, Result};
+
+/// Largest render side the session accepts, pixels.
+pub const MAX_RENDER_SIDE: u32 = 2048;
+
+/// How the session was asked to start.
+#[derive(Debug, Clone, Default)]
+pub struct SessionOptions {
+    /// The file Save writes (default `LIB/edited.ron`). When it exists, the session starts
+    /// from it: an edit script (`Scene(base: ..., edits: [...])`) continues its edits; a
+    /// whole layout script is edited in place (Save appends the session's edits to it).
+    pub layout: Option<PathBuf>,
+    /// Texels around each entry's mask that its patch covers (default: the composer's).
+    pub halo: Option<usize>,
+}
+
+/// What Save writes.
+#[derive(Debug, Clone)]
+enum SaveAs {
+    /// `Scene(base: "<relative path>", edits: [...])`: the edits of the start file (if it
+    /// was an edit script) and the session's.
+    EditScript { base: String, earlier: Vec<Edit> },
+    /// The start file itself with the session's edits appended to its own.
+    Whole { script: Box<Script> },
+}
+
+/// One applied batch of edits: its text (re-parsed on undo / redo, so messages keep
+/// naming it) and its parsed edits (for the log and Save).
+#[derive(Debug, Clone)]
+struct Batch {
+    name: PathBuf,
+    text: String,
+    edits: Vec<Edit>,
+}
+
+/// A view of the composed scene to render.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewRequest {
+    pub width: u32,
+    pub height: u32,
+    /// Degrees counter-clockwise from +X, seen from above.
+    pub azimuth_deg: f32,
+    /// Degrees above the ground.
+    pub elevation_deg: f32,
+    /// Distance from the scene's centre (default: where the scene's box fits the view).
+    pub radius: Option<f32>,
+}
+
+/// Horizontal field of view of [`ViewRequest`] renders, degrees.
+pub const VIEW_FOV_DEG: f32 = 40.0;
+
+/// An instance as the page and the API describe it.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct InstanceView {
+    pub key: String,
+    pub category: String,
+    pub asset: String,
+    pub x: f32,
+    pub y: f32,
+    pub yaw_deg: f32,
+    pub scale: f32,
+    /// Footprint corners in world (x, y), counter-clockwise.
+    pub footprint: Vec<[f32; 2]>,
+    /// Key of the instance it stands on.
+    pub on: Option<String>,
+}
+
+/// A category of the library.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct CategoryView {
+    pub name: String,
+    pub template: String,
+    pub members: Vec<String>,
+}
+
+/// An asset a layout can name: a category (drawn with its template) or an entry (its own
+/// patch).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct AssetView {
+    pub name: String,
+    pub category: String,
+    /// `"category"` or `"entry"`.
+    pub kind: &'static str,
+    /// Footprint size (x, y) and height, world units.
+    pub size: [f32; 3],
+}
+
+/// The layout as `GET /api/layout` answers it.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct LayoutView {
+    /// Bumped by every change (edits, undo, redo).
+    pub version: u64,
+    pub instances: Vec<InstanceView>,
+    pub categories: Vec<CategoryView>,
+    pub assets: Vec<AssetView>,
+    /// The composed planes' world rectangle `[xmin, ymin, xmax, ymax]`.
+    pub extent: [f32; 4],
+    /// How `GET /api/bev` pixels map to the world.
+    pub bev: BevMapping,
+    pub can_undo: bool,
+    pub can_redo: bool,
+    /// The session's edits as RON (the language `compose --edits` reads).
+    pub edits: String,
+    /// Where Save writes.
+    pub save_path: String,
+}
+
+/// GPU rendering state: the context and a renderer of the composed field as of `version`.
+struct Gpu {
+    ctx: GpuContext,
+    renderer: Option<(u64, FieldRenderer)>,
+    /// `auto`: fall back to the CPU when the device fails.
+    fallback: bool,
+}
+
+/// An editing session over one library.
+pub struct EditSession {
+    lib: AssetLibrary,
+    assets: ScriptAssets,
+    /// The start file as loaded (with its own edits).
+    start: LoadedScript,
+    save_path: PathBuf,
+    save_as: SaveAs,
+    batches: Vec<Batch>,
+    redo: Vec<Batch>,
+    layout: ResolvedLayout,
+    composer: Composer,
+    version: u64,
+    requests: u64,
+    bev_cache: Option<(u64, bool, Vec<u8>)>,
+    gpu: Option<Gpu>,
+}
+
+impl std::fmt::Debug for EditSession {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EditSession")
+            .field("library", &self.lib.dir)
+            .field("save_path", &self.save_path)
+            .field("batches", &self.batches.len())
+            .field("version", &self.version)
+            .finish_non_exhaustive()
+    }
+}
+
+fn scene_err(
+    context: impl Into<String>,
+) -> impl FnOnce(assetfield_scene::SceneError) -> EditorError {
+    let context = context.into();
+    move |source| EditorError::Scene { context, source }
+}
+
+/// `target` written relative to the folder `from` (`..` where needed); absolute when the
+/// two share no root.
+fn relative_path(target: &Path, from: &Path) -> PathBuf {
+    let (t, f) = (canonical(target), canonical(from));
+    let tc: Vec<_> = t.components().collect();
+    let fc: Vec<_> = f.components().collect();
+    let common = tc.iter().zip(&fc).take_while(|(a, b)| a == b).count();
+    if common == 0 {
+        return t;
+    }
+    let mut out = PathBuf::new();
+    for _ in common..fc.len() {
+        out.push("..");
+    }
+    for c in &tc[common..] {
+        out.push(c);
+    }
+    out
+}
+
+/// The absolute, symlink-free form of `p` (its parent's when `p` does not exist yet).
+fn canonical(p: &Path) -> PathBuf {
+    if let Ok(c) = std::fs::canonicalize(p) {
+        return c;
+    }
+    match (p.parent(), p.file_name()) {
+        (Some(dir), Some(name)) => {
+            let dir = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
+            std::fs::canonicalize(dir).map(|d| d.join(name)).unwrap_or_else(|_| p.to_path_buf())
+        }
+        _ => p.to_path_buf(),
+    }
+}
+
+impl EditSession {
+    /// Open `library` and the layout to edit (see [`SessionOptions::layout`]); `gpu` renders
+    /// when given (`fallback`: move to the CPU if the device fails).
+    pub fn open(
+        library: &Path,
+        opts: &SessionOptions,
+        gpu: Option<(GpuContext, bool)>,
+    ) -> Result<Self> {
+        let lib = AssetLibrary::open(library)
+            .map_err(scene_err(format!("opening the asset library {}", library.display())))?;
+        let save_path = opts.layout.clone().unwrap_or_else(|| library.join("edited.ron"));
+        let mined = library.join("layout.ron");
+        let (start_path, save_as) = if save_path.is_file() {
+            let text = assetfield_layout::read_script_file(
+                &save_path,
+                &assetfield_layout::Limits::from_env()?,
+                None,
+            )?;
+            let parsed = assetfield_layout::source::parse_script(&save_path, &text)?;
+            let edit_only =
+                parsed.layout.is_empty() && parsed.assets.is_empty() && parsed.include.is_empty();
+            match (&parsed.base, edit_only) {
+                (Some(base), true) => (
+                    save_path.clone(),
+                    SaveAs::EditScript { base: base.clone(), earlier: parsed.edits.clone() },
+                ),
+                _ => (save_path.clone(), SaveAs::Whole { script: Box::new(parsed) }),
+            }
+        } else {
+            if !mined.is_file() {
+                return Err(EditorError::LayoutFile {
+                    path: mined,
+                    reason: "the library has no layout.ron (written by `assetfield mine`); name the layout to edit with --layout".into(),
+                });
+            }
+            let dir = save_path.parent().filter(|d| !d.as_os_str().is_empty());
+            let base = relative_path(&mined, dir.unwrap_or(Path::new(".")));
+            (
+                mined,
+                SaveAs::EditScript { base: base.to_string_lossy().into_owned(), earlier: vec![] },
+            )
+        };
+        let start = assetfield_layout::load(&start_path)?;
+        let assets = ScriptAssets::resolve(&start, &lib, opts.halo.unwrap_or(DEFAULT_HALO))
+            .map_err(scene_err(format!("resolving the assets of {}", start_path.display())))?;
+        let layout = resolve(&start, &assets)?;
+        let canvas = lib.default_canvas();
+        let canvas = match canvas {
+            assetfield_scene::Canvas::Empty { .. } => {
+                let mut r = layout.extent;
+                for i in layout.objects() {
+                    r = r.union(&i.bev_aabb);
+                }
+                let m = lib.texel() * 4.0 + Vec2::splat(0.25);
+                assetfield_scene::Canvas::Empty {
+                    extent: assetfield_core::Rect2::new(r.min - m, r.max + m),
+                }
+            }
+            c => c,
+        };
+        let composition = lib.composition(&canvas).map_err(scene_err("building the canvas"))?;
+        let mut composer = Composer::new(composition);
+        assets.install(&mut composer).map_err(scene_err("installing the library's assets"))?;
+        composer
+            .apply_layout(&layout)
+            .map_err(scene_err(format!("composing {}", start_path.display())))?;
+        composer.update();
+        composer.ensure_occupancy();
+        let gpu = gpu.map(|(ctx, fallback)| Gpu { ctx, renderer: None, fallback });
+        Ok(EditSession {
+            lib,
+            assets,
+            start,
+            save_path,
+            save_as,
+            batches: Vec::new(),
+            redo: Vec::new(),
+            layout,
+            composer,
+            version: 0,
+            requests: 0,
+            bev_cache: None,
+            gpu,
+        })
+    }
+
+    /// The library being edited.
+    pub fn library(&self) -> &AssetLibrary {
+        &self.lib
+    }
+
+    /// The resolved layout as it stands.
+    pub fn layout(&self) -> &ResolvedLayout {
+        &self.layout
+    }
+
+    /// The composer (its composed planes are up to date after every call).
+    pub fn composer(&self) -> &Composer {
+        &self.composer
+    }
+
+    /// Bumped by every change.
+    pub fn version(&self) -> u64 {
+        self.version
+    }
+
+    /// Where Save writes.
+    pub fn save_path(&self) -> &Path {
+        &self.save_path
+    }
+
+    /// The script of the start file plus `batches`, resolved.
+    fn build(&self, batches: &[Batch]) -> Result<(LoadedScript, ResolvedLayout)> {
+        let mut script = self.start.clone();
+        for b in batches {
+            assetfield_layout::append_edits_str(&mut script, &b.name, &b.text)?;
+        }
+        let layout = resolve(&script, &self.assets)?;
+        Ok((script, layout))
+    }
+
+    /// Make the composer match `layout` (nothing changes when it refuses).
+    fn show(&mut self, layout: ResolvedLayout) -> Result<()> {
+        self.composer.apply_layout(&layout).map_err(scene_err("composing the edited layout"))?;
+        self.composer.update();
+        self.layout = layout;
+        self.version += 1;
+        Ok(())
+    }
+
+    /// Apply a batch of edits given as RON text (`[Move(target: "obj3", by: (0.5, 0.0))]` or
+    /// `Scene(edits: [...])`). Errors name the place in the text as `edit request N:line:col`
+    /// and change nothing. Clears the redo stack.
+    pub fn apply(&mut self, text: &str) -> Result<()> {
+        self.requests += 1;
+        let name = PathBuf::from(format!("edit request {}", self.requests));
+        // parse alone first, to keep the parsed edits for the log
+        let mut probe = LoadedScript { edits: Vec::new(), ..self.start.clone() };
+        assetfield_layout::append_edits_str(&mut probe, &name, text)?;
+        let edits: Vec<Edit> = probe.edits.into_iter().map(|n| n.edit).collect();
+        if edits.is_empty() {
+            return Err(EditorError::BadRequest(format!("{}: no edits", name.display())));
+        }
+        let batch = Batch { name, text: text.to_string(), edits };
+        let mut batches = self.batches.clone();
+        batches.push(batch);
+        let (_, layout) = self.build(&batches)?;
+        self.show(layout)?;
+        self.batches = batches;
+        self.redo.clear();
+        Ok(())
+    }
+
+    /// Take back the last batch; `false` when there is none.
+    pub fn undo(&mut self) -> Result<bool> {
+        let Some(last) = self.batches.last().cloned() else { return Ok(false) };
+        let (_, layout) = self.build(&self.batches[..self.batches.len() - 1])?;
+        self.show(layout)?;
+        self.batches.pop();
+        self.redo.push(last);
+        Ok(true)
+    }
+
+    /// Apply the last batch taken back again; `false` when there is none.
+    pub fn redo(&mut self) -> Result<bool> {
+        let Some(next) = self.redo.last().cloned() else { return Ok(false) };
+        let mut batches = self.batches.clone();
+        batches.push(next);
+        let (_, layout) = self.build(&batches)?;
+        self.show(layout)?;
+        self.batches = batches;
+        self.redo.pop();
+        Ok(true)
+    }
+
+    /// Every edit of the session, in order.
+    pub fn edits(&self) -> Vec<Edit> {
+        self.batches.iter().flat_map(|b| b.edits.iter().cloned()).collect()
+    }
+
+    /// The session's edits as a RON list (what `POST /api/edits` takes, and `compose --edits`
+    /// reads inside `Scene(edits: ...)`); empty without edits.
+    pub fn edits_ron(&self) -> String {
+        let edits = self.edits();
+        if edits.is_empty() {
+            return String::new();
+        }
+        let cfg = ron::ser::PrettyConfig::new().struct_names(true).depth_limit(2).indentor("    ");
+        ron::ser::to_string_pretty(&edits, cfg).unwrap_or_default()
+    }
+
+    /// The text Save writes.
+    pub fn saved_text(&self) -> Result<String> {
+        let script = match &self.save_as {
+            SaveAs::EditScript { base, earlier } => {
+                let mut edits = earlier.clone();
+                edits.extend(self.edits());
+                Script { base: Some(base.clone()), edits, ..Default::default() }
+            }
+            SaveAs::Whole { script } => {
+                let mut s = Script::clone(script);
+                s.edits.extend(self.edits());
+                s
+            }
+        };
+        Ok(assetfield_layout::source::write_script(&script)?)
+    }
+
+    /// Write the layout (start file plus edits) to [`Self::save_path`], atomically.
+    pub fn save(&self) -> Result<PathBuf> {
+        let text = self.saved_text()?;
+        assetfield_core::fsx::write_atomic(&self.save_path, text.as_bytes()).map_err(|source| {
+            EditorError::Io { context: format!("saving {}", self.save_path.display()), source }
+        })?;
+        Ok(self.save_path.clone())
+    }
+
+    /// The box cameras look at: the composed planes' ground rectangle and the field's height.
+    pub fn scene_box(&self) -> Aabb3 {
+        let r = self.composer.composition().grid.world_rect();
+        let z = self.lib.config.aabb();
+        Aabb3::new(r.min.extend(z.min.z.max(0.0)), r.max.extend(z.max.z.max(0.5)))
+    }
+
+    /// The camera of a view request (checked).
+    pub fn camera(&self, v: &ViewRequest) -> Result<Camera> {
+        let bad = |m: String| Err(EditorError::BadRequest(m));
+        if !(1..=MAX_RENDER_SIDE).contains(&v.width) || !(1..=MAX_RENDER_SIDE).contains(&v.height) {
+            return bad(format!(
+                "width and height must be 1..{MAX_RENDER_SIDE} pixels, got {} x {}",
+                v.width, v.height
+            ));
+        }
+        if !v.azimuth_deg.is_finite() || !(-89.0..=89.0).contains(&v.elevation_deg) {
+            return bad(format!(
+                "azimuth must be finite and elevation within -89..89 degrees, got {} and {}",
+                v.azimuth_deg, v.elevation_deg
+            ));
+        }
+        let aabb = self.scene_box();
+        let fit = fitting_radius(&aabb, VIEW_FOV_DEG);
+        let radius = match v.radius {
+            None => fit,
+            Some(r) if r.is_finite() && r > 0.0 && r <= 100.0 * fit => r,
+            Some(r) => return bad(format!("radius must be in (0, {}], got {r}", 100.0 * fit)),
+        };
+        let mut orbit = Orbit::around(&aabb, 1, v.width);
+        orbit.height = v.height;
+        orbit.radius = radius;
+        orbit.elevation_deg = v.elevation_deg;
+        orbit.start_deg = v.azimuth_deg;
+        orbit.fov_deg = VIEW_FOV_DEG;
+        orbit
+            .cameras()
+            .into_iter()
+            .next()
+            .ok_or_else(|| EditorError::BadRequest("no camera".into()))
+    }
+
+    /// Render a view of the composed scene: linear RGB in `[0, 1]`, row-major.
+    pub fn render(&mut self, v: &ViewRequest) -> Result<Vec<f32>> {
+        let cam = self.camera(v)?;
+        let bg = self.lib.background;
+        if let Some(gpu) = &mut self.gpu {
+            let comp = self.composer.composition();
+            let stale = gpu.renderer.as_ref().is_none_or(|(at, _)| *at != self.version);
+            let fresh = if stale {
+                FieldRenderer::new(&gpu.ctx, &comp.field, comp.occupancy.as_ref())
+                    .map(|r| gpu.renderer = Some((self.version, r)))
+            } else {
+                Ok(())
+            };
+            let out = fresh.and_then(|()| match &gpu.renderer {
+                Some((_, r)) => r.render(&cam, bg),
+                None => unreachable_renderer(),
+            });
+            match out {
+                Ok(rgb) => return Ok(rgb),
+                Err(e) => {
+                    let e = gpu.ctx.explain(e);
+                    if !(gpu.fallback && e.cpu_can_do_it()) {
+                        return Err(EditorError::Gpu { source: e });
+                    }
+                    tracing::warn!("{}", assetfield_gpu::fallback_note(&e));
+                    self.gpu = None;
+                }
+            }
+        }
+        Ok(self.composer.render(&cam, bg))
+    }
+
+    /// Which backend renders: `"gpu"` or `"cpu"`.
+    pub fn backend(&self) -> &'static str {
+        if self.gpu.is_some() { "gpu" } else { "cpu" }
+    }
+
+    /// The bird's-eye view as PNG bytes: the composed scene's column opacity, with every
+    /// instance's footprint outlined in its category's colour when `footprints`.
+    pub fn bev_png(&mut self, footprints: bool) -> Result<Vec<u8>> {
+        if let Some((v, f, png)) = &self.bev_cache
+            && *v == self.version
+            && *f == footprints
+        {
+            return Ok(png.clone());
+        }
+        let (pic, _) = bev_picture(self, footprints);
+        let png = crate::png::encode_rgb8(pic.width, pic.height, &pic.pixels)?;
+        self.bev_cache = Some((self.version, footprints, png.clone()));
+        Ok(png)
+    }
+
+    /// The layout as the API describes it.
+    pub fn view(&self) -> LayoutView {
+        let keys: std::collections::HashMap<u32, &str> =
+            self.layout.instances.iter().map(|i| (i.id, i.key.as_str())).collect();
+        let instances = self
+            .layout
+            .objects()
+            .map(|i| {
+                let (a, b) = (i.footprint.min, i.footprint.max);
+                let corners = [a, Vec2::new(b.x, a.y), b, Vec2::new(a.x, b.y)];
+                InstanceView {
+                    key: i.key.clone(),
+                    category: i.category.clone(),
+                    asset: i.asset.clone(),
+                    x: i.transform.position.x,
+                    y: i.transform.position.y,
+                    yaw_deg: i.transform.yaw_deg,
+                    scale: i.transform.scale,
+                    footprint: corners
+                        .iter()
+                        .map(|&p| i.transform.transform_point2(p).to_array())
+                        .collect(),
+                    on: i.supported_by.and_then(|id| keys.get(&id)).map(|k| k.to_string()),
+                }
+            })
+            .collect();
+        let categories = self
+            .lib
+            .index
+            .categories
+            .iter()
+            .map(|c| CategoryView {
+                name: c.name.clone(),
+                template: c.template.clone(),
+                members: c.members.clone(),
+            })
+            .collect();
+        let assets = self
+            .assets
+            .assets
+            .iter()
+            .map(|(name, a)| AssetView {
+                name: name.clone(),
+                category: a.category.clone(),
+                kind: if self.lib.index.categories.iter().any(|c| &c.name == name) {
+                    "category"
+                } else {
+                    "entry"
+                },
+                size: {
+                    let e = a.info.footprint.max - a.info.footprint.min;
+                    [e.x, e.y, a.info.height]
+                },
+            })
+            .collect();
+        let r = self.composer.composition().grid.world_rect();
+        LayoutView {
+            version: self.version,
+            instances,
+            categories,
+            assets,
+            extent: [r.min.x, r.min.y, r.max.x, r.max.y],
+            bev: BevMapping::of(self),
+            can_undo: !self.batches.is_empty(),
+            can_redo: !self.redo.is_empty(),
+            edits: self.edits_ron(),
+            save_path: self.save_path.display().to_string(),
+        }
+    }
+
+    /// The background colour renders are composited on.
+    pub fn background(&self) -> Vec3 {
+        self.lib.background
+    }
+}
+
+fn unreachable_renderer() -> std::result::Result<Vec<f32>, assetfield_gpu::GpuError> {
+    Err(assetfield_gpu::GpuError::Unsupported("no renderer was built".into()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn relative_paths_climb_out_of_the_save_folder() {
+        let root = std::env::temp_dir().join(format!("af-editor-rel-{}", std::process::id()));
+        std::fs::create_dir_all(root.join("lib")).unwrap();
+        std::fs::create_dir_all(root.join("work/rooms")).unwrap();
+        std::fs::write(root.join("lib/layout.ron"), "Scene()").unwrap();
+        let lib = root.join("lib/layout.ron");
+        assert_eq!(relative_path(&lib, &root.join("lib")), PathBuf::from("layout.ron"));
+        assert_eq!(
+            relative_path(&lib, &root.join("work/rooms")),
+            PathBuf::from("../../lib/layout.ron")
+        );
+        let _ = std::fs::remove_dir_all(&root);
+    }
+}

@@ -1,0 +1,599 @@
+//! `assetfield edit` end to end (issue 19): a small scene is synthesised, trained briefly and
+//! mined with ground-truth names; the editor serves it, and
+//! - the HTTP API is driven endpoint by endpoint: the token, a bad edit (400 with its
+//!   line:column, nothing changed), an oversized body, undo / redo, renders, the bird's-eye
+//!   view, and a save that `assetfield layout` resolves and that composes (through the
+//!   library, not the session) to the image the server rendered;
+//! - the page is driven in headless Chromium over WebDriver: one instance is dragged on the
+//!   bird's-eye view, the layout moves it by the dragged distance, the 3D view changes where
+//!   the object stood, undo restores the image exactly, and a screenshot is saved.
+
+use assetfield_editor::{EditSession, SessionOptions, ViewRequest};
+use assetfield_layout::resolve;
+use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, ScriptAssets};
+use assetfield_tests::{SCENE, assetfield_bin, ok, scratch};
+use serde_json::{Value, json};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+/// The mined library of the tiny scene, built once per test process.
+fn library() -> &'static Path {
+    static LIB: OnceLock<PathBuf> = OnceLock::new();
+    LIB.get_or_init(|| {
+        let dir = scratch("editor");
+        std::fs::write(dir.join("tiny.ron"), SCENE).unwrap();
+        let synth = [
+            "synth",
+            "tiny.ron",
+            "--out",
+            "d",
+            "--views",
+            "20",
+            "--test-views",
+            "1",
+            "--res",
+            "48",
+            "--aa",
+            "1",
+        ];
+        ok(&dir, &synth);
+        let train = [
+            "train",
+            "d",
+            "--out",
+            "f.safetensors",
+            "--iters",
+            "900",
+            "--res",
+            "80",
+            "--batch",
+            "2048",
+        ];
+        ok(&dir, &train);
+        ok(
+            &dir,
+            &["mine", "f.safetensors", "--out", "lib", "--gt", "d/gt_layout.json", "--gt-names"],
+        );
+        dir.join("lib")
+    })
+}
+
+/// A running `assetfield edit`, stopped when dropped.
+struct Server {
+    child: Child,
+    host: String,
+    token: String,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start_server(lib: &Path, extra: &[&str]) -> Server {
+    let mut child = Command::new(assetfield_bin())
+        .arg("edit")
+        .arg(lib)
+        .args(["--port", "0", "--backend", "cpu"])
+        .args(extra)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("assetfield edit starts");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let url = line
+        .trim()
+        .strip_prefix("listening on http://")
+        .unwrap_or_else(|| panic!("the first line on stdout must be the URL, got {line:?}"));
+    let (host, token) = url.split_once("/?token=").expect("URL with a token");
+    assert!(host.starts_with("127.0.0.1:"), "bound to 127.0.0.1 by default: {host}");
+    assert_eq!(token.len(), 32, "a 128-bit token: {token}");
+    Server { child, host: host.to_string(), token: token.to_string() }
+}
+
+/// A response: status, headers (lower-case names) and body.
+struct Reply {
+    status: u16,
+    headers: Vec<(String, String)>,
+    body: Vec<u8>,
+}
+
+impl Reply {
+    fn json(&self) -> Value {
+        serde_json::from_slice(&self.body)
+            .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&self.body)))
+    }
+    fn header(&self, name: &str) -> Option<&str> {
+        self.headers.iter().find(|(k, _)| k == name).map(|(_, v)| v.as_str())
+    }
+}
+
+/// One HTTP/1.1 request (the server and chromedriver both speak it; no client crate needed).
+fn http(host: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> Reply {
+    let mut s = TcpStream::connect(host).unwrap_or_else(|e| panic!("connect {host}: {e}"));
+    s.set_read_timeout(Some(Duration::from_secs(120))).unwrap();
+    let mut req = format!(
+        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\nContent-Length: {}\r\n",
+        body.len()
+    );
+    for (k, v) in headers {
+        req.push_str(&format!("{k}: {v}\r\n"));
+    }
+    req.push_str("\r\n");
+    s.write_all(req.as_bytes()).unwrap();
+    // a server may answer (400) before reading a long body and close: ignore write errors
+    let _ = s.write_all(body);
+    // read the head, then exactly the body it announces (a server may keep the connection)
+    let mut raw = Vec::new();
+    let mut buf = [0u8; 65536];
+    let split = loop {
+        if let Some(p) = raw.windows(4).position(|w| w == b"\r\n\r\n") {
+            break p;
+        }
+        match s.read(&mut buf) {
+            Ok(0) | Err(_) => {
+                panic!("{method} {path}: the connection closed before the reply's head")
+            }
+            Ok(n) => raw.extend_from_slice(&buf[..n]),
+        }
+    };
+    let head_lc = String::from_utf8_lossy(&raw[..split]).to_ascii_lowercase();
+    let length = head_lc
+        .lines()
+        .find_map(|l| l.strip_prefix("content-length:"))
+        .and_then(|v| v.trim().parse::<usize>().ok());
+    let chunked = head_lc.contains("transfer-encoding: chunked");
+    loop {
+        let have = raw.len() - split - 4;
+        let done = match length {
+            Some(n) => have >= n,
+            None if chunked => raw.ends_with(b"0\r\n\r\n"),
+            None => false,
+        };
+        if done {
+            break;
+        }
+        match s.read(&mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => raw.extend_from_slice(&buf[..n]),
+        }
+    }
+    let head = String::from_utf8_lossy(&raw[..split]).into_owned();
+    let mut lines = head.lines();
+    let status = lines.next().and_then(|l| l.split(' ').nth(1)).and_then(|c| c.parse().ok());
+    let headers: Vec<(String, String)> = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string()))
+        .collect();
+    let mut body = raw[split + 4..].to_vec();
+    if headers.iter().any(|(k, v)| k == "transfer-encoding" && v.contains("chunked")) {
+        body = dechunk(&body);
+    }
+    Reply { status: status.expect("a status code"), headers, body }
+}
+
+fn dechunk(mut b: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    loop {
+        let Some(eol) = b.windows(2).position(|w| w == b"\r\n") else { return out };
+        let size =
+            usize::from_str_radix(String::from_utf8_lossy(&b[..eol]).trim(), 16).unwrap_or(0);
+        if size == 0 {
+            return out;
+        }
+        out.extend_from_slice(&b[eol + 2..eol + 2 + size]);
+        b = &b[eol + 2 + size + 2..];
+    }
+}
+
+impl Server {
+    fn get(&self, path: &str) -> Reply {
+        http(&self.host, "GET", path, &[("X-Assetfield-Token", &self.token)], b"")
+    }
+    fn post(&self, path: &str, body: &str) -> Reply {
+        http(&self.host, "POST", path, &[("X-Assetfield-Token", &self.token)], body.as_bytes())
+    }
+    fn url(&self) -> String {
+        format!("http://{}/?token={}", self.host, self.token)
+    }
+}
+
+fn decode_png(bytes: &[u8]) -> image::RgbImage {
+    image::load_from_memory(bytes).expect("a PNG").to_rgb8()
+}
+
+fn instance<'a>(layout: &'a Value, key: &str) -> &'a Value {
+    layout["instances"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|i| i["key"] == key)
+        .unwrap_or_else(|| panic!("no instance {key} in {layout}"))
+}
+
+fn xy(i: &Value) -> (f64, f64) {
+    (i["x"].as_f64().unwrap(), i["y"].as_f64().unwrap())
+}
+
+#[test]
+fn the_api_answers_every_endpoint_and_guards_the_session() {
+    let lib = library();
+    let _ = std::fs::remove_file(lib.join("edited.ron"));
+    let s = start_server(lib, &[]);
+
+    // the token guards the API (not the page)
+    assert_eq!(http(&s.host, "GET", "/api/layout", &[], b"").status, 403);
+    let wrong = [("X-Assetfield-Token", "0123")];
+    assert_eq!(http(&s.host, "POST", "/api/edits", &wrong, b"[Remove(\"w0\")]").status, 403);
+    assert_eq!(http(&s.host, "POST", "/api/save", &[], b"").status, 403);
+    let page = http(&s.host, "GET", "/", &[], b"");
+    assert_eq!(page.status, 200);
+    assert!(String::from_utf8_lossy(&page.body).contains("editor.js"));
+    assert_eq!(http(&s.host, "GET", "/editor.js", &[], b"").status, 200);
+    let by_query = http(&s.host, "GET", &format!("/api/layout?token={}", s.token), &[], b"");
+    assert_eq!(by_query.status, 200);
+
+    let layout = s.get("/api/layout").json();
+    assert_eq!(layout["version"], 0);
+    for key in ["w0", "w1", "w2", "b0", "b1"] {
+        let i = instance(&layout, key);
+        assert!(i["category"].is_string() && i["asset"].is_string() && i["scale"] == 1.0, "{i}");
+    }
+    assert!(!layout["categories"].as_array().unwrap().is_empty());
+    assert!(!layout["assets"].as_array().unwrap().is_empty());
+    let (x0, y0) = xy(instance(&layout, "w0"));
+
+    // renders and the bird's-eye view
+    let r = s.get("/api/render?width=96&height=64&azimuth=30&elevation=40");
+    assert_eq!(r.status, 200);
+    assert_eq!(r.header("content-type"), Some("image/png"));
+    let before = decode_png(&r.body);
+    assert_eq!(before.dimensions(), (96, 64));
+    for bad in ["width=0", "width=99999", "elevation=120", "azimuth=nan", "width=abc", "radius=-1"]
+    {
+        let r = s.get(&format!("/api/render?{bad}"));
+        assert_eq!(r.status, 400, "{bad}: {}", String::from_utf8_lossy(&r.body));
+    }
+    let bev = s.get("/api/bev");
+    assert_eq!(bev.status, 200);
+    let m = &layout["bev"];
+    assert_eq!(
+        decode_png(&bev.body).dimensions(),
+        (m["width"].as_u64().unwrap() as u32, m["height"].as_u64().unwrap() as u32)
+    );
+    assert_eq!(s.get("/api/bev?footprints=false").status, 200);
+
+    // a good edit moves w0; bad ones answer 400 with their place and change nothing
+    let moved = s.post("/api/edits", "[Move(target: \"w0\", by: (0.5, -0.25))]");
+    assert_eq!(moved.status, 200, "{}", String::from_utf8_lossy(&moved.body));
+    let moved = moved.json();
+    assert_eq!(moved["version"], 1);
+    let (x1, y1) = xy(instance(&moved, "w0"));
+    assert!((x1 - x0 - 0.5).abs() < 1e-4 && (y1 - y0 + 0.25).abs() < 1e-4, "{x1} {y1}");
+    assert!(moved["edits"].as_str().unwrap().contains("Move("), "{}", moved["edits"]);
+    assert_eq!(moved["can_undo"], true);
+    let after = decode_png(&s.get("/api/render?width=96&height=64&azimuth=30&elevation=40").body);
+    assert_ne!(before, after, "the render follows the edit");
+    for (body, line, col) in [
+        (
+            "[\n  Move(target: \"w0\", by: (1, 0)),\n  Move(target: \"nobody\", by: (1, 0)),\n]",
+            3,
+            3,
+        ),
+        ("[Move(target: \"w0\", by: (1, 0)", 1, 30),
+        ("[Rotate(target: \"w0\", by: (1, 0))]", 1, 1),
+    ] {
+        let r = s.post("/api/edits", body);
+        assert_eq!(r.status, 400, "{body}");
+        let e = r.json();
+        assert!(e["error"].as_str().unwrap().contains("edit request"), "{e}");
+        assert_eq!(e["line"].as_u64(), Some(line), "{body}: {e}");
+        if body.contains("nobody") {
+            assert_eq!(e["col"].as_u64(), Some(col), "{e}");
+        }
+    }
+    let huge = vec![b' '; assetfield_editor::MAX_BODY_BYTES + 10];
+    let r = http(&s.host, "POST", "/api/edits", &[("X-Assetfield-Token", &s.token)], &huge);
+    assert_eq!(r.status, 400);
+    let r = http(&s.host, "POST", "/api/edits", &[("X-Assetfield-Token", &s.token)], &[0xff, 0xfe]);
+    assert_eq!(r.status, 400);
+    let r = s.post("/api/edits", "[Move(target: \"w0\", by: (1e39, 0))]");
+    assert_eq!(r.status, 400, "a position beyond f32: {}", String::from_utf8_lossy(&r.body));
+    let r = s.post("/api/edits", "[Move(target: \"w0\", by: (900.0, 0))]");
+    assert_eq!(r.status, 400, "off the plane: {}", String::from_utf8_lossy(&r.body));
+    let still = s.get("/api/layout").json();
+    assert_eq!(still["version"], 1, "refused edits change nothing");
+    assert_eq!(xy(instance(&still, "w0")), (x1, y1));
+    assert_eq!(s.get("/api/layout?nonsense=1").status, 200);
+    assert_eq!(s.get("/api/nothing").status, 404);
+
+    // undo restores the render exactly, redo brings the edit back
+    let undone = s.post("/api/undo", "").json();
+    assert_eq!(xy(instance(&undone, "w0")), (x0, y0));
+    assert_eq!(undone["can_redo"], true);
+    let again = decode_png(&s.get("/api/render?width=96&height=64&azimuth=30&elevation=40").body);
+    assert_eq!(before, again, "undo restores the image exactly");
+    assert_eq!(s.post("/api/undo", "").json()["version"], undone["version"], "nothing to undo");
+    let redone = s.post("/api/redo", "").json();
+    assert_eq!(xy(instance(&redone, "w0")), (x1, y1));
+    let added = s.post("/api/edits", "[Add(asset: \"obj000\", at: (0.0, 0.0), yaw: 45, name: \"new\"), Duplicate(target: \"b0\", by: (0.0, 0.8))]");
+    assert_eq!(added.status, 200, "{}", String::from_utf8_lossy(&added.body));
+    instance(&added.json(), "new");
+
+    // save writes base + edits; the file resolves and composes to the server's image
+    let saved = s.post("/api/save", "");
+    assert_eq!(saved.status, 200);
+    let path = PathBuf::from(saved.json()["saved"].as_str().unwrap());
+    assert_eq!(path, lib.join("edited.ron"));
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("base: \"layout.ron\"") && text.contains("Add("), "{text}");
+    ok(lib, &["layout", "edited.ron"]);
+    let view = ViewRequest {
+        width: 80,
+        height: 60,
+        azimuth_deg: -40.0,
+        elevation_deg: 30.0,
+        radius: None,
+    };
+    let served = decode_png(&s.get("/api/render?width=80&height=60&azimuth=-40&elevation=30").body);
+    let library = AssetLibrary::open(lib).unwrap();
+    let script = assetfield_layout::load(&path).unwrap();
+    let assets = ScriptAssets::resolve(&script, &library, DEFAULT_HALO).unwrap();
+    let resolved = resolve(&script, &assets).unwrap();
+    let mut composer = Composer::new(library.composition(&library.default_canvas()).unwrap());
+    assets.install(&mut composer).unwrap();
+    composer.apply_layout(&resolved).unwrap();
+    composer.update();
+    let session = EditSession::open(lib, &SessionOptions::default(), None).unwrap();
+    let camera = session.camera(&view).unwrap();
+    let rgb = composer.render(&camera, library.background);
+    let composed = decode_png(&assetfield_editor::png::encode_rgb_f32(80, 60, rgb).unwrap());
+    assert_eq!(served, composed, "the saved layout composes to the image the server rendered");
+    // a new session continues the saved edits
+    assert_eq!(session.layout().objects().count(), resolved.objects().count());
+    assert!(session.layout().instances.iter().any(|i| i.key == "new"));
+    // the server survives all of that
+    assert_eq!(s.get("/api/layout").status, 200);
+}
+
+// ---- the page in headless Chromium --------------------------------------------------
+
+fn strict() -> bool {
+    std::env::var_os("ASSETFIELD_STRICT_TESTS").is_some_and(|v| v != "0")
+}
+
+fn find_program(names: &[&str]) -> Option<PathBuf> {
+    let path = std::env::var_os("PATH")?;
+    for dir in std::env::split_paths(&path).chain([PathBuf::from("/usr/lib/chromium")]) {
+        for n in names {
+            let p = dir.join(n);
+            if p.is_file() {
+                return Some(p);
+            }
+        }
+    }
+    None
+}
+
+/// A chromedriver process and one headless Chromium session.
+struct Browser {
+    driver: Child,
+    host: String,
+    session: String,
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = http(&self.host, "DELETE", &format!("/session/{}", self.session), &[], b"");
+        let _ = self.driver.kill();
+        let _ = self.driver.wait();
+    }
+}
+
+impl Browser {
+    fn start(chromium: &Path, driver: &Path) -> Browser {
+        let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+        let driver = Command::new(driver)
+            .arg(format!("--port={port}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("chromedriver starts");
+        let host = format!("127.0.0.1:{port}");
+        let t0 = Instant::now();
+        while TcpStream::connect(&host).is_err() {
+            assert!(t0.elapsed() < Duration::from_secs(30), "chromedriver did not listen");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        let caps = json!({"capabilities": {"alwaysMatch": {
+            "browserName": "chrome",
+            "goog:chromeOptions": {
+                "binary": chromium.display().to_string(),
+                "args": ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                         "--window-size=1280,1000", "--force-device-scale-factor=1"],
+            },
+        }}});
+        let mut b = Browser { driver, host, session: String::new() };
+        let r = b.call("POST", "/session", Some(caps));
+        b.session = r["sessionId"].as_str().expect("a WebDriver session").to_string();
+        b
+    }
+
+    fn call(&self, method: &str, path: &str, body: Option<Value>) -> Value {
+        let body = body.map(|v| v.to_string()).unwrap_or_default();
+        let headers = [("Content-Type", "application/json")];
+        let r = http(&self.host, method, path, &headers, body.as_bytes());
+        let v: Value = serde_json::from_slice(&r.body).unwrap_or(Value::Null);
+        assert_eq!(r.status, 200, "WebDriver {method} {path}: {v}");
+        v["value"].clone()
+    }
+
+    fn cmd(&self, method: &str, what: &str, body: Option<Value>) -> Value {
+        self.call(method, &format!("/session/{}/{what}", self.session), body)
+    }
+
+    fn script(&self, js: &str) -> Value {
+        self.cmd("POST", "execute/sync", Some(json!({"script": js, "args": []})))
+    }
+
+    fn wait_for(&self, js: &str, what: &str) {
+        let t0 = Instant::now();
+        let js = format!("return ({js});");
+        while self.script(&js) != Value::Bool(true) {
+            assert!(t0.elapsed() < Duration::from_secs(60), "timed out waiting for {what}");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// The 3D view's image as displayed (drawn onto a canvas in the page).
+    fn view_image(&self) -> image::RgbImage {
+        let url = self.script(
+            "const i = document.getElementById('view'); const c = document.createElement('canvas');
+             c.width = i.naturalWidth; c.height = i.naturalHeight;
+             c.getContext('2d').drawImage(i, 0, 0); return c.toDataURL('image/png');",
+        );
+        let b64 = url.as_str().unwrap().split_once(',').unwrap().1;
+        decode_png(&base64(b64))
+    }
+}
+
+fn base64(s: &str) -> Vec<u8> {
+    let val = |c: u8| match c {
+        b'A'..=b'Z' => Some(c - b'A'),
+        b'a'..=b'z' => Some(c - b'a' + 26),
+        b'0'..=b'9' => Some(c - b'0' + 52),
+        b'+' => Some(62),
+        b'/' => Some(63),
+        _ => None,
+    };
+    let digits: Vec<u8> = s.bytes().filter_map(val).collect();
+    let mut out = Vec::with_capacity(digits.len() * 3 / 4);
+    for chunk in digits.chunks(4) {
+        let n = chunk
+            .iter()
+            .enumerate()
+            .fold(0u32, |acc, (k, &d)| acc | (u32::from(d) << (18 - 6 * k)));
+        let bytes = n.to_be_bytes();
+        out.extend_from_slice(&bytes[1..chunk.len()]);
+    }
+    out
+}
+
+#[test]
+fn base64_decodes() {
+    assert_eq!(base64("aGVsbG8gd29ybGQ="), b"hello world");
+    assert_eq!(base64("YQ=="), b"a");
+    assert_eq!(base64("YWI="), b"ab");
+}
+
+#[test]
+fn the_page_drags_an_instance_and_undo_restores_the_view() {
+    let (Some(chromium), Some(driver)) = (
+        find_program(&["chromium", "chromium-browser", "google-chrome"]),
+        find_program(&["chromedriver"]),
+    ) else {
+        let msg = "SKIPPED: the browser test needs chromium and chromedriver (Debian: apt install chromium chromium-driver; .ci/run installs them)";
+        assert!(!strict(), "{msg} (ASSETFIELD_STRICT_TESTS is set)");
+        eprintln!("{msg}");
+        return;
+    };
+    let lib = library();
+    let layout_file = lib.join("browser.ron");
+    let _ = std::fs::remove_file(&layout_file);
+    let s = start_server(lib, &["--layout", layout_file.to_str().unwrap()]);
+    let b = Browser::start(&chromium, &driver);
+    b.cmd("POST", "url", Some(json!({"url": s.url()})));
+    let full_render = |v: u64| {
+        format!(
+            "window.editor && editor.ready && editor.shown.version === {v} && editor.shown.preview === false"
+        )
+    };
+    b.wait_for(&full_render(0), "the page and its first full render");
+    let before = b.view_image();
+    let layout = s.get("/api/layout").json();
+    let key = "b0";
+    let (x0, y0) = xy(instance(&layout, key));
+
+    // drag b0 by (60, -30) CSS pixels on the bird's-eye view
+    let centre = b.script(&format!(
+        "const r = document.querySelector('#bev-svg polygon[data-key=\"{key}\"]').getBoundingClientRect();
+         return [r.left + r.width / 2, r.top + r.height / 2];"
+    ));
+    let (cx, cy) = (centre[0].as_f64().unwrap().round(), centre[1].as_f64().unwrap().round());
+    let (dx, dy) = (60.0, -30.0);
+    let pointer = |x: f64, y: f64, ms: u64| json!({"type": "pointerMove", "duration": ms, "x": x as i64, "y": y as i64, "origin": "viewport"});
+    b.cmd(
+        "POST",
+        "actions",
+        Some(json!({"actions": [{"type": "pointer", "id": "mouse", "parameters": {"pointerType": "mouse"},
+            "actions": [pointer(cx, cy, 0), {"type": "pointerDown", "button": 0},
+                        pointer(cx + dx / 2.0, cy + dy / 2.0, 100), pointer(cx + dx, cy + dy, 100),
+                        {"type": "pointerUp", "button": 0}]}]})),
+    );
+    b.wait_for(&full_render(1), "the render after the drag");
+    let upc = b.script("return editor.unitsPerCssPixel();");
+    let (ux, uy) = (upc[0].as_f64().unwrap(), upc[1].as_f64().unwrap());
+    let moved = s.get("/api/layout").json();
+    let (x1, y1) = xy(instance(&moved, key));
+    let (want_x, want_y) = (dx * ux, -dy * uy);
+    assert!(
+        ((x1 - x0) - want_x).abs() <= 1.01 * ux && ((y1 - y0) - want_y).abs() <= 1.01 * uy,
+        "dragged by ({want_x:.3}, {want_y:.3}) world units, the layout moved ({:.3}, {:.3})",
+        x1 - x0,
+        y1 - y0
+    );
+    let after = b.view_image();
+    assert_eq!(before.dimensions(), after.dimensions());
+
+    // the view changed, and around where the object stood
+    let (w, h) = after.dimensions();
+    let session = EditSession::open(lib, &SessionOptions::default(), None).unwrap();
+    let view = b.script("return [editor.view.azimuth, editor.view.elevation];");
+    let camera = session
+        .camera(&ViewRequest {
+            width: w,
+            height: h,
+            azimuth_deg: view[0].as_f64().unwrap() as f32,
+            elevation_deg: view[1].as_f64().unwrap() as f32,
+            radius: None,
+        })
+        .unwrap();
+    let at = camera.project(glam::Vec3::new(x0 as f32, y0 as f32, 0.15)).expect("b0 in view");
+    let changed: Vec<(u32, u32)> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| {
+            let (p, q) = (before.get_pixel(x, y).0, after.get_pixel(x, y).0);
+            (0..3).any(|c| p[c].abs_diff(q[c]) > 24)
+        })
+        .collect();
+    assert!(!changed.is_empty(), "the 3D view did not change");
+    assert!(changed.len() < (w * h / 3) as usize, "{} of {} pixels changed", changed.len(), w * h);
+    let near = changed
+        .iter()
+        .filter(|&&(x, y)| (x as f32 - at.x).hypot(y as f32 - at.y) < 0.12 * w as f32)
+        .count();
+    assert!(near > 0, "no pixel changed near b0's old place {at} (changed: {})", changed.len());
+
+    // undo (the button) restores the image exactly
+    b.script("document.getElementById('undo').click(); return true;");
+    b.wait_for(&full_render(2), "the render after undo");
+    let undone = b.view_image();
+    assert!(undone == before, "undo must restore the 3D view exactly");
+    assert_eq!(xy(instance(&s.get("/api/layout").json(), key)), (x0, y0));
+
+    // a screenshot under the test's output
+    let shot = b.cmd("GET", "screenshot", None);
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("editor");
+    std::fs::create_dir_all(&out).unwrap();
+    let file = out.join("screenshot.png");
+    std::fs::write(&file, base64(shot.as_str().unwrap())).unwrap();
+    assert!(decode_png(&std::fs::read(&file).unwrap()).width() > 600);
+    eprintln!("screenshot: {}", file.display());
+}
