@@ -327,6 +327,24 @@ fn the_api_answers_every_endpoint_and_guards_the_session() {
     assert_eq!(added.status, 200, "{}", String::from_utf8_lossy(&added.body));
     instance(&added.json(), "new");
 
+    // recolour a category from an entry of another category
+    let cats = added.json()["categories"].as_array().unwrap().clone();
+    let (cat, from) = (cats[0]["name"].as_str().unwrap(), cats[1]["members"][0].as_str().unwrap());
+    let r = s.post(&format!("/api/recolour?category={cat}&from={from}"), "");
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let recoloured = r.json();
+    let name = format!("{cat}~{from}");
+    let of_cat: Vec<&Value> = recoloured["instances"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|i| i["category"] == cat)
+        .collect();
+    assert!(!of_cat.is_empty() && of_cat.iter().all(|i| i["asset"] == name.as_str()), "{of_cat:?}");
+    assert_eq!(s.post("/api/recolour?category=nope&from=obj000", "").status, 400);
+    assert_eq!(s.post(&format!("/api/recolour?category={cat}&from=nope"), "").status, 400);
+    assert_eq!(s.post("/api/recolour", "").status, 400, "missing query");
+
     // save writes base + edits; the file resolves and composes to the server's image
     let saved = s.post("/api/save", "");
     assert_eq!(saved.status, 200);
@@ -334,6 +352,7 @@ fn the_api_answers_every_endpoint_and_guards_the_session() {
     assert_eq!(path, lib.join("edited.ron"));
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(text.contains("base: \"layout.ron\"") && text.contains("Add("), "{text}");
+    assert!(text.contains("color_from") && text.contains("path: \".\""), "{text}");
     ok(lib, &["layout", "edited.ron"]);
     let view = ViewRequest {
         width: 80,

@@ -82,6 +82,7 @@ pub fn router(state: AppState) -> Router {
         .route("/render", get(get_render))
         .route("/bev", get(get_bev))
         .route("/save", post(post_save))
+        .route("/recolour", post(post_recolour))
         .layer(middleware::from_fn_with_state(state.clone(), require_token));
     Router::new()
         .route("/", get(|| async { html(INDEX_HTML) }))
@@ -272,6 +273,22 @@ async fn get_bev(State(s): State<AppState>, Query(q): Query<BevQuery>) -> Respon
             Ok(bytes) => png(bytes, version),
             Err(e) => editor_error(&e),
         }
+    })
+    .await
+    .unwrap_or_else(|r| r)
+}
+
+/// Query of `POST /api/recolour`.
+#[derive(Debug, Deserialize)]
+struct RecolourQuery {
+    category: String,
+    from: String,
+}
+
+async fn post_recolour(State(s): State<AppState>, Query(q): Query<RecolourQuery>) -> Response {
+    with_session(&s, move |s| match s.recolour(&q.category, &q.from) {
+        Ok(()) => layout_json(s),
+        Err(e) => editor_error(&e),
     })
     .await
     .unwrap_or_else(|r| r)

@@ -12,7 +12,9 @@ use std::path::{Path, PathBuf};
 use assetfield_core::{Aabb3, Camera};
 use assetfield_field::eval::{Orbit, fitting_radius};
 use assetfield_gpu::{FieldRenderer, GpuContext};
-use assetfield_layout::{Edit, LoadedScript, ResolvedLayout, Script, resolve};
+use assetfield_layout::{
+    AssetDef, Edit, LibraryRef, LoadedScript, ResolvedLayout, Script, resolve,
+};
 use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, ScriptAssets};
 use glam::{Vec2, Vec3};
 use serde::Serialize;
@@ -149,6 +151,9 @@ pub struct EditSession {
     requests: u64,
     bev_cache: Option<(u64, bool, Vec<u8>)>,
     gpu: Option<Gpu>,
+    /// Assets the session defined (recoloured categories), by name: Save writes them into
+    /// the script's `assets`, with the library path relative to the saved file.
+    defined: std::collections::BTreeMap<String, AssetDef>,
 }
 
 impl std::fmt::Debug for EditSession {
@@ -186,7 +191,7 @@ fn relative_path(target: &Path, from: &Path) -> PathBuf {
     for c in &tc[common..] {
         out.push(c);
     }
-    out
+    if out.as_os_str().is_empty() { PathBuf::from(".") } else { out }
 }
 
 /// The absolute, symlink-free form of `p` (its parent's when `p` does not exist yet).
@@ -286,6 +291,7 @@ impl EditSession {
             requests: 0,
             bev_cache: None,
             gpu,
+            defined: Default::default(),
         })
     }
 
@@ -356,6 +362,64 @@ impl EditSession {
         Ok(())
     }
 
+    /// Recolour a category (the paper's Fig. 9): every instance of `category` drawn with its
+    /// template's geometry and the colour features of entry `from`, stretched onto the
+    /// template's extent. Defines the asset `CATEGORY~FROM` (a library asset with
+    /// `color_from`, which Save writes into the script) and applies
+    /// `ReplaceAsset(category: CATEGORY, with: "CATEGORY~FROM")` as one batch.
+    pub fn recolour(&mut self, category: &str, from: &str) -> Result<()> {
+        let bad = |m: String| Err(EditorError::BadRequest(m));
+        let Some(cat) = self.lib.index.categories.iter().find(|c| c.name == category) else {
+            let names: Vec<&str> =
+                self.lib.index.categories.iter().map(|c| c.name.as_str()).collect();
+            return bad(format!("no category \"{category}\" (categories: {})", names.join(", ")));
+        };
+        if self.lib.entry(from).is_none() {
+            return bad(format!("no entry \"{from}\" in the library"));
+        }
+        let Some(template) = self.lib.entry(&cat.template) else {
+            return bad(format!("category \"{category}\" has no template entry"));
+        };
+        let name = format!("{category}~{from}");
+        if !self.defined.contains_key(&name) {
+            let (ex, ey, ez) = template.extent;
+            let symmetry =
+                self.assets.assets.get(category).map_or(360.0, |a| a.info.yaw_symmetry_deg);
+            let def = AssetDef {
+                parts: Vec::new(),
+                obj: None,
+                yaw_symmetry_deg: symmetry,
+                container: false,
+                category: Some(category.to_string()),
+                library: Some(LibraryRef {
+                    path: canonical(&self.lib.dir).to_string_lossy().into_owned(),
+                    entry: template.name.clone(),
+                    size: (ex, ey, ez),
+                    pivot: None,
+                    density_from: None,
+                    color_from: Some(from.to_string()),
+                }),
+            };
+            let script = Script {
+                assets: [(name.clone(), def.clone())].into_iter().collect(),
+                ..Default::default()
+            };
+            let text = assetfield_layout::source::write_script(&script)?;
+            let probe = assetfield_layout::load_str(&self.lib.dir.join("(recolour)"), &text)?;
+            let mut resolved = ScriptAssets::resolve(&probe, &self.lib, DEFAULT_HALO)
+                .map_err(scene_err(format!("recolouring {category} from {from}")))?;
+            let asset = resolved.assets.remove(&name).ok_or_else(|| {
+                EditorError::BadRequest(format!("the asset {name} did not resolve"))
+            })?;
+            self.composer
+                .set_template(&name, &asset.category, asset.patch.clone())
+                .map_err(scene_err(format!("installing {name}")))?;
+            self.assets.assets.insert(name.clone(), asset);
+            self.defined.insert(name.clone(), def);
+        }
+        self.apply(&format!("[ReplaceAsset(category: {category:?}, with: {name:?})]"))
+    }
+
     /// Take back the last batch; `false` when there is none.
     pub fn undo(&mut self) -> Result<bool> {
         let Some(last) = self.batches.last().cloned() else { return Ok(false) };
@@ -396,7 +460,7 @@ impl EditSession {
 
     /// The text Save writes.
     pub fn saved_text(&self) -> Result<String> {
-        let script = match &self.save_as {
+        let mut script = match &self.save_as {
             SaveAs::EditScript { base, earlier } => {
                 let mut edits = earlier.clone();
                 edits.extend(self.edits());
@@ -408,6 +472,15 @@ impl EditSession {
                 s
             }
         };
+        let dir = self.save_path.parent().filter(|d| !d.as_os_str().is_empty());
+        let lib_path = relative_path(&self.lib.dir, dir.unwrap_or(Path::new(".")));
+        for (name, def) in &self.defined {
+            let mut def = def.clone();
+            if let Some(l) = &mut def.library {
+                l.path = lib_path.to_string_lossy().into_owned();
+            }
+            script.assets.insert(name.clone(), def);
+        }
         Ok(assetfield_layout::source::write_script(&script)?)
     }
 
@@ -606,6 +679,7 @@ mod tests {
         std::fs::write(root.join("lib/layout.ron"), "Scene()").unwrap();
         let lib = root.join("lib/layout.ron");
         assert_eq!(relative_path(&lib, &root.join("lib")), PathBuf::from("layout.ron"));
+        assert_eq!(relative_path(&root.join("lib"), &root.join("lib")), PathBuf::from("."));
         assert_eq!(
             relative_path(&lib, &root.join("work/rooms")),
             PathBuf::from("../../lib/layout.ron")

@@ -93,6 +93,12 @@ async function post(path, what) {
   }
 }
 
+async function recolour(category, from) {
+  const q = `recolour?category=${encodeURIComponent(category)}&from=${encodeURIComponent(from)}`;
+  const l = await post(q, "recolour");
+  if (l) { setLayout(l); status(`${category} recoloured from ${from}`); }
+}
+
 async function undo() {
   const l = await post("undo", "undo");
   if (l) { setLayout(l); status("undone"); }
@@ -368,11 +374,20 @@ function drawPanels() {
     pick.onchange = () => {
       if (pick.value !== c.name) sendEdits(`[ReplaceAsset(category: ${ronString(c.name)}, with: ${ronString(pick.value)})]`);
     };
+    const tint = document.createElement("select");
+    tint.title = "recolour the category: its template's geometry with this entry's colours";
+    tint.appendChild(Object.assign(document.createElement("option"), { value: "", textContent: "recolour from..." }));
+    for (const a of l.assets.filter((a) => a.kind === "entry")) {
+      tint.appendChild(Object.assign(document.createElement("option"), { value: a.name, textContent: `${a.name} (${a.category})` }));
+    }
+    tint.onchange = () => {
+      if (tint.value) recolour(c.name, tint.value);
+    };
     const rm = document.createElement("button");
     rm.textContent = "Remove";
     rm.title = "remove every instance of the category (RemoveCategory)";
     rm.onclick = () => sendEdits(`[RemoveCategory(${ronString(c.name)})]`);
-    li.append(sw, `${c.name} (${count}) `, pick, rm);
+    li.append(sw, `${c.name} (${count}) `, pick, tint, rm);
     cats.appendChild(li);
   }
 }
