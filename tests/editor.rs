@@ -323,6 +323,13 @@ fn the_api_answers_every_endpoint_and_guards_the_session() {
     assert_eq!(s.post("/api/undo", "").json()["version"], undone["version"], "nothing to undo");
     let redone = s.post("/api/redo", "").json();
     assert_eq!(xy(instance(&redone, "w0")), (x1, y1));
+    // undo after a removal (the instance comes back as a new entity) is exact too
+    let before_remove = s.get("/api/render?width=96&height=64&azimuth=30&elevation=40").body;
+    assert_eq!(s.post("/api/edits", "[Remove(\"b1\")]").status, 200);
+    assert_ne!(s.get("/api/render?width=96&height=64&azimuth=30&elevation=40").body, before_remove);
+    s.post("/api/undo", "");
+    let back = s.get("/api/render?width=96&height=64&azimuth=30&elevation=40").body;
+    assert!(back == before_remove, "undoing a removal restores the image exactly");
     let added = s.post("/api/edits", "[Add(asset: \"obj000\", at: (0.0, 0.0), yaw: 45, name: \"new\"), Duplicate(target: \"b0\", by: (0.0, 0.8))]");
     assert_eq!(added.status, 200, "{}", String::from_utf8_lossy(&added.body));
     instance(&added.json(), "new");
@@ -573,7 +580,9 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
 
     // the view changed, and around where the object stood
     let (w, h) = after.dimensions();
-    let session = EditSession::open(lib, &SessionOptions::default(), None).unwrap();
+    // a session of its own (the API test writes LIB/edited.ron meanwhile), for the camera
+    let own = SessionOptions { layout: Some(lib.join("camera_only.ron")), halo: None };
+    let session = EditSession::open(lib, &own, None).unwrap();
     let view = b.script("return [editor.view.azimuth, editor.view.elevation];");
     let camera = session
         .camera(&ViewRequest {
@@ -615,4 +624,47 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
     std::fs::write(&file, base64(shot.as_str().unwrap())).unwrap();
     assert!(decode_png(&std::fs::read(&file).unwrap()).width() > 600);
     eprintln!("screenshot: {}", file.display());
+}
+
+/// PSNR (dB) of `b` against `a`, values in [0, 1].
+fn psnr(a: &[f32], b: &[f32]) -> f64 {
+    let mse = a.iter().zip(b).map(|(x, y)| f64::from(x - y).powi(2)).sum::<f64>() / a.len() as f64;
+    -10.0 * mse.max(1e-12).log10()
+}
+
+#[test]
+fn the_gpu_backend_renders_what_the_cpu_renders_across_edits() {
+    let ctx = match assetfield_gpu::GpuContext::new() {
+        Ok(c) => c,
+        Err(assetfield_gpu::GpuError::NoAdapter(reason)) => {
+            let msg = format!(
+                "SKIPPED: no wgpu adapter ({reason}); the editor's GPU backend was not compared with the CPU"
+            );
+            assert!(!strict(), "{msg} (ASSETFIELD_STRICT_TESTS is set)");
+            eprintln!("{msg}");
+            return;
+        }
+        Err(e) => panic!("{e}"),
+    };
+    let lib = library();
+    let opts = |name: &str| SessionOptions { layout: Some(lib.join(name)), halo: None };
+    let mut cpu = EditSession::open(lib, &opts("gpu_cpu.ron"), None).unwrap();
+    let mut gpu = EditSession::open(lib, &opts("gpu_gpu.ron"), Some((ctx, false))).unwrap();
+    assert_eq!((cpu.backend(), gpu.backend()), ("cpu", "gpu"));
+    let view =
+        ViewRequest { width: 64, height: 48, azimuth_deg: 20.0, elevation_deg: 40.0, radius: None };
+    let mut last: Option<Vec<f32>> = None;
+    for edit in [None, Some("[Move(target: \"w1\", by: (0.4, 0.2))]"), Some("[Remove(\"b1\")]")] {
+        if let Some(e) = edit {
+            cpu.apply(e).unwrap();
+            gpu.apply(e).unwrap();
+        }
+        let (c, g) = (cpu.render(&view).unwrap(), gpu.render(&view).unwrap());
+        let p = psnr(&c, &g);
+        assert!(p > 45.0, "{edit:?}: GPU against CPU {p:.1} dB");
+        if let Some(prev) = &last {
+            assert!(psnr(prev, &g) < 40.0, "{edit:?}: the GPU render did not follow the edit");
+        }
+        last = Some(g);
+    }
 }

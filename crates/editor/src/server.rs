@@ -6,8 +6,8 @@
 //! to 127.0.0.1 but cannot know the token. Request bodies are read up to
 //! [`MAX_BODY_BYTES`]; a longer one, a body that is not UTF-8 and an edit that does not parse
 //! or resolve answer 400 and change nothing. The session runs on blocking threads behind a
-//! mutex (edits are applied one at a time, in arrival order); a panic in one request answers
-//! 500 and the server goes on.
+//! mutex (requests are served one at a time); a panic in one request (a bug) answers 500 and
+//! the server goes on with the session as the panic left it.
 
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -146,7 +146,7 @@ fn editor_error(e: &EditorError) -> Response {
 }
 
 /// Run `f` on the session on a blocking thread; a panic answers 500 and leaves the server
-/// (and the session, whose changes are all-or-nothing) usable.
+/// usable (edits that fail with an error change nothing; a panic is a bug).
 async fn with_session<T: Send + 'static>(
     s: &AppState,
     f: impl FnOnce(&mut EditSession) -> T + Send + 'static,

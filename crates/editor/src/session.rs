@@ -151,6 +151,8 @@ pub struct EditSession {
     requests: u64,
     bev_cache: Option<(u64, bool, Vec<u8>)>,
     gpu: Option<Gpu>,
+    /// Texels around each entry's mask that its patch covers.
+    halo: usize,
     /// Assets the session defined (recoloured categories), by name: Save writes them into
     /// the script's `assets`, with the library path relative to the saved file.
     defined: std::collections::BTreeMap<String, AssetDef>,
@@ -251,7 +253,8 @@ impl EditSession {
             )
         };
         let start = assetfield_layout::load(&start_path)?;
-        let assets = ScriptAssets::resolve(&start, &lib, opts.halo.unwrap_or(DEFAULT_HALO))
+        let halo = opts.halo.unwrap_or(DEFAULT_HALO);
+        let assets = ScriptAssets::resolve(&start, &lib, halo)
             .map_err(scene_err(format!("resolving the assets of {}", start_path.display())))?;
         let layout = resolve(&start, &assets)?;
         let canvas = lib.default_canvas();
@@ -291,6 +294,7 @@ impl EditSession {
             requests: 0,
             bev_cache: None,
             gpu,
+            halo,
             defined: Default::default(),
         })
     }
@@ -406,7 +410,7 @@ impl EditSession {
             };
             let text = assetfield_layout::source::write_script(&script)?;
             let probe = assetfield_layout::load_str(&self.lib.dir.join("(recolour)"), &text)?;
-            let mut resolved = ScriptAssets::resolve(&probe, &self.lib, DEFAULT_HALO)
+            let mut resolved = ScriptAssets::resolve(&probe, &self.lib, self.halo)
                 .map_err(scene_err(format!("recolouring {category} from {from}")))?;
             let asset = resolved.assets.remove(&name).ok_or_else(|| {
                 EditorError::BadRequest(format!("the asset {name} did not resolve"))
@@ -416,6 +420,15 @@ impl EditSession {
                 .map_err(scene_err(format!("installing {name}")))?;
             self.assets.assets.insert(name.clone(), asset);
             self.defined.insert(name.clone(), def);
+            let applied =
+                self.apply(&format!("[ReplaceAsset(category: {category:?}, with: {name:?})]"));
+            if applied.is_err() {
+                // nothing refers to the new asset: forget it (its template entity stays
+                // unused in the composer)
+                self.assets.assets.remove(&name);
+                self.defined.remove(&name);
+            }
+            return applied;
         }
         self.apply(&format!("[ReplaceAsset(category: {category:?}, with: {name:?})]"))
     }

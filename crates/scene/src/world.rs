@@ -161,10 +161,34 @@ fn track_container(
     }
 }
 
+/// The order instances are drawn in: by key (instances without one last, by entity), so
+/// that the composed planes depend only on which instances there are, not on the order the
+/// ECS happens to store them in (a despawned and respawned instance moves in storage, and
+/// sums of overlapping patches in another order differ in the last bits: undo would not
+/// restore the planes exactly).
+fn draw_order<T>(mut items: Vec<(Option<&InstanceKey>, Entity, T)>) -> Vec<T> {
+    items.sort_by(|a, b| match (a.0, b.0) {
+        (Some(x), Some(y)) => x.0.cmp(&y.0).then(a.1.cmp(&b.1)),
+        (Some(_), None) => std::cmp::Ordering::Less,
+        (None, Some(_)) => std::cmp::Ordering::Greater,
+        (None, None) => a.1.cmp(&b.1),
+    });
+    items.into_iter().map(|(_, _, t)| t).collect()
+}
+
+/// What rasterisation reads of an instance.
+type DrawnInstance = (
+    Entity,
+    Option<&'static InstanceKey>,
+    &'static Placement,
+    &'static InstanceOf,
+    Option<&'static PatchOverride>,
+);
+
 fn rasterise_dirty(
     mut comp: ResMut<ComposedPlanes>,
     mut fp: ResMut<Footprints>,
-    instances: Query<(&Placement, &InstanceOf, Option<&PatchOverride>)>,
+    instances: Query<DrawnInstance>,
     templates: Query<&Template>,
     mut stats: ResMut<RasterStats>,
 ) {
@@ -173,12 +197,15 @@ fn rasterise_dirty(
     stats.rects = dirty.len();
     stats.texels = 0;
     if !dirty.is_empty() {
-        let draws: Vec<InstanceDraw> = instances
-            .iter()
-            .filter_map(|(p, of, ov)| {
-                patch_of((of, ov), &templates).map(|patch| InstanceDraw::new(&p.0, patch.as_ref()))
-            })
-            .collect();
+        let draws: Vec<InstanceDraw> = draw_order(
+            instances
+                .iter()
+                .filter_map(|(e, key, p, of, ov)| {
+                    patch_of((of, ov), &templates)
+                        .map(|patch| (key, e, InstanceDraw::new(&p.0, patch.as_ref())))
+                })
+                .collect(),
+        );
         for r in &dirty {
             stats.texels += comp.0.rasterise(*r, &draws);
         }
@@ -488,17 +515,24 @@ impl Composer {
     /// Redraw everything from scratch (for checks and benchmarks): the planes a fresh
     /// composer would produce for the current entities.
     pub fn rasterise_everything(&mut self) -> usize {
-        let mut q = self.world.query::<(&Placement, &InstanceOf, Option<&PatchOverride>)>();
-        let items: Vec<(GroundTransform, Arc<FeaturePatch>)> = q
-            .iter(&self.world)
-            .filter_map(|(p, of, ov)| {
-                let patch = match ov {
-                    Some(o) => o.0.clone(),
-                    None => self.world.get::<Template>(of.0)?.patch.clone(),
-                };
-                Some((p.0, patch))
-            })
-            .collect();
+        let mut q = self.world.query::<(
+            Entity,
+            Option<&InstanceKey>,
+            &Placement,
+            &InstanceOf,
+            Option<&PatchOverride>,
+        )>();
+        let items: Vec<(GroundTransform, Arc<FeaturePatch>)> = draw_order(
+            q.iter(&self.world)
+                .filter_map(|(e, key, p, of, ov)| {
+                    let patch = match ov {
+                        Some(o) => o.0.clone(),
+                        None => self.world.get::<Template>(of.0)?.patch.clone(),
+                    };
+                    Some((key, e, (p.0, patch)))
+                })
+                .collect(),
+        );
         let draws: Vec<InstanceDraw> = items.iter().map(|(t, p)| InstanceDraw::new(t, p)).collect();
         let mut comp = self.world.resource_mut::<ComposedPlanes>();
         let full = comp.0.full_rect();

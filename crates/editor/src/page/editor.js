@@ -117,6 +117,8 @@ async function save() {
 // ---- layout and the bird's-eye view ------------------------------------------------
 
 function setLayout(l) {
+  // versions only grow: a late answer to an earlier request is stale
+  if (editor.layout && l.version < editor.layout.version) return;
   const changed = !editor.layout || editor.layout.version !== l.version;
   editor.layout = l;
   if (editor.selected && !l.instances.some((i) => i.key === editor.selected)) editor.selected = null;
@@ -131,10 +133,14 @@ function setLayout(l) {
   }
 }
 
+let bevSeq = 0;
 function refreshBev() {
   const img = $("bev-img");
+  const seq = ++bevSeq;
   fetchImage(`bev?footprints=false&v=${editor.layout.version}`).then((url) => {
-    if (url) {
+    if (url && seq !== bevSeq) {
+      URL.revokeObjectURL(url);
+    } else if (url) {
       if (img.src.startsWith("blob:")) URL.revokeObjectURL(img.src);
       img.src = url;
     }
@@ -229,13 +235,16 @@ function select(key) {
 let drag = null;
 
 function onPointerDown(evt) {
+  if (evt.button !== 0) return;
   const target = evt.target;
   const p = svgPoint(evt);
   if (target.dataset && target.dataset.handle) {
     drag = { kind: "turn", key: target.dataset.handle, start: p };
   } else if (target.dataset && target.dataset.key) {
-    select(target.dataset.key);
-    drag = { kind: "move", key: target.dataset.key, start: p, group: target.parentNode };
+    const key = target.dataset.key;
+    select(key); // redraws the footprints: take the new group
+    const group = [...$("bev-svg").children].find((g) => g.dataset.key === key);
+    drag = { kind: "move", key, start: p, group };
   } else {
     if (editor.chosenAsset) {
       insertAt(p);
@@ -251,7 +260,7 @@ function onPointerDown(evt) {
 function onPointerMove(evt) {
   if (!drag) return;
   const p = svgPoint(evt);
-  if (drag.kind === "move") {
+  if (drag.kind === "move" && drag.group) {
     drag.group.setAttribute("transform", `translate(${p.x - drag.start.x},${p.y - drag.start.y})`);
   }
   drag.last = p;
@@ -275,9 +284,17 @@ async function onPointerUp(evt) {
     await sendEdits(`[Move(target: ${ronString(d.key)}, by: (${num(dx)}, ${num(dy)}))]`);
   } else {
     const [cx, cy] = toPixel(inst.x, inst.y);
-    let yaw = (Math.atan2(-(p.y - cy), p.x - cx) * 180) / Math.PI;
+    let yaw = (Math.atan2(-(p.y - cy) * m.sy, (p.x - cx) * m.sx) * 180) / Math.PI;
     if (evt.shiftKey) yaw = Math.round(yaw / SNAP_DEG) * SNAP_DEG;
     await sendEdits(`[Rotate(target: ${ronString(d.key)}, to: ${num(yaw)})]`);
+  }
+}
+
+// a cancelled press (the pointer lost, a touch turned into a scroll) edits nothing
+function onPointerCancel() {
+  if (drag) {
+    drag = null;
+    drawFootprints();
   }
 }
 
@@ -294,6 +311,7 @@ function onKey(evt) {
   if (ctrl && evt.key.toLowerCase() === "z") { evt.preventDefault(); evt.shiftKey ? redo() : undo(); return; }
   if (ctrl && evt.key.toLowerCase() === "y") { evt.preventDefault(); redo(); return; }
   if (ctrl && evt.key.toLowerCase() === "s") { evt.preventDefault(); save(); return; }
+  if (ctrl || evt.altKey) return; // browser shortcuts (Ctrl-+ zooms the page)
   const key = editor.selected;
   if (!key) return;
   const inst = editor.layout.instances.find((i) => i.key === key);
@@ -417,7 +435,7 @@ async function renderView() {
       if (url) URL.revokeObjectURL(url);
       return;
     }
-    if (!url) return;
+    if (!url) continue; // a failed preview: still try full size
     await new Promise((resolve) => {
       img.onload = resolve;
       img.onerror = resolve;
@@ -432,6 +450,7 @@ async function renderView() {
 
 let orbit = null;
 function onViewDown(evt) {
+  if (evt.button !== 0) return;
   orbit = { x: evt.clientX, y: evt.clientY, az: editor.view.azimuth, el: editor.view.elevation };
   $("view").setPointerCapture(evt.pointerId);
   evt.preventDefault();
@@ -443,6 +462,7 @@ function onViewMove(evt) {
 }
 function onViewUp() {
   if (!orbit) return;
+  // (also on pointercancel: render where the orbit got to)
   orbit = null;
   renderView();
 }
@@ -451,7 +471,8 @@ function onWheel(evt) {
   evt.preventDefault();
   const e = editor.layout.extent;
   const base = editor.view.radius || Math.hypot(e[2] - e[0], e[3] - e[1]) * 1.6;
-  editor.view.radius = Math.max(0.05 * base, base * Math.exp(evt.deltaY * 0.001));
+  const diag = Math.hypot(e[2] - e[0], e[3] - e[1]);
+  editor.view.radius = Math.min(20 * diag, Math.max(0.05 * base, base * Math.exp(evt.deltaY * 0.001)));
   clearTimeout(wheelTimer);
   wheelTimer = setTimeout(renderView, 120);
 }
@@ -463,10 +484,12 @@ async function start() {
   svg.addEventListener("pointerdown", onPointerDown);
   svg.addEventListener("pointermove", onPointerMove);
   svg.addEventListener("pointerup", onPointerUp);
+  svg.addEventListener("pointercancel", onPointerCancel);
   const view = $("view");
   view.addEventListener("pointerdown", onViewDown);
   view.addEventListener("pointermove", onViewMove);
   view.addEventListener("pointerup", onViewUp);
+  view.addEventListener("pointercancel", onViewUp);
   view.addEventListener("wheel", onWheel, { passive: false });
   document.addEventListener("keydown", onKey);
   $("undo").onclick = undo;
