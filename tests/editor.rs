@@ -237,6 +237,14 @@ fn the_api_answers_every_endpoint_and_guards_the_session() {
     assert_eq!(page.status, 200);
     assert!(String::from_utf8_lossy(&page.body).contains("editor.js"));
     assert_eq!(http(&s.host, "GET", "/editor.js", &[], b"").status, 200);
+    // a page whose domain was rebound to 127.0.0.1 sends its own Host: refused, page too
+    let port = s.host.rsplit(':').next().unwrap();
+    let rebound = format!("evil.example:{port}");
+    let mut raw = TcpStream::connect(&s.host).unwrap();
+    write!(raw, "GET / HTTP/1.1\r\nHost: {rebound}\r\nConnection: close\r\n\r\n").unwrap();
+    let mut reply = String::new();
+    let _ = raw.read_to_string(&mut reply);
+    assert!(reply.starts_with("HTTP/1.1 403"), "{reply}");
     let by_query = http(&s.host, "GET", &format!("/api/layout?token={}", s.token), &[], b"");
     assert_eq!(by_query.status, 200);
 
@@ -425,19 +433,33 @@ impl Drop for Browser {
 
 impl Browser {
     fn start(chromium: &Path, driver: &Path) -> Browser {
-        let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-        let driver = Command::new(driver)
-            .arg(format!("--port={port}"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("chromedriver starts");
-        let host = format!("127.0.0.1:{port}");
-        let t0 = Instant::now();
-        while TcpStream::connect(&host).is_err() {
-            assert!(t0.elapsed() < Duration::from_secs(30), "chromedriver did not listen");
-            std::thread::sleep(Duration::from_millis(100));
-        }
+        // a free port, released and handed to chromedriver: another process may take it in
+        // between, so a driver that exits at once is started again on another port
+        let (driver, host) = (0..3)
+            .find_map(|_| {
+                let port = std::net::TcpListener::bind("127.0.0.1:0")
+                    .unwrap()
+                    .local_addr()
+                    .unwrap()
+                    .port();
+                let mut child = Command::new(driver)
+                    .arg(format!("--port={port}"))
+                    .stdout(Stdio::null())
+                    .stderr(Stdio::null())
+                    .spawn()
+                    .expect("chromedriver starts");
+                let host = format!("127.0.0.1:{port}");
+                let t0 = Instant::now();
+                while TcpStream::connect(&host).is_err() {
+                    if child.try_wait().ok().flatten().is_some() {
+                        return None;
+                    }
+                    assert!(t0.elapsed() < Duration::from_secs(30), "chromedriver did not listen");
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+                Some((child, host))
+            })
+            .expect("chromedriver exited three times at start");
         let caps = json!({"capabilities": {"alwaysMatch": {
             "browserName": "chrome",
             "goog:chromeOptions": {

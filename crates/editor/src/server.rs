@@ -36,6 +36,10 @@ const EDITOR_CSS: &str = include_str!("page/editor.css");
 pub struct AppState {
     session: Arc<Mutex<EditSession>>,
     token: Arc<str>,
+    /// The `Host` headers requests may carry (`None`: any): for a server on loopback, its
+    /// own address by number or as `localhost`, so that a page whose domain was rebound to
+    /// 127.0.0.1 is refused before the token is even looked at.
+    hosts: Option<Arc<[String]>>,
 }
 
 impl std::fmt::Debug for AppState {
@@ -47,8 +51,36 @@ impl std::fmt::Debug for AppState {
 impl AppState {
     /// A state serving `session`, guarded by `token`.
     pub fn new(session: EditSession, token: String) -> Self {
-        AppState { session: Arc::new(Mutex::new(session)), token: token.into() }
+        AppState { session: Arc::new(Mutex::new(session)), token: token.into(), hosts: None }
     }
+
+    /// Accept only the `Host` headers a browser sends to `addr` when it is a loopback
+    /// address (any otherwise: a server on the network is reached by names it cannot know).
+    pub fn serving(mut self, addr: SocketAddr) -> Self {
+        if addr.ip().is_loopback() {
+            let port = addr.port();
+            let ip = match addr.ip() {
+                std::net::IpAddr::V6(v6) => format!("[{v6}]"),
+                v4 => v4.to_string(),
+            };
+            self.hosts = Some(vec![format!("{ip}:{port}"), format!("localhost:{port}")].into());
+        }
+        self
+    }
+}
+
+async fn check_host(State(s): State<AppState>, req: Request, next: Next) -> Response {
+    if let Some(hosts) = &s.hosts {
+        let host = req.headers().get(header::HOST).and_then(|v| v.to_str().ok());
+        if !host.is_some_and(|h| hosts.iter().any(|a| a.eq_ignore_ascii_case(h))) {
+            return (
+                StatusCode::FORBIDDEN,
+                "unexpected Host header: open the URL `assetfield edit` printed\n",
+            )
+                .into_response();
+        }
+    }
+    next.run(req).await
 }
 
 /// A fresh random token: 128 bits from the operating system's generator, as hex.
@@ -89,6 +121,7 @@ pub fn router(state: AppState) -> Router {
         .route("/editor.js", get(|| async { asset(EDITOR_JS, "text/javascript; charset=utf-8") }))
         .route("/editor.css", get(|| async { asset(EDITOR_CSS, "text/css; charset=utf-8") }))
         .nest("/api", api)
+        .layer(middleware::from_fn_with_state(state.clone(), check_host))
         .with_state(state)
 }
 
@@ -335,7 +368,7 @@ pub fn run(
                 tokio::time::sleep(std::time::Duration::from_millis(100)).await;
             }
         };
-        serve(listener, AppState::new(session, token), shutdown).await
+        serve(listener, AppState::new(session, token).serving(local), shutdown).await
     })
 }
 
