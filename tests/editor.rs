@@ -6,7 +6,9 @@
 //!   library, not the session) to the image the server rendered;
 //! - the page is driven in headless Chromium over WebDriver: one instance is dragged on the
 //!   bird's-eye view, the layout moves it by the dragged distance, the 3D view changes where
-//!   the object stood, undo restores the image exactly, and a screenshot is saved.
+//!   the object stood, undo restores the image exactly, Shift+Q turns it to the next 15
+//!   degrees, a library asset clicked into the plane lands where it was clicked, and a
+//!   screenshot is saved.
 
 use assetfield_editor::{EditSession, SessionOptions, ViewRequest};
 use assetfield_layout::resolve;
@@ -637,6 +639,58 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
     let undone = b.view_image();
     assert!(undone == before, "undo must restore the 3D view exactly");
     assert_eq!(xy(instance(&s.get("/api/layout").json(), key)), (x0, y0));
+
+    // Shift+Q turns the selected instance (b0, selected by the drag) to the next 15 degrees
+    let yaw0 = instance(&s.get("/api/layout").json(), key)["yaw_deg"].as_f64().unwrap();
+    b.cmd(
+        "POST",
+        "actions",
+        Some(json!({"actions": [{"type": "key", "id": "keyboard", "actions": [
+            {"type": "keyDown", "value": "\u{E008}"}, {"type": "keyDown", "value": "q"},
+            {"type": "keyUp", "value": "q"}, {"type": "keyUp", "value": "\u{E008}"}]}]})),
+    );
+    b.wait_for(&full_render(3), "the render after the turn");
+    let yaw1 = instance(&s.get("/api/layout").json(), key)["yaw_deg"].as_f64().unwrap();
+    let want = ((yaw0 / 15.0).round() + 1.0) * 15.0;
+    let off = (yaw1 - want).rem_euclid(360.0);
+    assert!(off.min(360.0 - off) < 1e-3, "Shift+Q: {yaw0} -> {yaw1}, wanted {want}");
+
+    // choose a library asset, click on an empty spot of the plane: a new instance there
+    let asset = b.script(
+        "const li = document.querySelector('#palette li'); li.click(); return li.dataset.asset;",
+    );
+    let asset = asset.as_str().unwrap().to_string();
+    let spot = b.script(
+        "const r = document.getElementById('bev-svg').getBoundingClientRect();
+         for (const fy of [0.12, 0.5, 0.88]) for (const fx of [0.12, 0.5, 0.88]) {
+           const x = Math.round(r.left + fx * r.width), y = Math.round(r.top + fy * r.height);
+           const hit = document.elementFromPoint(x, y);
+           if (hit && hit.id === 'bev-svg') return [x, y];
+         }
+         return null;",
+    );
+    let (sx, sy) =
+        (spot[0].as_f64().expect("an empty spot on the plane"), spot[1].as_f64().unwrap());
+    b.cmd(
+        "POST",
+        "actions",
+        Some(json!({"actions": [{"type": "pointer", "id": "mouse", "parameters": {"pointerType": "mouse"},
+            "actions": [pointer(sx, sy, 0), {"type": "pointerDown", "button": 0}, {"type": "pointerUp", "button": 0}]}]})),
+    );
+    b.wait_for(&full_render(4), "the render after the insert");
+    let inserted = s.get("/api/layout").json();
+    let new = instance(&inserted, &format!("{asset}+new1"));
+    let at = b.script(&format!(
+        "const r = document.getElementById('bev-svg').getBoundingClientRect(); const m = editor.layout.bev;
+         const u = ({sx} - r.left) * m.width / r.width, v = ({sy} - r.top) * m.height / r.height;
+         return [m.x0 + u * m.sx, m.y0 - v * m.sy];"
+    ));
+    let (wx, wy) = (at[0].as_f64().unwrap(), at[1].as_f64().unwrap());
+    let (nx, ny) = xy(new);
+    assert!(
+        (nx - wx).abs() <= 1.01 * ux && (ny - wy).abs() <= 1.01 * uy,
+        "inserted at ({nx}, {ny}), clicked ({wx}, {wy})"
+    );
 
     // a screenshot under the test's output
     let shot = b.cmd("GET", "screenshot", None);
