@@ -5,7 +5,8 @@ use assetfield_field::pictures::{Picture, density_picture};
 use glam::Vec2;
 use serde::Serialize;
 
-use crate::session::EditSession;
+use crate::session::{EditSession, footprint_corners};
+use assetfield_core::canvas::palette;
 
 /// The bird's-eye picture is enlarged (nearest neighbour, texels stay visible) until its
 /// longer side holds at least this many pixels, at most [`BEV_MAX_ZOOM`] times.
@@ -53,23 +54,6 @@ impl BevMapping {
     }
 }
 
-/// A category's outline colour: evenly spaced hues, the same the page uses.
-pub fn category_colour(index: usize) -> [u8; 3] {
-    const PALETTE: [[u8; 3]; 10] = [
-        [230, 25, 75],
-        [60, 180, 75],
-        [0, 130, 200],
-        [245, 130, 48],
-        [145, 30, 180],
-        [70, 240, 240],
-        [240, 50, 230],
-        [210, 245, 60],
-        [250, 190, 212],
-        [255, 225, 25],
-    ];
-    PALETTE[index % PALETTE.len()]
-}
-
 /// The bird's-eye picture and its mapping.
 pub fn bev_picture(s: &EditSession, footprints: bool) -> (Picture, BevMapping) {
     let m = BevMapping::of(s);
@@ -77,15 +61,13 @@ pub fn bev_picture(s: &EditSession, footprints: bool) -> (Picture, BevMapping) {
     let zoom = if base.width == 0 { 1 } else { m.width / base.width.max(1) };
     let mut pic = base.upscaled(zoom.max(1));
     if footprints {
-        let view = s.view();
-        let names: Vec<&str> = view.categories.iter().map(|c| c.name.as_str()).collect();
-        for inst in &view.instances {
-            let k = names.iter().position(|n| *n == inst.category).unwrap_or(names.len());
-            let colour = category_colour(k);
-            let pts: Vec<Vec2> =
-                inst.footprint.iter().map(|&[x, y]| m.pixel(Vec2::new(x, y))).collect();
+        let categories = &s.library().index.categories;
+        for inst in s.layout().objects() {
+            let k = categories.iter().position(|c| c.name == inst.category);
+            let [r, g, b, _] = palette(k.unwrap_or(categories.len()));
+            let pts = footprint_corners(inst).map(|p| m.pixel(p));
             for i in 0..pts.len() {
-                draw_line(&mut pic, pts[i], pts[(i + 1) % pts.len()], colour);
+                draw_line(&mut pic, pts[i], pts[(i + 1) % pts.len()], [r, g, b]);
             }
         }
     }

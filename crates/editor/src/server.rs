@@ -178,20 +178,21 @@ fn editor_error(e: &EditorError) -> Response {
     error_response(status, &e.to_string(), e.line_col())
 }
 
-/// Run `f` on the session on a blocking thread; a panic answers 500 and leaves the server
-/// usable (edits that fail with an error change nothing; a panic is a bug).
-async fn with_session<T: Send + 'static>(
+/// Run `f` on the session on a blocking thread: its response, or its error as
+/// [`editor_error`] answers it. A panic answers 500 and leaves the server usable (edits that
+/// fail with an error change nothing; a panic is a bug).
+async fn with_session(
     s: &AppState,
-    f: impl FnOnce(&mut EditSession) -> T + Send + 'static,
-) -> Result<T, Response> {
+    f: impl FnOnce(&mut EditSession) -> Result<Response, EditorError> + Send + 'static,
+) -> Response {
     let session = s.session.clone();
     tokio::task::spawn_blocking(move || {
         let mut guard: MutexGuard<'_, EditSession> =
             session.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        f(&mut guard)
+        f(&mut guard).unwrap_or_else(|e| editor_error(&e))
     })
     .await
-    .map_err(|e| {
+    .unwrap_or_else(|e| {
         tracing::error!("a request failed: {e}");
         error_response(
             StatusCode::INTERNAL_SERVER_ERROR,
@@ -201,12 +202,24 @@ async fn with_session<T: Send + 'static>(
     })
 }
 
+/// [`with_session`] for a change: answers the layout after it.
+async fn change(
+    s: &AppState,
+    f: impl FnOnce(&mut EditSession) -> Result<(), EditorError> + Send + 'static,
+) -> Response {
+    with_session(s, |s| {
+        f(s)?;
+        Ok(layout_json(s))
+    })
+    .await
+}
+
 fn layout_json(s: &EditSession) -> Response {
     axum::Json(s.view()).into_response()
 }
 
 async fn get_layout(State(s): State<AppState>) -> Response {
-    with_session(&s, |s| layout_json(s)).await.unwrap_or_else(|r| r)
+    with_session(&s, |s| Ok(layout_json(s))).await
 }
 
 /// The body as UTF-8 text, at most [`MAX_BODY_BYTES`].
@@ -224,34 +237,18 @@ async fn body_text(body: Body) -> Result<String, Response> {
 }
 
 async fn post_edits(State(s): State<AppState>, req: Request) -> Response {
-    let text = match body_text(req.into_body()).await {
-        Ok(t) => t,
-        Err(r) => return r,
-    };
-    with_session(&s, move |s| match s.apply(&text) {
-        Ok(()) => layout_json(s),
-        Err(e) => editor_error(&e),
-    })
-    .await
-    .unwrap_or_else(|r| r)
+    match body_text(req.into_body()).await {
+        Ok(text) => change(&s, move |s| s.apply(&text)).await,
+        Err(r) => r,
+    }
 }
 
 async fn post_undo(State(s): State<AppState>) -> Response {
-    with_session(&s, |s| match s.undo() {
-        Ok(_) => layout_json(s),
-        Err(e) => editor_error(&e),
-    })
-    .await
-    .unwrap_or_else(|r| r)
+    change(&s, |s| s.undo().map(drop)).await
 }
 
 async fn post_redo(State(s): State<AppState>) -> Response {
-    with_session(&s, |s| match s.redo() {
-        Ok(_) => layout_json(s),
-        Err(e) => editor_error(&e),
-    })
-    .await
-    .unwrap_or_else(|r| r)
+    change(&s, |s| s.redo().map(drop)).await
 }
 
 /// Query of `GET /api/render`.
@@ -264,6 +261,7 @@ struct RenderQuery {
     radius: Option<f32>,
 }
 
+/// PNG bytes with the layout version they show.
 fn png(bytes: Vec<u8>, version: u64) -> Response {
     let mut headers = HeaderMap::new();
     headers.insert(header::CONTENT_TYPE, HeaderValue::from_static("image/png"));
@@ -283,14 +281,10 @@ async fn get_render(State(s): State<AppState>, Query(q): Query<RenderQuery>) -> 
         radius: q.radius,
     };
     with_session(&s, move |s| {
-        let version = s.version();
-        match s.render(&v).and_then(|rgb| crate::png::encode_rgb_f32(v.width, v.height, rgb)) {
-            Ok(bytes) => png(bytes, version),
-            Err(e) => editor_error(&e),
-        }
+        let rgb = s.render(&v)?;
+        Ok(png(crate::png::encode_rgb_f32(v.width, v.height, rgb)?, s.version()))
     })
     .await
-    .unwrap_or_else(|r| r)
 }
 
 /// Query of `GET /api/bev`.
@@ -300,15 +294,7 @@ struct BevQuery {
 }
 
 async fn get_bev(State(s): State<AppState>, Query(q): Query<BevQuery>) -> Response {
-    with_session(&s, move |s| {
-        let version = s.version();
-        match s.bev_png(q.footprints.unwrap_or(true)) {
-            Ok(bytes) => png(bytes, version),
-            Err(e) => editor_error(&e),
-        }
-    })
-    .await
-    .unwrap_or_else(|r| r)
+    with_session(&s, move |s| Ok(png(s.bev_png(q.footprints.unwrap_or(true))?, s.version()))).await
 }
 
 /// Query of `POST /api/recolour`.
@@ -319,25 +305,16 @@ struct RecolourQuery {
 }
 
 async fn post_recolour(State(s): State<AppState>, Query(q): Query<RecolourQuery>) -> Response {
-    with_session(&s, move |s| match s.recolour(&q.category, &q.from) {
-        Ok(()) => layout_json(s),
-        Err(e) => editor_error(&e),
-    })
-    .await
-    .unwrap_or_else(|r| r)
+    change(&s, move |s| s.recolour(&q.category, &q.from)).await
 }
 
 async fn post_save(State(s): State<AppState>) -> Response {
-    with_session(&s, |s| match s.save() {
-        Ok(path) => axum::Json(serde_json::json!({
-            "saved": path.display().to_string(),
-            "version": s.version(),
-        }))
-        .into_response(),
-        Err(e) => editor_error(&e),
+    with_session(&s, |s| {
+        let path = s.save()?;
+        let body = serde_json::json!({"saved": path.display().to_string(), "version": s.version()});
+        Ok(axum::Json(body).into_response())
     })
     .await
-    .unwrap_or_else(|r| r)
 }
 
 /// Serve `state` on `listener` until `shutdown` completes.

@@ -46,12 +46,12 @@ enum SaveAs {
     Whole { script: Box<Script> },
 }
 
-/// One applied batch of edits: its text (re-parsed on undo / redo, so messages keep
-/// naming it) and its parsed edits (for the log and Save).
+/// One applied batch of edits: the script as it stands after it (the start file plus every
+/// batch up to this one, so undo and redo resolve a script without parsing anything again)
+/// and the batch's own edits (for the log and Save).
 #[derive(Debug, Clone)]
 struct Batch {
-    name: PathBuf,
-    text: String,
+    script: LoadedScript,
     edits: Vec<Edit>,
 }
 
@@ -257,20 +257,7 @@ impl EditSession {
         let assets = ScriptAssets::resolve(&start, &lib, halo)
             .map_err(scene_err(format!("resolving the assets of {}", start_path.display())))?;
         let layout = resolve(&start, &assets)?;
-        let canvas = lib.default_canvas();
-        let canvas = match canvas {
-            assetfield_scene::Canvas::Empty { .. } => {
-                let mut r = layout.extent;
-                for i in layout.objects() {
-                    r = r.union(&i.bev_aabb);
-                }
-                let m = lib.texel() * 4.0 + Vec2::splat(0.25);
-                assetfield_scene::Canvas::Empty {
-                    extent: assetfield_core::Rect2::new(r.min - m, r.max + m),
-                }
-            }
-            c => c,
-        };
+        let canvas = lib.canvas_for(&layout);
         let composition = lib.composition(&canvas).map_err(scene_err("building the canvas"))?;
         let mut composer = Composer::new(composition);
         assets.install(&mut composer).map_err(scene_err("installing the library's assets"))?;
@@ -324,14 +311,9 @@ impl EditSession {
         &self.save_path
     }
 
-    /// The script of the start file plus `batches`, resolved.
-    fn build(&self, batches: &[Batch]) -> Result<(LoadedScript, ResolvedLayout)> {
-        let mut script = self.start.clone();
-        for b in batches {
-            assetfield_layout::append_edits_str(&mut script, &b.name, &b.text)?;
-        }
-        let layout = resolve(&script, &self.assets)?;
-        Ok((script, layout))
+    /// The script after the first `n` batches.
+    fn script_after(&self, n: usize) -> &LoadedScript {
+        n.checked_sub(1).and_then(|k| self.batches.get(k)).map_or(&self.start, |b| &b.script)
     }
 
     /// Make the composer match `layout` (nothing changes when it refuses).
@@ -349,19 +331,16 @@ impl EditSession {
     pub fn apply(&mut self, text: &str) -> Result<()> {
         self.requests += 1;
         let name = PathBuf::from(format!("edit request {}", self.requests));
-        // parse alone first, to keep the parsed edits for the log
-        let mut probe = LoadedScript { edits: Vec::new(), ..self.start.clone() };
-        assetfield_layout::append_edits_str(&mut probe, &name, text)?;
-        let edits: Vec<Edit> = probe.edits.into_iter().map(|n| n.edit).collect();
+        let mut script = self.script_after(self.batches.len()).clone();
+        let before = script.edits.len();
+        assetfield_layout::append_edits_str(&mut script, &name, text)?;
+        let edits: Vec<Edit> = script.edits[before..].iter().map(|n| n.edit.clone()).collect();
         if edits.is_empty() {
             return Err(EditorError::BadRequest(format!("{}: no edits", name.display())));
         }
-        let batch = Batch { name, text: text.to_string(), edits };
-        let mut batches = self.batches.clone();
-        batches.push(batch);
-        let (_, layout) = self.build(&batches)?;
+        let layout = resolve(&script, &self.assets)?;
         self.show(layout)?;
-        self.batches = batches;
+        self.batches.push(Batch { script, edits });
         self.redo.clear();
         Ok(())
     }
@@ -435,23 +414,19 @@ impl EditSession {
 
     /// Take back the last batch; `false` when there is none.
     pub fn undo(&mut self) -> Result<bool> {
-        let Some(last) = self.batches.last().cloned() else { return Ok(false) };
-        let (_, layout) = self.build(&self.batches[..self.batches.len() - 1])?;
+        let Some(n) = self.batches.len().checked_sub(1) else { return Ok(false) };
+        let layout = resolve(self.script_after(n), &self.assets)?;
         self.show(layout)?;
-        self.batches.pop();
-        self.redo.push(last);
+        self.redo.extend(self.batches.pop());
         Ok(true)
     }
 
     /// Apply the last batch taken back again; `false` when there is none.
     pub fn redo(&mut self) -> Result<bool> {
-        let Some(next) = self.redo.last().cloned() else { return Ok(false) };
-        let mut batches = self.batches.clone();
-        batches.push(next);
-        let (_, layout) = self.build(&batches)?;
+        let Some(next) = self.redo.last() else { return Ok(false) };
+        let layout = resolve(&next.script, &self.assets)?;
         self.show(layout)?;
-        self.batches = batches;
-        self.redo.pop();
+        self.batches.extend(self.redo.pop());
         Ok(true)
     }
 
@@ -607,23 +582,16 @@ impl EditSession {
         let instances = self
             .layout
             .objects()
-            .map(|i| {
-                let (a, b) = (i.footprint.min, i.footprint.max);
-                let corners = [a, Vec2::new(b.x, a.y), b, Vec2::new(a.x, b.y)];
-                InstanceView {
-                    key: i.key.clone(),
-                    category: i.category.clone(),
-                    asset: i.asset.clone(),
-                    x: i.transform.position.x,
-                    y: i.transform.position.y,
-                    yaw_deg: i.transform.yaw_deg,
-                    scale: i.transform.scale,
-                    footprint: corners
-                        .iter()
-                        .map(|&p| i.transform.transform_point2(p).to_array())
-                        .collect(),
-                    on: i.supported_by.and_then(|id| keys.get(&id)).map(|k| k.to_string()),
-                }
+            .map(|i| InstanceView {
+                key: i.key.clone(),
+                category: i.category.clone(),
+                asset: i.asset.clone(),
+                x: i.transform.position.x,
+                y: i.transform.position.y,
+                yaw_deg: i.transform.yaw_deg,
+                scale: i.transform.scale,
+                footprint: footprint_corners(i).iter().map(|p| p.to_array()).collect(),
+                on: i.supported_by.and_then(|id| keys.get(&id)).map(|k| k.to_string()),
             })
             .collect();
         let categories = self
@@ -674,6 +642,12 @@ impl EditSession {
     pub fn background(&self) -> Vec3 {
         self.lib.background
     }
+}
+
+/// An instance's footprint corners in world (x, y), counter-clockwise.
+pub fn footprint_corners(i: &assetfield_layout::ResolvedInstance) -> [Vec2; 4] {
+    let (a, b) = (i.footprint.min, i.footprint.max);
+    [a, Vec2::new(b.x, a.y), b, Vec2::new(a.x, b.y)].map(|p| i.transform.transform_point2(p))
 }
 
 fn unreachable_renderer() -> std::result::Result<Vec<f32>, assetfield_gpu::GpuError> {

@@ -26,6 +26,7 @@ use crate::yaw::{
     CompareRegion, YawFit, YawOptions, estimate_yaw_near, estimate_yaw_weighted,
     yaw_residual_weighted,
 };
+use assetfield_core::ground::yaw_difference;
 
 /// A rectangle that may reach outside the plane (for padded crops), rows/cols as `i64`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -151,12 +152,6 @@ pub const SAME_BASIN_STEPS: f32 = 2.0;
 /// that tight crops turned 114 degrees the wrong way.
 pub const DECISIVE_RESIDUAL_RATIO: f32 = 2.0;
 
-/// Smallest angle between two yaws, in degrees, for objects that repeat every `period` degrees.
-fn angle_apart(a: f32, b: f32, period: f32) -> f32 {
-    let d = (a - b).rem_euclid(period);
-    d.min(period - d)
-}
-
 /// Parameters of [`estimate_poses`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PoseOptions {
@@ -256,6 +251,20 @@ impl<'a> Patches<'a> {
         let (t, tw) = (self.template, Some(self.template_weights));
         estimate_yaw_weighted(t, tw, self.instance, Some(self.instance_weights), opts)
     }
+
+    /// The search refined from `start_deg` only ([`estimate_yaw_near`]).
+    fn fit_near(&self, start_deg: f32, opts: &YawOptions) -> Result<YawFit> {
+        let (t, tw) = (self.template, Some(self.template_weights));
+        estimate_yaw_near(t, tw, self.instance, Some(self.instance_weights), start_deg, opts)
+    }
+
+    /// The residual of `fit`'s pose on these patches (infinite where they do not overlap).
+    fn residual_at(&self, fit: &YawFit, region: CompareRegion) -> f32 {
+        let (t, tw) = (self.template, Some(self.template_weights));
+        let (i, iw) = (self.instance, Some(self.instance_weights));
+        yaw_residual_weighted(t, tw, i, iw, fit.yaw_deg, fit.offset, region)
+            .unwrap_or(f32::INFINITY)
+    }
 }
 
 /// The pose of one pair: searched on the `tight` patches (cut around each object's box),
@@ -273,14 +282,12 @@ impl<'a> Patches<'a> {
 pub fn match_pair(tight: Patches<'_>, wide: Patches<'_>, opts: &YawOptions) -> Result<YawFit> {
     let fit = tight.fit(opts)?;
     let Ok(other) = wide.fit(opts) else { return Ok(fit) };
-    if angle_apart(other.yaw_deg, fit.yaw_deg, opts.period_deg) <= SAME_BASIN_STEPS * opts.step_deg
+    if yaw_difference(other.yaw_deg, fit.yaw_deg, opts.period_deg)
+        <= SAME_BASIN_STEPS * opts.step_deg
     {
         return Ok(fit);
     }
-    let (t, tw) = (wide.template, Some(wide.template_weights));
-    let (i, iw) = (wide.instance, Some(wide.instance_weights));
-    let at_fit = yaw_residual_weighted(t, tw, i, iw, fit.yaw_deg, fit.offset, opts.region)
-        .unwrap_or(f32::INFINITY);
+    let at_fit = wide.residual_at(&fit, opts.region);
     let decisive = at_fit > other.residual * DECISIVE_RESIDUAL_RATIO;
     tracing::debug!(
         tight = fit.yaw_deg,
@@ -292,9 +299,7 @@ pub fn match_pair(tight: Patches<'_>, wide: Patches<'_>, opts: &YawOptions) -> R
     if !decisive {
         return Ok(fit);
     }
-    let (t, tw) = (tight.template, Some(tight.template_weights));
-    let (i, iw) = (tight.instance, Some(tight.instance_weights));
-    Ok(estimate_yaw_near(t, tw, i, iw, other.yaw_deg, opts).unwrap_or(fit))
+    Ok(tight.fit_near(other.yaw_deg, opts).unwrap_or(fit))
 }
 
 /// Choose templates (medoids unless overridden) and estimate every instance's pose, matching
@@ -478,7 +483,7 @@ mod tests {
         let tight: PatchPair = (crop(5, &t), crop(5, &i));
         let wide: PatchPair = (crop(44, &t), crop(44, &i));
         let opts = PoseOptions::default().yaw;
-        let off_zero = |yaw: f32| angle_apart(yaw, 0.0, 360.0);
+        let off_zero = |yaw: f32| yaw_difference(yaw, 0.0, 360.0);
         let trap = Patches::of(&tight).fit(&opts).unwrap();
         assert!(off_zero(trap.yaw_deg) > 45.0, "the middle alone should mislead: {trap:?}");
         let fit = match_pair(Patches::of(&tight), Patches::of(&wide), &opts).unwrap();

@@ -152,12 +152,7 @@ pub fn estimate_yaw_weighted(
         }
     }
     let best = best.unwrap_or(Pose { theta: best_i as f64 * step, delta: (0.0, 0.0), r: best_r });
-    let offset = p.offset(best.theta, best.delta);
-    Ok(YawFit {
-        yaw_deg: best.theta.rem_euclid(period) as f32 % opts.period_deg,
-        offset,
-        residual: best.r as f32,
-    })
+    Ok(p.fit(best, opts.period_deg))
 }
 
 /// [`estimate_yaw_weighted`] without the coarse scan: the pose is refined from `start_deg`
@@ -192,12 +187,7 @@ pub fn estimate_yaw_near(
         f64::from(opts.tol_deg),
         opts.max_offset,
     );
-    let period = f64::from(opts.period_deg);
-    Ok(YawFit {
-        yaw_deg: best.theta.rem_euclid(period) as f32 % opts.period_deg,
-        offset: p.offset(best.theta, best.delta),
-        residual: best.r as f32,
-    })
+    Ok(p.fit(best, opts.period_deg))
 }
 
 /// Golden-section refinement of the angle at zero offset, then the sub-texel offset (a 5 x 5
@@ -496,6 +486,15 @@ impl<'a> Problem<'a> {
         let rx = c * self.ct.0 - s * self.ct.1;
         let ry = s * self.ct.0 + c * self.ct.1;
         (self.ci.0 - rx + delta.0, self.ci.1 - ry + delta.1)
+    }
+
+    /// A searched pose as the caller sees it: the yaw in `[0, period_deg)`, the total offset.
+    fn fit(&self, best: Pose, period_deg: f32) -> YawFit {
+        YawFit {
+            yaw_deg: best.theta.rem_euclid(f64::from(period_deg)) as f32 % period_deg,
+            offset: self.offset(best.theta, best.delta),
+            residual: best.r as f32,
+        }
     }
 
     /// Normalised residual at a pose (`+inf` when nothing is compared).

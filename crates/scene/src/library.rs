@@ -107,6 +107,26 @@ impl AssetLibrary {
         }
     }
 
+    /// The layout's extent and every instance's box, with a margin of a few texels: what an
+    /// empty canvas for `layout` covers.
+    pub fn empty_extent(&self, layout: &assetfield_layout::ResolvedLayout) -> Rect2 {
+        let mut r = layout.extent;
+        for i in layout.objects() {
+            r = r.union(&i.bev_aabb);
+        }
+        let m = self.texel() * 4.0 + Vec2::splat(0.25);
+        Rect2::new(r.min - m, r.max + m)
+    }
+
+    /// [`Self::default_canvas`], an empty one sized for `layout` ([`Self::empty_extent`])
+    /// when the library has no container.
+    pub fn canvas_for(&self, layout: &assetfield_layout::ResolvedLayout) -> Canvas {
+        match self.default_canvas() {
+            Canvas::Empty { .. } => Canvas::Empty { extent: self.empty_extent(layout) },
+            c => c,
+        }
+    }
+
     /// The world size of one texel.
     pub fn texel(&self) -> Vec2 {
         Vec2::new(self.index.texel_size.0, self.index.texel_size.1)

@@ -167,12 +167,10 @@ fn track_container(
 /// sums of overlapping patches in another order differ in the last bits: undo would not
 /// restore the planes exactly).
 fn draw_order<T>(mut items: Vec<(Option<&InstanceKey>, Entity, T)>) -> Vec<T> {
-    items.sort_by(|a, b| match (a.0, b.0) {
-        (Some(x), Some(y)) => x.0.cmp(&y.0).then(a.1.cmp(&b.1)),
-        (Some(_), None) => std::cmp::Ordering::Less,
-        (None, Some(_)) => std::cmp::Ordering::Greater,
-        (None, None) => a.1.cmp(&b.1),
-    });
+    fn order(key: Option<&InstanceKey>, e: Entity) -> (bool, Option<&str>, Entity) {
+        (key.is_none(), key.map(|k| k.0.as_str()), e)
+    }
+    items.sort_by(|a, b| order(a.0, a.1).cmp(&order(b.0, b.1)));
     items.into_iter().map(|(_, _, t)| t).collect()
 }
 
@@ -515,13 +513,7 @@ impl Composer {
     /// Redraw everything from scratch (for checks and benchmarks): the planes a fresh
     /// composer would produce for the current entities.
     pub fn rasterise_everything(&mut self) -> usize {
-        let mut q = self.world.query::<(
-            Entity,
-            Option<&InstanceKey>,
-            &Placement,
-            &InstanceOf,
-            Option<&PatchOverride>,
-        )>();
+        let mut q = self.world.query::<DrawnInstance>();
         let items: Vec<(GroundTransform, Arc<FeaturePatch>)> = draw_order(
             q.iter(&self.world)
                 .filter_map(|(e, key, p, of, ov)| {

@@ -160,7 +160,7 @@ fn library_scene(dir: &Path) -> Result<BenchScene> {
 }
 
 /// Median (and minimum) of seconds.
-fn median(t: &[f64]) -> (f64, f64) {
+pub(super) fn median(t: &[f64]) -> (f64, f64) {
     let mut v = t.to_vec();
     v.sort_by(f64::total_cmp);
     match v.len() {

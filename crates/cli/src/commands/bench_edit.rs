@@ -2,9 +2,10 @@
 //! planes brought up to date (resolve the edited layout, redraw the dirty rectangles,
 //! refresh the occupancy there), then the coarse preview and the full view rendered.
 
-use super::bench::{BackendArg, device};
+use super::bench::{BackendArg, device, median};
 use anyhow::{Context, Result, bail};
 use assetfield_editor::{EditSession, SessionOptions, ViewRequest};
+use assetfield_gpu::bench_scene::SplitMix;
 use clap::Args;
 use serde_json::json;
 use std::path::PathBuf;
@@ -34,18 +35,9 @@ pub struct BenchEditArgs {
     pub json: bool,
 }
 
-/// A small deterministic generator (SplitMix64) for places and moves.
-fn next(state: &mut u64) -> f64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+/// Uniform in [0, 1) with 53 bits, from the project's seeded generator.
+fn next(rng: &mut SplitMix) -> f64 {
+    (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64
 }
 
 pub fn bench_edit(a: BenchEditArgs) -> Result<()> {
@@ -59,7 +51,7 @@ pub fn bench_edit(a: BenchEditArgs) -> Result<()> {
     let _ = std::fs::remove_file(&scratch);
     let mut s = EditSession::open(&a.library, &opts, gpu)
         .with_context(|| format!("opening {}", a.library.display()))?;
-    let mut rng = a.seed;
+    let mut rng = SplitMix::new(a.seed);
     // pad the scene with copies at random places inside the planes (a quarter-extent margin)
     let e = s.view().extent;
     let (w, h) = (e[2] - e[0], e[3] - e[1]);
@@ -109,9 +101,9 @@ pub fn bench_edit(a: BenchEditArgs) -> Result<()> {
         }
     }
     let _ = std::fs::remove_file(&scratch);
-    let up = median(&mut update) * 1e3;
-    let tx = median(&mut texels);
-    let rs: Vec<f64> = renders.iter_mut().map(|r| median(r) * 1e3).collect();
+    let up = median(&update).0 * 1e3;
+    let tx = median(&texels).0;
+    let rs: Vec<f64> = renders.iter().map(|r| median(r).0 * 1e3).collect();
     let backend = s.backend();
     if a.json {
         let sides: Vec<_> =

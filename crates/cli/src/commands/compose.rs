@@ -3,9 +3,9 @@
 use super::bench::{BackendArg, device};
 use super::util::{progress_bar, save_rgb};
 use anyhow::{Context, Result, bail};
+use assetfield_core::Camera;
 use assetfield_core::fsx::{StagingDir, write_atomic};
 use assetfield_core::metrics::error_image;
-use assetfield_core::{Camera, Rect2};
 use assetfield_data::{Dataset, Frame, LoadOptions, Split};
 use assetfield_field::eval::{Orbit, evaluate_with, fitting_radius};
 use assetfield_field::pictures::{color_plane_name, density_picture, pca_picture};
@@ -13,7 +13,7 @@ use assetfield_gpu::{FieldRenderer, fallback_note};
 use assetfield_layout::{ResolvedLayout, resolve};
 use assetfield_scene::{AssetLibrary, Canvas, Composer, DEFAULT_HALO, ScriptAssets};
 use clap::Args;
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -150,23 +150,10 @@ enum Views {
 /// The canvas the user asked for.
 fn canvas(a: &ComposeArgs, lib: &AssetLibrary, layout: &ResolvedLayout) -> Canvas {
     match a.canvas.as_deref() {
-        Some("empty") => Canvas::Empty { extent: empty_extent(layout, lib) },
+        Some("empty") => Canvas::Empty { extent: lib.empty_extent(layout) },
         Some(name) => Canvas::Container(name.to_string()),
-        None => match lib.default_canvas() {
-            Canvas::Empty { .. } => Canvas::Empty { extent: empty_extent(layout, lib) },
-            c => c,
-        },
+        None => lib.canvas_for(layout),
     }
-}
-
-/// The layout's extent and every instance's box, with a margin of a few texels.
-fn empty_extent(layout: &ResolvedLayout, lib: &AssetLibrary) -> Rect2 {
-    let mut r = layout.extent;
-    for i in layout.objects() {
-        r = r.union(&i.bev_aabb);
-    }
-    let m = lib.texel() * 4.0 + Vec2::splat(0.25);
-    Rect2::new(r.min - m, r.max + m)
 }
 
 pub fn compose(a: ComposeArgs) -> Result<()> {

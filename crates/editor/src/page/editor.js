@@ -5,7 +5,8 @@
 "use strict";
 
 const TOKEN = new URLSearchParams(location.search).get("token") || "";
-const PALETTE = ["#e6194b", "#3cb44b", "#0082c8", "#f58230", "#911eb4", "#46f0f0", "#f032e6", "#d2f53c", "#fabed4", "#ffe119"];
+// the category colours of every picture the tool draws (assetfield_core::canvas::palette)
+const PALETTE = ["#e6194b", "#3cb44b", "#0082c8", "#f58230", "#911eb4", "#46c8c8", "#f032e6", "#aaaa1e", "#fa96aa", "#008080", "#aa6e28", "#800000"];
 const PREVIEW_SIDE = 128;
 const SNAP_DEG = 15;
 const SVG_NS = "http://www.w3.org/2000/svg";
