@@ -6,6 +6,11 @@
 //! the density has formed, then its occupancy grid is built: the most expensive stage of a
 //! real run.
 //!
+//! Training is reported twice on the same schedule: per ray (4096 per iteration) and per sample
+//! (the samples the march evaluates after occupancy skipping, counted over a few iterations
+//! before the measurement). Both are wall-clock rates of the whole machine (2 worker
+//! threads here): per CPU-second they are half as high.
+//!
 //! `cargo bench -p assetfield-benches --bench field`
 
 use assetfield_benches::scene;
@@ -19,6 +24,8 @@ use std::hint::black_box;
 use std::path::PathBuf;
 
 const WARMUP_ITERS: u64 = 300;
+/// Iterations over which the samples per iteration are counted (after the warm-up).
+const SAMPLE_PROBE_ITERS: u64 = 10;
 
 fn default_scene() -> (PathBuf, Aabb3) {
     let dir = std::env::temp_dir().join("assetfield-bench-conference_room");
@@ -57,7 +64,10 @@ fn bench_scene(c: &mut Criterion, name: &str, dir: PathBuf, aabb: Aabb3) {
         &LoadOptions { max_frames: Some(1), ..Default::default() },
     )
     .unwrap();
-    for kind in [ModelKind::Standard, ModelKind::Vm] {
+    // BENCH_MODELS=s (or s,vm, the default) picks the models: their warm-ups are long
+    let models = std::env::var("BENCH_MODELS").unwrap_or_else(|_| "s,vm".into());
+    let kinds = [ModelKind::Standard, ModelKind::Vm];
+    for kind in kinds.into_iter().filter(|k| models.split(',').any(|m| m == k.name())) {
         // the most expensive stage of a run: final plane resolution, occupancy grid in use
         let mut cfg = TrainConfig::new(kind);
         cfg.iters = 30_000;
@@ -67,10 +77,18 @@ fn bench_scene(c: &mut Criterion, name: &str, dir: PathBuf, aabb: Aabb3) {
             t.step();
         }
         t.rebuild_occupancy();
+        // samples per iteration at this stage (the march after occupancy skipping), over a
+        // few iterations: the second throughput of the same kernel
+        let probe: usize = (0..SAMPLE_PROBE_ITERS).map(|_| t.step().samples).sum();
+        let samples = (probe as u64 / SAMPLE_PROBE_ITERS).max(1);
         let mut g = c.benchmark_group(format!("{name} {}", kind.name()));
         g.sample_size(10);
         g.throughput(Throughput::Elements(4096));
         g.bench_function("train iteration, 4096 rays (elements = rays)", |b| {
+            b.iter(|| black_box(t.step()))
+        });
+        g.throughput(Throughput::Elements(samples));
+        g.bench_function(format!("train iteration, {samples} samples (elements = samples)"), |b| {
             b.iter(|| black_box(t.step()))
         });
         let cam = test.frames[0].camera;

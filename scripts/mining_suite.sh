@@ -5,7 +5,9 @@
 #   scripts/mining_suite.sh [MODELS] [SCENES...]
 #
 # MODELS: comma-separated subset of s,i (default s,i); the fields come from
-# $SUITE/fields/SCENE_MODEL.safetensors (SUITE as for quality_suite.sh, default runs/suite).
+# $SUITE/fields/SCENE_MODEL.safetensors (SUITE as for quality_suite.sh, default runs/suite):
+# train them with an iteration budget (e.g. `scripts/quality_suite.sh 6000it s`) so that the
+# mining figures do not depend on how fast or busy the machine was.
 # Output under $SUITE/mining (runs/mining for the default suite): SCENE_MODEL (the library,
 # layout.ron, pictures and metrics.json) and table.md. Finished scenes are skipped (delete
 # the SCENE_MODEL folder to mine it again).

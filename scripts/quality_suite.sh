@@ -2,21 +2,25 @@
 # Train and evaluate every scene of the suite with each model, and write a table like the
 # paper's Table 1 (test PSNR / SSIM per scene and model).
 #
-#   scripts/quality_suite.sh [MINUTES] [MODELS] [SCENES...]
+#   scripts/quality_suite.sh [BUDGET] [MODELS] [SCENES...]
 #
-# MINUTES: training budget per run (default 10), measured with `--clock cpu` so that runs
-# on a busy machine get the same compute as on an idle one; `default` trains with the
-# default settings instead (30000 iterations, no time budget). MODELS: comma-separated
-# subset of s,i,vm (default s,i,vm). SCENES: names under scenes/ (default: all).
+# BUDGET: training budget per run (default 10): `Nit` iterations (the same field on every
+# machine), `Nmin` or a bare N CPU-minutes (`--clock cpu`: time to quality; runs on a busy
+# machine get the same CPU time, though not quite the same compute), or `default` (30000
+# iterations). MODELS: comma-separated subset of s,i,vm (default s,i,vm). SCENES: names
+# under scenes/ (default: all). RES: the views' size (default 400; the issues' suite
+# figures use 256).
 # Output under $SUITE (default runs/suite): data/SCENE (synthesised views; another SUITE
 # reuses runs/suite/data), fields/SCENE_MODEL.safetensors, eval/SCENE_MODEL/metrics.json,
 # and table.md. Finished runs are skipped and stopped ones resume from their checkpoints, so
-# the script can be stopped and started again (with the same MINUTES: a resumed run keeps
-# the budget it started with unless --minutes raises it).
+# the script can be stopped and started again (with the same BUDGET: a resumed run keeps
+# the budget it started with unless --iters or --minutes raises it).
 # Set BIN to use another binary (default target/release/assetfield, built if missing).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MINUTES=${1:-10}
+source scripts/budget.sh
+budget_flags "$MINUTES"
 MODELS=${2:-s,i,vm}
 shift $(( $# > 2 ? 2 : $# ))
 SCENES=("$@")
@@ -26,22 +30,23 @@ fi
 BIN=${BIN:-target/release/assetfield}
 [ -x "$BIN" ] || cargo build --release --locked
 OUT=${SUITE:-runs/suite}
-mkdir -p "$OUT/fields" "$OUT/eval" "$OUT/logs" runs/suite/data
-BUDGET=(--minutes "$MINUTES" --clock cpu)
-[ "$MINUTES" = default ] && BUDGET=()
+RES=${RES:-400}
+DATA_ROOT=runs/suite/data
+[ "$RES" = 400 ] || DATA_ROOT="runs/suite/data_$RES"
+mkdir -p "$OUT/fields" "$OUT/eval" "$OUT/logs" "$DATA_ROOT"
 
 for scene in "${SCENES[@]}"; do
-  data="runs/suite/data/$scene"
-  [ -f "$data/transforms_test.json" ] || "$BIN" synth "scenes/$scene.ron" --out "$data" --force
+  data="$DATA_ROOT/$scene"
+  [ -f "$data/transforms_test.json" ] || "$BIN" synth "scenes/$scene.ron" --out "$data" --res "$RES" --force
   for model in ${MODELS//,/ }; do
     field="$OUT/fields/${scene}_$model.safetensors"
     eval_dir="$OUT/eval/${scene}_$model"
     if [ ! -f "$field" ]; then
-      echo "== $scene $model: training (${MINUTES}$([ "$MINUTES" = default ] || echo ' min'))"
+      echo "== $scene $model: training ($BUDGET_NAME)"
       # a run stopped part way (Ctrl-C, a machine going away) continues from its checkpoint
       start=(--force)
       [ -f "${field%.safetensors}.ckpt.safetensors" ] && start=(--resume)
-      "$BIN" train "$data" --out "$field" --model "$model" "${BUDGET[@]}" \
+      "$BIN" train "$data" --out "$field" --model "$model" ${BUDGET_FLAGS[@]+"${BUDGET_FLAGS[@]}"} \
         "${start[@]}" --discard-checkpoint >> "$OUT/logs/${scene}_$model.train.log" 2>&1
     fi
     if [ ! -f "$eval_dir/metrics.json" ]; then

@@ -3,11 +3,12 @@
 # scenes/validation_seeds.txt, train an S-AssetField on each, mine it against its ground
 # truth and write a table (scene, seed, field PSNR, F1, ARI, yaw median / max).
 #
-#   SET=dev|validation scripts/random_suite.sh [MINUTES] [SEEDS...]
+#   SET=dev|validation scripts/random_suite.sh [BUDGET] [SEEDS...]
 #
 # SET: which list of scenes/validation_seeds.txt (default dev). Nobody tunes on the
-# validation seeds: run them to measure, not to adjust. MINUTES: training budget per field
-# (default 10, `--clock cpu`). SEEDS: a subset of the list (default: all of it).
+# validation seeds: run them to measure, not to adjust. BUDGET: training budget per field
+# (default 6000it: 6000 iterations, the same field on every machine; `Nmin` or a bare N
+# for CPU-minutes, see scripts/budget.sh). SEEDS: a subset of the list (default: all of it).
 # Output under $RANDOM_OUT (default runs/random_$SET): data/random_SEED (the dataset, with
 # its scene.ron), fields/random_SEED_s.safetensors, eval/random_SEED_s, mining/random_SEED_s,
 # mining_paper/random_SEED_s (`--preset paper`, the baseline) and table.md. Finished steps are skipped (delete a file or folder to redo it).
@@ -17,7 +18,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SET=${SET:-dev}
-MINUTES=${1:-10}
+MINUTES=${1:-6000it}
+source scripts/budget.sh
+budget_flags "$MINUTES"
 shift $(( $# > 0 ? 1 : 0 ))
 case "$SET" in
   dev|validation) ;;
@@ -49,8 +52,8 @@ for seed in "${SEEDS[@]}"; do
       > "$OUT/logs/$scene.synth.log" 2>&1 ||
     { echo "== $scene: synthesis failed (see $OUT/logs/$scene.synth.log)"; continue; }
   if [ ! -f "$field" ]; then
-    echo "== $scene: training ($MINUTES min)"
-    "$BIN" train "$data" --out "$field" --model s --minutes "$MINUTES" --clock cpu --force \
+    echo "== $scene: training ($BUDGET_NAME)"
+    "$BIN" train "$data" --out "$field" --model s ${BUDGET_FLAGS[@]+"${BUDGET_FLAGS[@]}"} --force \
       --discard-checkpoint > "$OUT/logs/$scene.train.log" 2>&1 ||
       { echo "== $scene: training failed (see $OUT/logs/$scene.train.log)"; continue; }
   fi
@@ -67,12 +70,12 @@ for seed in "${SEEDS[@]}"; do
     echo "== $scene: mining with --preset paper failed (see $OUT/logs/$scene.mine_paper.log)"
 done
 
-python3 - "$OUT" "$SET" "$MINUTES" "${SEEDS[@]}" <<'PY' || echo "(python3 missing: see $OUT/eval/*/metrics.json and $OUT/mining/*/metrics.json)"
+python3 - "$OUT" "$SET" "$BUDGET_NAME" "${SEEDS[@]}" <<'PY' || echo "(python3 missing: see $OUT/eval/*/metrics.json and $OUT/mining/*/metrics.json)"
 import json, os, sys
-out, set_name, minutes, seeds = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4:]
+out, set_name, budget, seeds = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4:]
 def load(p):
     return json.load(open(p)) if os.path.exists(p) else None
-rows = [f"Random scenes, {set_name} seeds, S-AssetField, {minutes} min per field (`--clock cpu`)", "",
+rows = [f"Random scenes, {set_name} seeds, S-AssetField, {budget} per field", "",
         "| scene | seed | categories | objects | units/m | field PSNR | F1 | ARI | yaw median / max (deg) | paper F1 | paper ARI |",
         "|---|---|---|---|---|---|---|---|---|---|---|"]
 scores = []

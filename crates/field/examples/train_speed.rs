@@ -51,10 +51,11 @@ fn main() {
         let s = t.step();
         if s.iter.is_multiple_of(20) {
             println!(
-                "iter {:5}  psnr {:6.2}  samples/ray {:6.1}  {:6.1} ms/iter  res {:?}  occupancy {:?}",
+                "iter {:5}  psnr {:6.2}  samples/ray {:6.1} colour {:5.1}  {:6.1} ms/iter  res {:?}  occupancy {:?}",
                 s.iter,
                 s.psnr,
                 s.samples as f64 / 4096.0,
+                s.color_samples as f64 / 4096.0,
                 last.elapsed().as_secs_f64() * 1000.0 / 20.0,
                 t.field.config.res,
                 t.occupancy.as_ref().map(|o| o.fill())

@@ -224,10 +224,10 @@ impl JointTrainer {
     pub fn step(&mut self) -> Vec<StepStats> {
         let t0 = Instant::now();
         let progress = self.progress();
-        // resolution steps change the vertical axis's length: all scenes step together
-        let can_upsample = self.scenes.iter().all(Trainer::may_upsample);
+        // resolution steps change the vertical axis's length: all scenes step together (the
+        // schedule depends on progress only, the same for every scene)
         for t in &mut self.scenes {
-            t.schedule(progress, can_upsample);
+            t.schedule(progress);
         }
         let mut stats: Vec<StepStats> = self.scenes.iter_mut().map(Trainer::gradients).collect();
         self.sum_shared_gradients();

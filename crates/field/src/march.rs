@@ -17,11 +17,24 @@ pub struct MarchSettings {
     pub stop_transmittance: f32,
     /// Upper bound of samples per ray.
     pub max_samples: usize,
+    /// Training only (0: off, every decoded sample's colour gets its gradient): a decoded
+    /// sample whose weight `w` is below this gets its colour gradient (through the decoder
+    /// and the colour grids) with probability `w / color_grad_weight`, scaled by its inverse,
+    /// so the gradient stays unbiased while the many faint samples of a hazy early field
+    /// mostly skip the decoder's backward pass. Colours and the density's gradient stay
+    /// exact. The draw is a hash of the ray's jitter and the sample's place on its lattice:
+    /// the same on any number of threads.
+    pub color_grad_weight: f32,
 }
 
 impl Default for MarchSettings {
     fn default() -> Self {
-        MarchSettings { weight_threshold: 1e-4, stop_transmittance: 1e-4, max_samples: 2048 }
+        MarchSettings {
+            weight_threshold: 1e-4,
+            stop_transmittance: 1e-4,
+            max_samples: 2048,
+            color_grad_weight: 0.0,
+        }
     }
 }
 
@@ -36,6 +49,12 @@ pub struct MarchWork {
     ray_first: Vec<u32>,
     ray_end_t: Vec<f32>,
     pub color: ColorWork,
+    /// Decoded samples that get no colour gradient (see
+    /// [`MarchSettings::color_grad_weight`]): decoded forward only.
+    color_rest: ColorWork,
+    /// Per sample of `color`: the weight its colour gradient is taken with (its own, or
+    /// `color_grad_weight` for a faint sample drawn to stand for the others).
+    color_grad_scale: Vec<f32>,
     /// Composited colour per ray.
     pub rgb: Vec<Vec3>,
     /// Accumulated opacity per ray.
@@ -44,6 +63,8 @@ pub struct MarchWork {
     pub depth: Vec<f32>,
     /// Samples marched in the last chunk (after occupancy skipping).
     pub samples: usize,
+    /// Of those, samples whose colour was decoded (weight above the threshold).
+    pub color_samples: usize,
     /// Also composite the semantic field (fields that have one): `semantic` then holds
     /// `[rays][semantic_channels]`, weighted like colour, with no background term.
     pub want_semantic: bool,
@@ -53,6 +74,12 @@ pub struct MarchWork {
 }
 
 const NO_COLOR: u32 = u32::MAX;
+/// Set in a sample's colour index when its colour sits in `color_rest`.
+const REST: u32 = 1 << 31;
+
+/// Lattice points within this many march steps of an empty cell's exit face are looked up
+/// one by one rather than leapt over: the exit's rounding error stays far below it.
+const JUMP_MARGIN: f32 = 0.05;
 
 /// Forward pass over `rays`. `jitter` (one value in [0, 1) per ray) offsets the first sample
 /// for stratified sampling; without it samples start at the entry point plus half a step.
@@ -78,19 +105,49 @@ pub fn forward(
     w.ray_first.clear();
     w.ray_end_t.clear();
     w.color.clear();
+    w.color_rest.clear();
+    w.color_grad_scale.clear();
+    // stochastic colour gradients need the draw's seed (the jitter) and no semantic head
+    let tau = match jitter {
+        Some(_) if !(w.want_semantic && field.has_semantic()) => s.color_grad_weight.max(0.0),
+        _ => 0.0,
+    };
+    // samples of a ray sit on its lattice `first + k * step` (k < max_samples) from where it
+    // enters the box; with an occupancy grid a ray starts and ends in the occupied cells'
+    // box and leaps over an empty cell's lattice points at once (same samples, fewer steps)
+    let occupied_box = occ.map(Occupancy::occupied_box);
     for (r, ray) in rays.iter().enumerate() {
         w.ray_first.push(w.s_pos.len() as u32);
         let mut trans = 1.0f32;
-        if let Some((t0, t1)) = aabb.intersect(ray.origin, ray.dir.recip(), f32::INFINITY) {
-            let mut t = t0 + step * jitter.map_or(0.5, |j| j[r]);
-            let mut n = 0;
-            while t < t1 && n < s.max_samples {
+        let inv = ray.dir.recip();
+        if let Some((t0, mut t1)) = aabb.intersect(ray.origin, inv, f32::INFINITY) {
+            let first = t0 + step * jitter.map_or(0.5, |j| j[r]);
+            let mut k = 0usize;
+            match occupied_box.map(|b| b.and_then(|b| b.intersect(ray.origin, inv, t1))) {
+                Some(None) => t1 = f32::NEG_INFINITY,
+                Some(Some((a, b))) => {
+                    t1 = b;
+                    k = ((a - first) / step).floor().max(0.0) as usize;
+                }
+                None => {}
+            }
+            while k < s.max_samples {
+                let t = first + k as f32 * step;
+                if t >= t1 {
+                    break;
+                }
                 let p = ray.origin + ray.dir * t;
-                t += step;
-                n += 1;
-                if occ.is_some_and(|o| !o.occupied(p)) {
+                if let Some(o) = occ
+                    && !o.occupied(p)
+                {
+                    // the lattice points short of the cell's exit (less a margin for
+                    // rounding: points near the face are looked up one by one) are empty
+                    let exit = t + o.cell_exit(p, inv) - JUMP_MARGIN * step;
+                    let last = ((exit - first) / step).floor();
+                    k = if last.is_finite() && last > k as f32 { last as usize + 1 } else { k + 1 };
                     continue;
                 }
+                k += 1;
                 let feat = field.density_feature(p);
                 let sigma = crate::mlp::softplus(feat + shift);
                 let alpha = -crate::mlp::fast_expm1(-sigma * delta);
@@ -99,9 +156,17 @@ pub fn forward(
                 }
                 let weight = trans * alpha;
                 let ci = if weight > s.weight_threshold {
-                    w.color.pos.push(p);
-                    w.color.dir.push(ray.dir);
-                    (w.color.pos.len() - 1) as u32
+                    let seed = jitter.map_or(r as u32, |j| j[r].to_bits());
+                    if weight >= tau || unit_hash(seed, k) * tau < weight {
+                        w.color.pos.push(p);
+                        w.color.dir.push(ray.dir);
+                        w.color_grad_scale.push(weight.max(tau));
+                        (w.color.pos.len() - 1) as u32
+                    } else {
+                        w.color_rest.pos.push(p);
+                        w.color_rest.dir.push(ray.dir);
+                        (w.color_rest.pos.len() - 1) as u32 | REST
+                    }
                 } else {
                     NO_COLOR
                 };
@@ -120,8 +185,12 @@ pub fn forward(
     }
     w.ray_first.push(w.s_pos.len() as u32);
     w.samples = w.s_pos.len();
+    w.color_samples = w.color.pos.len() + w.color_rest.pos.len();
     w.color.want_semantic = w.want_semantic && field.has_semantic();
     field.color_forward(&mut w.color);
+    if !w.color_rest.pos.is_empty() {
+        field.color_forward(&mut w.color_rest);
+    }
     // composite
     w.rgb.clear();
     w.semantic.clear();
@@ -133,9 +202,8 @@ pub fn forward(
         let mut depth = 0.0;
         for i in a..b {
             let wt = w.s_trans[i] * w.s_alpha[i];
-            if w.s_color[i] != NO_COLOR {
-                let k = w.s_color[i] as usize * 3;
-                c += wt * Vec3::new(w.color.rgb[k], w.color.rgb[k + 1], w.color.rgb[k + 2]);
+            if let Some(rgb) = sample_rgb(w, w.s_color[i]) {
+                c += wt * rgb;
             }
             depth += wt * (w.s_pos[i] - ray.origin).length();
         }
@@ -193,12 +261,18 @@ pub fn backward(
         for i in (a..b).rev() {
             let (alpha, trans) = (w.s_alpha[i], w.s_trans[i]);
             let weight = trans * alpha;
-            let g = if w.s_color[i] != NO_COLOR {
-                let k = w.s_color[i] as usize * 3;
+            let ci = w.s_color[i];
+            let g = if ci == NO_COLOR {
+                0.0
+            } else if ci & REST != 0 {
+                sample_rgb(w, ci).map_or(0.0, |c| dc.dot(c))
+            } else {
+                let k = ci as usize * 3;
                 let c = Vec3::new(w.color.rgb[k], w.color.rgb[k + 1], w.color.rgb[k + 2]);
-                w.d_rgb[k] = weight * dc.x;
-                w.d_rgb[k + 1] = weight * dc.y;
-                w.d_rgb[k + 2] = weight * dc.z;
+                let scale = w.color_grad_scale[ci as usize];
+                w.d_rgb[k] = scale * dc.x;
+                w.d_rgb[k + 1] = scale * dc.y;
+                w.d_rgb[k + 2] = scale * dc.z;
                 let mut g = dc.dot(c);
                 if let Some(ds) = d_sem {
                     let ci = w.s_color[i] as usize * nc;
@@ -210,8 +284,6 @@ pub fn backward(
                     }
                 }
                 g
-            } else {
-                0.0
             };
             let d_sigma = delta * (trans * (1.0 - alpha) * g - after);
             after += weight * g;
@@ -226,4 +298,28 @@ pub fn backward(
     field.color_backward(&mut w.color, &d, d_sem.map(|_| ds.as_slice()), grad);
     w.d_rgb = d;
     w.d_sem = ds;
+}
+
+/// The decoded colour of a sample by its colour index (`None` for an undecoded sample).
+#[inline]
+fn sample_rgb(w: &MarchWork, ci: u32) -> Option<Vec3> {
+    if ci == NO_COLOR {
+        return None;
+    }
+    let (tile, k) = if ci & REST != 0 {
+        (&w.color_rest, (ci & !REST) as usize * 3)
+    } else {
+        (&w.color, ci as usize * 3)
+    };
+    Some(Vec3::new(tile.rgb[k], tile.rgb[k + 1], tile.rgb[k + 2]))
+}
+
+/// A uniform number in [0, 1) from a ray's seed and a sample's lattice index (SplitMix64's
+/// finaliser).
+#[inline]
+fn unit_hash(seed: u32, k: usize) -> f32 {
+    let mut z = (u64::from(seed) << 32 | k as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
 }

@@ -3,9 +3,11 @@
 
 /// `y[b] = W x[b] + bias` for `W` of shape `[out][inn]`.
 ///
-/// Computed as `y[b] = bias + sum_i x[b][i] * W^T[i]` over a transposed copy of `W`, so the
-/// inner loop runs along the outputs without a reduction and vectorises (8-wide FMA); common
-/// output widths get a kernel whose accumulators live in registers.
+/// Outputs narrower than [`DOT_MAX_OUT`] are dot products along the inputs in 8 independent
+/// lanes (the 64 -> 3 colour head); wider ones are computed as
+/// `y[b] = bias + sum_i x[b][i] * W^T[i]` over a transposed copy of `W`, so the inner loop runs
+/// along the outputs without a reduction and vectorises (8-wide FMA); common output widths
+/// get a kernel whose accumulators live in registers.
 #[inline]
 pub fn dense_forward(
     w: &[f32],
@@ -17,31 +19,62 @@ pub fn dense_forward(
     out: usize,
 ) {
     debug_assert_eq!(w.len(), inn * out);
+    for b in 0..batch {
+        let yb = &mut y[b * out..(b + 1) * out];
+        match bias {
+            Some(bb) => yb.copy_from_slice(&bb[..out]),
+            None => yb.fill(0.0),
+        }
+    }
+    dense_accumulate(w, inn, x, y, batch, inn, out);
+}
+
+/// Outputs below this width are computed as dot products ([`dense_forward`]).
+pub const DOT_MAX_OUT: usize = 8;
+
+/// `y[b] += W[:, ..inn] x[b]` for `W` of shape `[out][stride]` whose first `inn` columns
+/// multiply `x` (`stride >= inn`: a layer whose remaining inputs are handled elsewhere, as
+/// the decoder's per-ray view inputs).
+#[inline]
+pub fn dense_accumulate(
+    w: &[f32],
+    stride: usize,
+    x: &[f32],
+    y: &mut [f32],
+    batch: usize,
+    inn: usize,
+    out: usize,
+) {
+    debug_assert!(stride >= inn && w.len() >= out * stride);
+    if out < DOT_MAX_OUT {
+        for b in 0..batch {
+            let xb = &x[b * inn..(b + 1) * inn];
+            for o in 0..out {
+                y[b * out + o] += dot(&w[o * stride..][..inn], xb);
+            }
+        }
+        return;
+    }
     let mut wt = vec![0.0f32; inn * out];
     for o in 0..out {
         for i in 0..inn {
-            wt[i * out + o] = w[o * inn + i];
+            wt[i * out + o] = w[o * stride + i];
         }
     }
     match out {
-        64 => forward_fixed::<64>(&wt, bias, x, y, batch, inn),
-        48 => forward_fixed::<48>(&wt, bias, x, y, batch, inn),
-        32 => forward_fixed::<32>(&wt, bias, x, y, batch, inn),
-        27 => forward_fixed::<27>(&wt, bias, x, y, batch, inn),
-        16 => forward_fixed::<16>(&wt, bias, x, y, batch, inn),
-        3 => forward_fixed::<3>(&wt, bias, x, y, batch, inn),
+        64 => accumulate_fixed::<64>(&wt, x, y, batch, inn),
+        48 => accumulate_fixed::<48>(&wt, x, y, batch, inn),
+        32 => accumulate_fixed::<32>(&wt, x, y, batch, inn),
+        27 => accumulate_fixed::<27>(&wt, x, y, batch, inn),
+        16 => accumulate_fixed::<16>(&wt, x, y, batch, inn),
         _ => {
             for b in 0..batch {
                 let xb = &x[b * inn..(b + 1) * inn];
                 let yb = &mut y[b * out..(b + 1) * out];
-                match bias {
-                    Some(bb) => yb.copy_from_slice(&bb[..out]),
-                    None => yb.fill(0.0),
-                }
                 for (i, &xi) in xb.iter().enumerate() {
                     let row = &wt[i * out..(i + 1) * out];
                     for o in 0..out {
-                        yb[o] += xi * row[o];
+                        yb[o] = xi.mul_add(row[o], yb[o]);
                     }
                 }
             }
@@ -49,29 +82,45 @@ pub fn dense_forward(
     }
 }
 
+/// `sum a[i] b[i]` in 8 independent FMA lanes.
 #[inline]
-fn forward_fixed<const N: usize>(
+pub fn dot(a: &[f32], b: &[f32]) -> f32 {
+    let n = a.len().min(b.len());
+    let full = n / 8 * 8;
+    let mut acc = [0.0f32; 8];
+    for q in (0..full).step_by(8) {
+        let (ra, rb): (&[f32; 8], &[f32; 8]) =
+            (a[q..q + 8].try_into().expect("8"), b[q..q + 8].try_into().expect("8"));
+        for k in 0..8 {
+            acc[k] = ra[k].mul_add(rb[k], acc[k]);
+        }
+    }
+    let mut tail = 0.0f32;
+    for i in full..n {
+        tail = a[i].mul_add(b[i], tail);
+    }
+    (acc[0] + acc[4]) + (acc[1] + acc[5]) + (acc[2] + acc[6]) + (acc[3] + acc[7]) + tail
+}
+
+#[inline]
+fn accumulate_fixed<const N: usize>(
     wt: &[f32],
-    bias: Option<&[f32]>,
     x: &[f32],
     y: &mut [f32],
     batch: usize,
     inn: usize,
 ) {
-    let init: [f32; N] = match bias {
-        Some(b) => b[..N].try_into().expect("bias has N values"),
-        None => [0.0; N],
-    };
     for b in 0..batch {
-        let mut acc = init;
+        let yb: &mut [f32; N] = (&mut y[b * N..(b + 1) * N]).try_into().expect("row of N");
+        let mut acc = *yb;
         let xb = &x[b * inn..(b + 1) * inn];
         for (i, &xi) in xb.iter().enumerate() {
             let row: &[f32; N] = wt[i * N..(i + 1) * N].try_into().expect("row of N");
             for o in 0..N {
-                acc[o] += xi * row[o];
+                acc[o] = xi.mul_add(row[o], acc[o]);
             }
         }
-        y[b * N..(b + 1) * N].copy_from_slice(&acc);
+        *yb = acc;
     }
 }
 
@@ -110,7 +159,7 @@ pub fn dense_backward(
                     let g = dy[b * out + o];
                     let row = &mut dw[o * inn..(o + 1) * inn];
                     for i in 0..inn {
-                        row[i] += g * xb[i];
+                        row[i] = g.mul_add(xb[i], row[i]);
                     }
                 }
             }
@@ -122,7 +171,7 @@ pub fn dense_backward(
                         let g = dy[b * out + o];
                         let row = &w[o * inn..(o + 1) * inn];
                         for i in 0..inn {
-                            dxb[i] += g * row[i];
+                            dxb[i] = g.mul_add(row[i], dxb[i]);
                         }
                     }
                 }
@@ -152,7 +201,7 @@ fn backward_fixed<const N: usize>(
                 let g = dy[b * out + o];
                 let xb: &[f32; N] = x[b * N..(b + 1) * N].try_into().expect("row of N");
                 for i in 0..N {
-                    acc[i] += g * xb[i];
+                    acc[i] = g.mul_add(xb[i], acc[i]);
                 }
             }
             let row = &mut dw[o * N..(o + 1) * N];
@@ -168,7 +217,7 @@ fn backward_fixed<const N: usize>(
                 let g = dy[b * out + o];
                 let row: &[f32; N] = w[o * N..(o + 1) * N].try_into().expect("row of N");
                 for i in 0..N {
-                    acc[i] += g * row[i];
+                    acc[i] = g.mul_add(row[i], acc[i]);
                 }
             }
             dx[b * N..(b + 1) * N].copy_from_slice(&acc);

@@ -3,7 +3,9 @@
 
 use crate::config::{DecoderKind, FieldConfig, ModelKind};
 use crate::interp::{Bilinear, Linear};
-use crate::mlp::{dense_backward, dense_forward, relu, relu_backward, sigmoid, softplus};
+use crate::mlp::{
+    dense_accumulate, dense_backward, dense_forward, dot, relu, relu_backward, sigmoid, softplus,
+};
 use crate::params::{Group, ParamSet};
 use glam::Vec3;
 
@@ -109,8 +111,14 @@ pub struct Field {
 
 const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
 
-/// Most channels a density component may have (stack buffers in the backward pass).
+/// Most channels a density or colour component may have (checked when a field file is
+/// loaded; the backward passes work through any count in blocks of [`BACKWARD_BLOCK`]).
 pub const MAX_CHANNELS: usize = 256;
+
+/// Channels the backward passes of the grids handle at once (two stack buffers of this many
+/// floats per sample): the default 16 density channels in one block, the 48 colour
+/// channels in three.
+const BACKWARD_BLOCK: usize = 16;
 
 /// Deterministic normal samples (Box-Muller over SplitMix64).
 struct Normal(u64);
@@ -403,41 +411,49 @@ impl Field {
         }
     }
 
-    /// `d density_feature / d params * d_feat`, accumulated into `grad`.
+    /// `d density_feature / d params * d_feat`, accumulated into `grad`: the plane taps get
+    /// `w_t * d_feat * line`, the line taps `v_t * d_feat * plane`, channel by channel in
+    /// blocks of [`BACKWARD_BLOCK`] (small stack buffers, whatever the channel count).
     #[inline]
     pub fn density_backward(&self, p: Vec3, d_feat: f32, grad: &mut [f32]) {
         let g = self.to_grid(p);
         let d = &self.params.data;
-        let mut dm = [0.0f32; MAX_CHANNELS];
-        let mut dh = [0.0f32; MAX_CHANNELS];
         for c in &self.density {
             let b = c.plane_at(g);
             let l = c.line_at(g);
             let line = c.line.expect("density components have lines");
-            let ch = c.ch;
-            {
-                let ([p0, p1, p2, p3], [l0, l1]) = c.taps(d, &b, &l);
-                let [w0, w1, w2, w3] = b.w;
-                let [v0, v1] = l.w;
-                for i in 0..ch {
+            let ([p0, p1, p2, p3], [l0, l1]) = c.taps(d, &b, &l);
+            let [w0, w1, w2, w3] = b.w;
+            let [v0, v1] = l.w;
+            for q0 in (0..c.ch).step_by(BACKWARD_BLOCK) {
+                let n = (c.ch - q0).min(BACKWARD_BLOCK);
+                let mut dm = [0.0f32; BACKWARD_BLOCK];
+                let mut dh = [0.0f32; BACKWARD_BLOCK];
+                for k in 0..n {
+                    let i = q0 + k;
                     let m = w0 * p0[i] + w1 * p1[i] + w2 * p2[i] + w3 * p3[i];
                     let h = v0 * l0[i] + v1 * l1[i];
-                    dm[i] = d_feat * h;
-                    dh[i] = d_feat * m;
+                    dm[k] = d_feat * h;
+                    dh[k] = d_feat * m;
                 }
-            }
-            for t in 0..4 {
-                let w = b.w[t];
-                let dst = &mut grad[c.plane + b.idx[t]..][..ch];
-                for i in 0..ch {
-                    dst[i] += w * dm[i];
+                // separate passes: border taps may name the same texel twice
+                for t in 0..4 {
+                    let w = b.w[t];
+                    if w != 0.0 {
+                        let dst = &mut grad[c.plane + b.idx[t] + q0..][..n];
+                        for k in 0..n {
+                            dst[k] += w * dm[k];
+                        }
+                    }
                 }
-            }
-            for t in 0..2 {
-                let w = l.w[t];
-                let dst = &mut grad[line + l.idx[t]..][..ch];
-                for i in 0..ch {
-                    dst[i] += w * dh[i];
+                for t in 0..2 {
+                    let w = l.w[t];
+                    if w != 0.0 {
+                        let dst = &mut grad[line + l.idx[t] + q0..][..n];
+                        for k in 0..n {
+                            dst[k] += w * dh[k];
+                        }
+                    }
                 }
             }
         }
@@ -518,19 +534,37 @@ impl Field {
         // 3. decoder
         match &cfg.decoder {
             DecoderKind::Mlp { view_freqs, .. } => {
-                let inn = fdim + cfg.view_encoding_dim();
-                for j in 0..n {
-                    let x = &mut w.acts[0][j * inn..(j + 1) * inn];
-                    x[..fdim].copy_from_slice(&w.feat[j * fdim..(j + 1) * fdim]);
-                    encode_view(w.dir[j], *view_freqs, &mut x[fdim..]);
+                self.view_runs(w, *view_freqs);
+                // layer 0: the features' share per sample, the view inputs' share per run of
+                // samples along one direction (a bias per ray)
+                let l0 = self.decoder[0];
+                let vdim = cfg.view_encoding_dim();
+                let runs = w.runs.len() - 1;
+                w.vbias.resize(runs * l0.out, 0.0);
+                let (wt, bias) = (&d[l0.w..][..l0.inn * l0.out], &d[l0.b..][..l0.out]);
+                for r in 0..runs {
+                    let enc = &w.venc[r * vdim..][..vdim];
+                    for o in 0..l0.out {
+                        w.vbias[r * l0.out + o] =
+                            bias[o] + dot(&wt[o * l0.inn + fdim..][..vdim], enc);
+                    }
                 }
+                let y0 = &mut w.acts[1];
+                for r in 0..runs {
+                    let b = &w.vbias[r * l0.out..][..l0.out];
+                    for j in w.runs[r] as usize..w.runs[r + 1] as usize {
+                        y0[j * l0.out..][..l0.out].copy_from_slice(b);
+                    }
+                }
+                dense_accumulate(wt, l0.inn, &w.feat, y0, n, fdim, l0.out);
                 let last = self.decoder.len() - 1;
                 for (k, l) in self.decoder.iter().enumerate() {
                     let (head, tail) = w.acts.split_at_mut(k + 1);
-                    let (x, y) = (&head[k], &mut tail[0]);
-                    l.forward(d, x, y, n);
+                    if k > 0 {
+                        l.forward(d, &head[k], &mut tail[0], n);
+                    }
                     if k < last {
-                        relu(&mut y[..n * l.out]);
+                        relu(&mut tail[0][..n * l.out]);
                     }
                 }
                 let out = &w.acts[last + 1];
@@ -578,20 +612,15 @@ impl Field {
                 for k in 0..n * 3 {
                     dy[k] = d_rgb[k] * w.rgb[k] * (1.0 - w.rgb[k]);
                 }
-                for (k, l) in self.decoder.iter().enumerate().rev() {
+                for (k, l) in self.decoder.iter().enumerate().rev().take(last) {
                     let mut dx = std::mem::take(&mut w.dtmp[k]);
                     dx.resize(n * l.inn, 0.0);
                     l.backward(d, grad, &w.acts[k], &dy, Some(&mut dx), n);
-                    if k > 0 {
-                        relu_backward(&w.acts[k][..n * l.inn], &mut dx);
-                    }
+                    relu_backward(&w.acts[k][..n * l.inn], &mut dx);
                     w.dtmp[k + 1] = dy;
                     dy = dx;
                 }
-                let inn = fdim + cfg.view_encoding_dim();
-                for j in 0..n {
-                    w.dfeat[j * fdim..(j + 1) * fdim].copy_from_slice(&dy[j * inn..j * inn + fdim]);
-                }
+                self.first_layer_backward(w, &dy, grad);
                 w.dtmp[0] = dy;
             }
             DecoderKind::Sh { degree } => {
@@ -624,25 +653,42 @@ impl Field {
         // appearance features
         match cfg.kind {
             ModelKind::Standard | ModelKind::Vm => {
-                let mut dm = vec![0.0f32; 0];
+                // plane taps get dapp * line, line taps dapp * plane, in channel blocks
                 for j in 0..n {
                     let g = self.to_grid(w.pos[j]);
-                    let mut off = 0;
+                    let mut off = j * app_dim;
                     for c in &self.color {
-                        dm.clear();
-                        dm.extend(
-                            (0..c.ch).map(|k| {
-                                w.dapp[j * app_dim + off + k] * w.h[j * app_dim + off + k]
-                            }),
-                        );
-                        c.plane_at(g).scatter(&mut grad[c.plane..], &dm);
-                        dm.clear();
-                        dm.extend(
-                            (0..c.ch).map(|k| {
-                                w.dapp[j * app_dim + off + k] * w.m[j * app_dim + off + k]
-                            }),
-                        );
-                        c.line_at(g).scatter(&mut grad[c.line.expect("colour line")..], &dm);
+                        let (b, l) = (c.plane_at(g), c.line_at(g));
+                        let line = c.line.expect("colour line");
+                        for q0 in (0..c.ch).step_by(BACKWARD_BLOCK) {
+                            let nq = (c.ch - q0).min(BACKWARD_BLOCK);
+                            let mut dm = [0.0f32; BACKWARD_BLOCK];
+                            let mut dh = [0.0f32; BACKWARD_BLOCK];
+                            let at = off + q0;
+                            for k in 0..nq {
+                                let da = w.dapp[at + k];
+                                dm[k] = da * w.h[at + k];
+                                dh[k] = da * w.m[at + k];
+                            }
+                            for t in 0..4 {
+                                let wt = b.w[t];
+                                if wt != 0.0 {
+                                    let dst = &mut grad[c.plane + b.idx[t] + q0..][..nq];
+                                    for k in 0..nq {
+                                        dst[k] = wt.mul_add(dm[k], dst[k]);
+                                    }
+                                }
+                            }
+                            for t in 0..2 {
+                                let wt = l.w[t];
+                                if wt != 0.0 {
+                                    let dst = &mut grad[line + l.idx[t] + q0..][..nq];
+                                    for k in 0..nq {
+                                        dst[k] = wt.mul_add(dh[k], dst[k]);
+                                    }
+                                }
+                            }
+                        }
                         off += c.ch;
                     }
                 }
@@ -694,6 +740,80 @@ impl Field {
                         tmp[k] = w.dgin[j * nd + k] * w.gm[j * nd + k];
                     }
                     dc.line_at(g).scatter(&mut grad[dc.line.expect("density line")..], &tmp);
+                }
+            }
+        }
+    }
+
+    /// Group the tile's samples into runs of one view direction (`w.runs`: run starts and
+    /// the end) and encode each run's direction once (`w.venc`). Samples of one ray are
+    /// adjacent, so a run is a ray (or one whole tile, as mining's fixed view).
+    fn view_runs(&self, w: &mut ColorWork, view_freqs: usize) {
+        let vdim = self.config.view_encoding_dim();
+        w.runs.clear();
+        w.venc.clear();
+        for (j, dir) in w.dir.iter().enumerate() {
+            if j == 0 || *dir != w.dir[j - 1] {
+                w.runs.push(j as u32);
+                let at = w.venc.len();
+                w.venc.resize(at + vdim, 0.0);
+                encode_view(*dir, view_freqs, &mut w.venc[at..]);
+            }
+        }
+        w.runs.push(w.dir.len() as u32);
+    }
+
+    /// Backward of the decoder's first layer for `dy` (`[n][out]`, after the ReLU of its
+    /// output): the feature columns' weights and `w.dfeat` from the samples, the view
+    /// columns' weights from each run's summed `dy` (their inputs are one per run), the bias.
+    fn first_layer_backward(&self, w: &mut ColorWork, dy: &[f32], grad: &mut [f32]) {
+        let n = w.pos.len();
+        let l0 = self.decoder[0];
+        let fdim = self.config.features_dim();
+        let vdim = l0.inn - fdim;
+        let d = &self.params.data;
+        let (out, inn) = (l0.out, l0.inn);
+        // the feature columns as a contiguous [out][fdim] matrix, and their gradient
+        w.w0f.clear();
+        for o in 0..out {
+            w.w0f.extend_from_slice(&d[l0.w + o * inn..][..fdim]);
+        }
+        w.dw0f.clear();
+        w.dw0f.resize(out * fdim, 0.0);
+        let (gw, gb) = split_wb(grad, &l0);
+        dense_backward(
+            &w.w0f,
+            &w.feat,
+            dy,
+            Some(&mut w.dfeat),
+            &mut w.dw0f,
+            Some(gb),
+            n,
+            fdim,
+            out,
+        );
+        for o in 0..out {
+            let row = &mut gw[o * inn..][..fdim];
+            for (g, v) in row.iter_mut().zip(&w.dw0f[o * fdim..][..fdim]) {
+                *g += v;
+            }
+        }
+        if vdim == 0 {
+            return;
+        }
+        let mut sum = vec![0.0f32; out];
+        for r in 0..w.runs.len() - 1 {
+            sum.fill(0.0);
+            for j in w.runs[r] as usize..w.runs[r + 1] as usize {
+                for (s, v) in sum.iter_mut().zip(&dy[j * out..][..out]) {
+                    *s += v;
+                }
+            }
+            let enc = &w.venc[r * vdim..][..vdim];
+            for o in 0..out {
+                let row = &mut gw[o * inn + fdim..][..vdim];
+                for (g, e) in row.iter_mut().zip(enc) {
+                    *g = sum[o].mul_add(*e, *g);
                 }
             }
         }
@@ -783,6 +903,13 @@ pub struct ColorWork {
     dsv: Vec<f32>,
     dshid: Vec<f32>,
     dsgin: Vec<f32>,
+    /// Start of each run of samples with one view direction, and the end (see
+    /// [`Field::view_runs`]); the encoded direction and the first layer's bias per run.
+    runs: Vec<u32>,
+    venc: Vec<f32>,
+    vbias: Vec<f32>,
+    w0f: Vec<f32>,
+    dw0f: Vec<f32>,
 }
 
 impl ColorWork {
@@ -837,7 +964,7 @@ impl ColorWork {
         if !decoder.is_empty() {
             self.acts.resize(decoder.len() + 1, Vec::new());
             self.dtmp.resize(decoder.len() + 2, Vec::new());
-            self.acts[0].resize(n * decoder[0].inn, 0.0);
+            // the first layer reads the features (`feat`) and the runs' view encodings
             for (k, l) in decoder.iter().enumerate() {
                 self.acts[k + 1].resize(n * l.out, 0.0);
             }

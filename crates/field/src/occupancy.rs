@@ -12,6 +12,10 @@ pub struct Occupancy {
     min: Vec3,
     scale: Vec3,
     cells: Vec<bool>,
+    /// Cell index ranges `[lo, hi)` along x, y, z that hold every occupied cell (empty when
+    /// none is): marches start and end there. After a regional update it may be larger than
+    /// the occupied cells' box, never smaller.
+    occupied: [[usize; 2]; 3],
 }
 
 impl Occupancy {
@@ -20,7 +24,13 @@ impl Occupancy {
         let a = field.config.aabb();
         let scale = Vec3::new(res[0] as f32, res[1] as f32, res[2] as f32)
             / a.extent().max(Vec3::splat(1e-9));
-        Occupancy { res, min: a.min, scale, cells: vec![true; res[0] * res[1] * res[2]] }
+        Occupancy {
+            res,
+            min: a.min,
+            scale,
+            cells: vec![true; res[0] * res[1] * res[2]],
+            occupied: [[0, res[0]], [0, res[1]], [0, res[2]]],
+        }
     }
 
     /// Mark a cell occupied when the opacity of one march step, at the cell's centre or at
@@ -118,6 +128,61 @@ impl Occupancy {
                 }
             }
         });
+        let region = self.occupied_in([i0, i1], [j0, j1]);
+        self.occupied =
+            if (i0, i1, j0, j1) == (0, nx, 0, ny) { region } else { union(self.occupied, region) };
+    }
+
+    /// Index ranges of the occupied cells among columns `i0..i1` x `j0..j1`.
+    fn occupied_in(&self, [i0, i1]: [usize; 2], [j0, j1]: [usize; 2]) -> [[usize; 2]; 3] {
+        let [nx, ny, nz] = self.res;
+        let mut r = [[usize::MAX, 0]; 3];
+        for k in 0..nz {
+            for j in j0..j1 {
+                let row = &self.cells[(k * ny + j) * nx..][..nx];
+                for i in i0..i1 {
+                    if row[i] {
+                        for (a, v) in [i, j, k].into_iter().enumerate() {
+                            r[a] = [r[a][0].min(v), r[a][1].max(v + 1)];
+                        }
+                    }
+                }
+            }
+        }
+        if r[0][0] == usize::MAX { [[0, 0]; 3] } else { r }
+    }
+
+    /// The world box of the occupied cells (see the field `occupied`), `None` when no cell
+    /// is occupied: rays need no samples outside it.
+    pub fn occupied_box(&self) -> Option<assetfield_core::Aabb3> {
+        let o = self.occupied;
+        if o.iter().any(|[lo, hi]| lo >= hi) {
+            return None;
+        }
+        let at = |a: usize, v: usize| self.min[a] + v as f32 / self.scale[a];
+        Some(assetfield_core::Aabb3::new(
+            Vec3::new(at(0, o[0][0]), at(1, o[1][0]), at(2, o[2][0])),
+            Vec3::new(at(0, o[0][1]), at(1, o[1][1]), at(2, o[2][1])),
+        ))
+    }
+
+    /// Where a ray through `p` with reciprocal direction `inv_dir` leaves the cell that holds
+    /// `p`, as a distance along the ray from `p` (in units of the direction's length): the
+    /// nearest of the three far faces. Points outside the grid are clamped into its border
+    /// cells, as [`Occupancy::occupied`] does.
+    #[inline]
+    pub fn cell_exit(&self, p: Vec3, inv_dir: Vec3) -> f32 {
+        let g = (p - self.min) * self.scale;
+        let mut best = f32::INFINITY;
+        for a in 0..3 {
+            let i = (g[a] as isize).clamp(0, self.res[a] as isize - 1) as f32;
+            let face = if inv_dir[a] >= 0.0 { i + 1.0 } else { i };
+            let t = (self.min[a] + face / self.scale[a] - p[a]) * inv_dir[a];
+            if t.is_finite() {
+                best = best.min(t);
+            }
+        }
+        best.max(0.0)
     }
 
     #[inline]
@@ -138,11 +203,22 @@ impl Occupancy {
     pub fn from_cells(field: &Field, res: [usize; 3], cells: &[u8]) -> Self {
         let mut o = Occupancy::full(field, res);
         o.cells = cells.iter().map(|c| *c != 0).collect();
+        o.occupied = o.occupied_in([0, res[0]], [0, res[1]]);
         o
     }
 
     /// Fraction of occupied cells.
     pub fn fill(&self) -> f32 {
         self.cells.iter().filter(|c| **c).count() as f32 / self.cells.len().max(1) as f32
+    }
+}
+
+/// The smallest index ranges holding both `a` and `b` (an empty range adds nothing).
+fn union(a: [[usize; 2]; 3], b: [[usize; 2]; 3]) -> [[usize; 2]; 3] {
+    let empty = |r: &[[usize; 2]; 3]| r.iter().any(|[lo, hi]| lo >= hi);
+    match (empty(&a), empty(&b)) {
+        (true, _) => b,
+        (_, true) => a,
+        _ => std::array::from_fn(|k| [a[k][0].min(b[k][0]), a[k][1].max(b[k][1])]),
     }
 }

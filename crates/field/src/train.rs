@@ -34,7 +34,8 @@ pub struct TrainConfig {
     /// Plane resolution at the start and at the end of coarse-to-fine training.
     pub plane_res_start: usize,
     pub plane_res_final: usize,
-    /// Progress fractions (0..1) at which the resolution steps up, evenly in voxel count.
+    /// Progress fractions (0..1) at which the resolution steps up (each step multiplies the
+    /// voxel count by the same factor: geometric from `plane_res_start` to `plane_res_final`).
     pub upsample_at: Vec<f64>,
     /// Progress fractions at which the occupancy grid is rebuilt.
     pub occupancy_at: Vec<f64>,
@@ -61,6 +62,11 @@ pub struct TrainConfig {
     pub seed: u64,
     /// Chunks per batch (fixed so results do not depend on scheduling).
     pub chunks: usize,
+    /// Decoded samples fainter than this weight get an unbiased stochastic colour gradient
+    /// ([`MarchSettings::color_grad_weight`]; 0: every one gets its own). Runs from before
+    /// it existed resume with 0.
+    #[serde(default)]
+    pub color_grad_weight: f32,
     /// How plane resolutions become grid sizes, and whether the shared tensors train
     /// (scenes trained together or against a frozen shared set; see [`GridRule`]).
     #[serde(default)]
@@ -140,10 +146,16 @@ impl TrainConfig {
             semantic_weight: default_semantic_weight(),
             seed: 20230,
             chunks: 4,
+            color_grad_weight: DEFAULT_COLOR_GRAD_WEIGHT,
             grid: GridRule::default(),
         }
     }
 }
+
+/// The default [`TrainConfig::color_grad_weight`]: a sample weighing less than 1% of its
+/// pixel takes part in the colour gradient in proportion to its weight (a fraction of the
+/// pixel, so the same for every scene and unit).
+pub const DEFAULT_COLOR_GRAD_WEIGHT: f32 = 0.01;
 
 fn default_early_samples() -> f32 {
     64.0
@@ -176,6 +188,10 @@ pub fn process_cpu_seconds() -> Option<f64> {
     Some(ticks / 100.0)
 }
 
+/// Floats per task of the gradient reduction (32 KiB: a block of every chunk buffer and of
+/// the sum stay in L1/L2 together).
+const REDUCE_BLOCK: usize = 8192;
+
 /// Iterations before the first occupancy grid: before that the density has not formed and
 /// a grid would mark the scene empty for good (short runs never use one).
 const MIN_ITERS_BEFORE_OCCUPANCY: u64 = 500;
@@ -197,6 +213,8 @@ pub struct StepStats {
     /// Semantic feature loss (mean squared error per channel), when trained.
     pub semantic_loss: Option<f32>,
     pub samples: usize,
+    /// Of those, samples whose colour was decoded.
+    pub color_samples: usize,
     pub seconds: f64,
 }
 
@@ -329,12 +347,14 @@ impl Trainer {
         self.progress() >= 1.0
     }
 
+    /// The plane resolution after `stage` of the resolution steps: geometric from the start
+    /// to the final resolution, so each step multiplies the voxel count by the same factor
+    /// (TensoRF's `exp(linspace(log N0, log N1))` in voxel count).
     fn plane_res_at(&self, stage: usize) -> usize {
-        // evenly spaced in voxel count (cubed resolution), as TensoRF's upsampling list
         let (a, b) = (self.config.plane_res_start as f64, self.config.plane_res_final as f64);
         let n = self.config.upsample_at.len().max(1) as f64;
-        let t = stage as f64 / n;
-        (a.powi(3) + (b.powi(3) - a.powi(3)) * t).cbrt().round() as usize
+        let t = (stage as f64 / n).min(1.0);
+        (a * (b / a).powf(t)).round() as usize
     }
 
     fn resize_to(&mut self, plane_res: usize) {
@@ -398,25 +418,18 @@ impl Trainer {
     pub fn step(&mut self) -> StepStats {
         let t0 = Instant::now();
         let progress = self.progress();
-        self.schedule(progress, self.may_upsample());
+        self.schedule(progress);
         let mut stats = self.gradients();
         self.apply_with(progress, stats.psnr);
         stats.seconds = t0.elapsed().as_secs_f64();
         stats
     }
 
-    /// Whether a resolution step may come now: a finer grid without empty-space skipping
-    /// would make every later step slow, so the steps wait for the first occupancy grid (or
-    /// for enough iterations without one).
-    pub(crate) fn may_upsample(&self) -> bool {
-        self.occupancy.is_some() || self.iter >= MIN_ITERS_BEFORE_OCCUPANCY
-    }
-
-    /// Scheduled events at `progress`: resolution steps (when `can_upsample`), early and
-    /// scheduled occupancy grids.
-    pub(crate) fn schedule(&mut self, progress: f64, can_upsample: bool) {
-        while can_upsample
-            && self.upsampled < self.config.upsample_at.len()
+    /// Scheduled events at `progress`: a resolution step when its fraction is reached (one per
+    /// iteration at most, so steps a resumed run has passed come one after another, each
+    /// with a grid rebuilt at its size), early and scheduled occupancy grids.
+    pub(crate) fn schedule(&mut self, progress: f64) {
+        if self.upsampled < self.config.upsample_at.len()
             && progress >= self.config.upsample_at[self.upsampled]
         {
             self.upsampled += 1;
@@ -434,8 +447,8 @@ impl Trainer {
         {
             self.rebuild_occupancy_with(self.occupancy_threshold());
         }
-        // scheduled grids wait until the density has had time to form
-        while self.occupancy_done < self.config.occupancy_at.len()
+        // scheduled grids wait until the density has had time to form (one per iteration)
+        if self.occupancy_done < self.config.occupancy_at.len()
             && progress >= self.config.occupancy_at[self.occupancy_done]
             && self.iter >= MIN_ITERS_BEFORE_OCCUPANCY
         {
@@ -453,18 +466,21 @@ impl Trainer {
         let picks = random_pixels(&mut self.rng, n_views, w, h, batch);
         let chunk = batch.div_ceil(self.work.len());
         let bg = Vec3::from(self.config.background);
-        let settings = MarchSettings::default();
+        let settings = MarchSettings {
+            color_grad_weight: self.config.color_grad_weight,
+            ..MarchSettings::default()
+        };
         let scale = 2.0 / (batch as f32 * 3.0);
         let (field, occ, views) = (&self.field, self.occupancy.as_ref(), &self.views);
         let nc = field.config.semantic_dim();
         let semantic = nc > 0 && views.iter().all(|v| v.features.is_some());
         let sem_scale = 2.0 * self.config.semantic_weight / (batch * nc.max(1)) as f32;
-        let results: Vec<(f32, f32, usize)> = self
+        let results: Vec<(f32, f32, usize, usize)> = self
             .work
             .par_iter_mut()
             .zip(picks.par_chunks(chunk))
             .map(|((work, grad), picks)| {
-                grad.fill(0.0);
+                // chunk buffers are zero here: the reduction below clears what it reads
                 let mut rays = Vec::with_capacity(picks.len());
                 let mut targets = Vec::with_capacity(picks.len());
                 let mut jitter = Vec::with_capacity(picks.len());
@@ -501,20 +517,38 @@ impl Trainer {
                         .collect()
                 });
                 march::backward(field, bg, &d, d_sem.as_deref(), work, grad);
-                (sse, sem_sse, work.samples)
+                (sse, sem_sse, work.samples, work.color_samples)
             })
             .collect();
-        // deterministic reduction: chunk buffers summed in order
-        let bufs: Vec<&Vec<f32>> = self.work.iter().map(|(_, g)| g).collect();
-        self.grad.par_chunks_mut(8192).enumerate().for_each(|(c, out)| {
-            let (off, len) = (c * 8192, out.len());
-            out.copy_from_slice(&bufs[0][off..off + len]);
-            for b in &bufs[1..] {
-                for (o, v) in out.iter_mut().zip(&b[off..off + len]) {
-                    *o += v;
-                }
+        // deterministic reduction: chunk buffers summed in order, each cleared as it is read
+        // (one pass over them, and they are zero for the next iteration)
+        let mut bufs: Vec<&mut [f32]> =
+            self.work.iter_mut().map(|(_, g)| g.as_mut_slice()).collect();
+        let mut parts: Vec<Vec<&mut [f32]>> =
+            bufs.iter_mut().map(|b| b.chunks_mut(REDUCE_BLOCK).collect()).collect();
+        let mut blocks: Vec<Vec<&mut [f32]>> =
+            Vec::with_capacity(self.grad.len().div_ceil(REDUCE_BLOCK));
+        for _ in 0..self.grad.len().div_ceil(REDUCE_BLOCK) {
+            blocks.push(Vec::with_capacity(parts.len()));
+        }
+        for p in &mut parts {
+            for (k, b) in p.drain(..).enumerate() {
+                blocks[k].push(b);
             }
-        });
+        }
+        self.grad.par_chunks_mut(REDUCE_BLOCK).zip(blocks.par_iter_mut()).for_each(
+            |(out, srcs)| {
+                let (first, rest) = srcs.split_first_mut().expect("at least one chunk");
+                out.copy_from_slice(first);
+                first.fill(0.0);
+                for b in rest {
+                    for (o, v) in out.iter_mut().zip(b.iter_mut()) {
+                        *o += *v;
+                        *v = 0.0;
+                    }
+                }
+            },
+        );
         self.regularise();
         if self.config.grid.frozen_shared {
             for (_, r) in self.field.shared_ranges() {
@@ -533,6 +567,7 @@ impl Trainer {
             semantic_loss: semantic
                 .then(|| results.iter().map(|r| r.1).sum::<f32>() / (batch * nc) as f32),
             samples,
+            color_samples: results.iter().map(|r| r.3).sum(),
             seconds: 0.0,
         }
     }
@@ -565,9 +600,14 @@ impl Trainer {
         if l1 > 0.0 && geometry_formed {
             for r in self.field.density_grid_ranges() {
                 let k = l1 / r.len() as f32;
-                for i in r {
-                    self.grad[i] += k * self.field.params.data[i].signum();
-                }
+                let (g, p) = (&mut self.grad[r.clone()], &self.field.params.data[r]);
+                g.par_chunks_mut(REDUCE_BLOCK).zip(p.par_chunks(REDUCE_BLOCK)).for_each(
+                    |(g, p)| {
+                        for (g, p) in g.iter_mut().zip(p) {
+                            *g += k * p.signum();
+                        }
+                    },
+                );
             }
         }
         for (prefix, weight) in

@@ -98,3 +98,72 @@ fn a_regional_update_equals_a_full_rebuild() {
     }
     assert!(touched > 0);
 }
+
+/// The march leaps over empty cells and starts and ends in the occupied cells' box, yet
+/// evaluates exactly the lattice points a point-by-point walk finds occupied: on a random
+/// grid (a sparse one and one with a single occupied cell), for rays in every direction,
+/// axis-parallel ones included, with a density that never stops a ray (no stopping
+/// transmittance).
+#[test]
+fn leaping_over_empty_cells_keeps_every_occupied_sample() {
+    use assetfield_core::Ray;
+    use assetfield_field::march::forward;
+    use assetfield_field::{MarchSettings, MarchWork};
+    // the initial field (features near 0) and no shift: every sample's opacity is well
+    // inside (0, 1), so every occupied lattice point is kept and no ray stops
+    let aabb = Aabb3::new(Vec3::new(-1.5, -1.0, 0.0), Vec3::new(1.5, 1.0, 1.2));
+    let mut f = Field::new(FieldConfig::new(ModelKind::Standard, aabb, 40), 5);
+    f.config.density_shift = 0.0;
+    let res = [13, 9, 7];
+    let mut seed = 12345u64;
+    let mut next = move || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let sparse: Vec<u8> =
+        (0..res.iter().product::<usize>()).map(|_| u8::from(next() < 0.15)).collect();
+    let mut single = vec![0u8; sparse.len()];
+    single[(4 * res[1] + 3) * res[0] + 6] = 1;
+    let a = f.config.aabb();
+    let step = f.config.step_size();
+    let settings = MarchSettings {
+        weight_threshold: 1.0,
+        stop_transmittance: 0.0,
+        max_samples: 4096,
+        ..MarchSettings::default()
+    };
+    let mut rays = Vec::new();
+    for _ in 0..300 {
+        let o = Vec3::new(next() * 8.0 - 4.0, next() * 8.0 - 4.0, next() * 4.0 - 1.0);
+        let t = a.min + a.extent() * Vec3::new(next(), next(), next());
+        rays.push(Ray { origin: o, dir: (t - o).normalize() });
+    }
+    for d in [Vec3::X, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z] {
+        for _ in 0..20 {
+            let t = a.min + a.extent() * Vec3::new(next(), next(), next());
+            rays.push(Ray { origin: t - d * 5.0, dir: d });
+        }
+    }
+    for cells in [sparse, single] {
+        let occ = Occupancy::from_cells(&f, res, &cells);
+        let mut w = MarchWork::default();
+        let jitter: Vec<f32> = rays.iter().map(|_| next()).collect();
+        forward(&f, Some(&occ), &rays, Some(&jitter), Vec3::ONE, &settings, &mut w);
+        // the walk point by point over the same lattice
+        let mut expected = 0;
+        for (ray, j) in rays.iter().zip(&jitter) {
+            if let Some((t0, t1)) = a.intersect(ray.origin, ray.dir.recip(), f32::INFINITY) {
+                let first = t0 + step * j;
+                for k in 0..settings.max_samples {
+                    let t = first + k as f32 * step;
+                    if t >= t1 {
+                        break;
+                    }
+                    expected += usize::from(occ.occupied(ray.origin + ray.dir * t));
+                }
+            }
+        }
+        assert!(expected > 0);
+        assert_eq!(w.samples, expected);
+    }
+}

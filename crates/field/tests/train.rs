@@ -126,6 +126,55 @@ fn training_is_deterministic_for_a_seed() {
     assert_eq!(run(), run());
 }
 
+/// An iteration budget is a budget that means the same everywhere: the tiny schedule (a
+/// resolution step and an occupancy grid included) trained on one worker thread of an idle
+/// machine and on two workers while two other threads spin (a busy machine) gives the same
+/// field, bit for bit, and the same occupancy grid.
+#[test]
+fn an_iteration_budget_gives_the_same_field_whatever_the_threads_and_load() {
+    let dir = dataset();
+    let train = Dataset::load(dir, Split::Train, &LoadOptions::default()).unwrap();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let (mut cfg, fc) = tiny_configs(ModelKind::Standard);
+            cfg.iters = 120;
+            cfg.batch = 512;
+            cfg.upsample_at = vec![0.25];
+            cfg.occupancy_at = vec![0.5];
+            let mut t = Trainer::new(&train, fc, cfg);
+            while !t.finished() {
+                t.step();
+                if t.iter == 80 {
+                    t.rebuild_occupancy();
+                }
+            }
+            let occ = t.occupancy.as_ref().map(|o| o.cells_u8());
+            (t.field.params.data, t.field.config.res, occ)
+        })
+    };
+    let quiet = run(1);
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let busy = std::thread::scope(|s| {
+        for _ in 0..2 {
+            s.spawn(|| {
+                let mut x = 1u64;
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+                }
+            });
+        }
+        let r = run(2);
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        r
+    });
+    assert_eq!(quiet.1, busy.1, "the same resolution schedule");
+    assert!(quiet.2.is_some(), "the schedule built an occupancy grid");
+    assert_eq!(quiet.2, busy.2, "the same occupancy grid");
+    let same = quiet.0.iter().zip(&busy.0).all(|(a, b)| a.to_bits() == b.to_bits());
+    assert!(same && quiet.0.len() == busy.0.len(), "bit-identical parameters");
+}
+
 #[test]
 fn checkpoints_resume_exactly_and_field_files_round_trip() {
     let dir = dataset();

@@ -16,13 +16,21 @@ pub struct DemoArgs {
     pub scene: PathBuf,
     #[arg(long, default_value = "scenes/edits/conference_room.ron")]
     pub edit: PathBuf,
-    /// Training budget in minutes (CPU time divided by the worker threads).
-    #[arg(long, default_value_t = 3.0)]
-    pub minutes: f64,
+    /// Training budget in iterations of 4096 rays: the same field on every machine, however
+    /// fast or busy (with the default seed, bit for bit).
+    #[arg(long, default_value_t = DEMO_ITERS)]
+    pub iters: u64,
+    /// Also stop after this many minutes (CPU time divided by the worker threads), whichever
+    /// comes first; the field then depends on the machine.
+    #[arg(long)]
+    pub minutes: Option<f64>,
     /// Replace the output folder's contents if it exists.
     #[arg(long)]
     pub force: bool,
 }
+
+/// The demo's training budget: iterations of 4096 rays (about 5 minutes on 2 cores).
+pub const DEMO_ITERS: u64 = 6000;
 
 fn step(title: &str, args: &[&str]) -> Result<()> {
     println!("\n== {title}: assetfield {}", args.join(" "));
@@ -43,8 +51,13 @@ pub fn demo(a: DemoArgs) -> Result<()> {
             );
         }
     }
-    if !(a.minutes.is_finite() && a.minutes > 0.0) {
+    if let Some(m) = a.minutes
+        && !(m.is_finite() && m > 0.0)
+    {
         bail!("--minutes must be positive");
+    }
+    if a.iters == 0 {
+        bail!("--iters must be at least 1");
     }
     if a.out.exists() && !a.force {
         bail!("{} already exists (pass --force to replace it)", a.out.display());
@@ -53,7 +66,12 @@ pub fn demo(a: DemoArgs) -> Result<()> {
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     let o = |p: &str| -> String { a.out.join(p).display().to_string() };
     let s = |p: &Path| p.display().to_string();
-    let minutes = a.minutes.to_string();
+    let iters = a.iters.to_string();
+    let minutes = a.minutes.map(|m| m.to_string());
+    let mut budget = vec!["--iters", iters.as_str()];
+    if let Some(m) = &minutes {
+        budget.extend(["--minutes", m.as_str(), "--clock", "cpu"]);
+    }
     let (data, field, lib) = (o("data"), o("field.safetensors"), o("library"));
     let edited = o("data/edited");
     let gt = o("data/gt_layout.json");
@@ -62,21 +80,10 @@ pub fn demo(a: DemoArgs) -> Result<()> {
         "1/7 render the scene and its edit (ground truth)",
         &["synth", &s(&a.scene), "--out", &data, "--edited", &s(&a.edit), "--force"],
     )?;
-    step(
-        "2/7 train an S-AssetField",
-        &[
-            "train",
-            &data,
-            "--out",
-            &field,
-            "--minutes",
-            &minutes,
-            "--clock",
-            "cpu",
-            "--force",
-            "--discard-checkpoint",
-        ],
-    )?;
+    let mut train = vec!["train", data.as_str(), "--out", field.as_str()];
+    train.extend(&budget);
+    train.extend(["--force", "--discard-checkpoint"]);
+    step("2/7 train an S-AssetField", &train)?;
     step(
         "3/7 evaluate on the test views",
         &["eval", &field, "--data", &data, "--out", &o("eval"), "--force"],
@@ -114,8 +121,8 @@ pub fn demo(a: DemoArgs) -> Result<()> {
     .map_err(|e| match f1 {
         Some(f) if f < 0.95 => e.context(format!(
             "mining found too few objects (detection F1 {f:.2}, see {lib}/boxes.png) for the \
-             edit to name them: train longer (--minutes {} or more)",
-            (a.minutes * 2.0).max(3.0)
+             edit to name them: train longer (--iters {} or more)",
+            (a.iters * 2).max(DEMO_ITERS)
         )),
         _ => e,
     })?;

@@ -126,6 +126,12 @@ pub struct TrainArgs {
     /// Rays per iteration.
     #[arg(long, default_value_t = 4096)]
     pub batch: usize,
+    /// Decoded samples weighing less than this fraction of their pixel get their colour
+    /// gradient by a weighted coin toss, scaled back up (unbiased; most faint samples of a
+    /// young, hazy field then skip the decoder's backward pass). 0 gives every sample its
+    /// own colour gradient.
+    #[arg(long, default_value_t = assetfield_field::train::DEFAULT_COLOR_GRAD_WEIGHT)]
+    pub color_grad_weight: f32,
     /// Colour decoder: mlp or sh (spherical harmonics, degree 2).
     /// [default: mlp; with --share, the shared decoder]
     #[arg(long, value_enum)]
@@ -308,6 +314,9 @@ pub(crate) fn check_options(a: &TrainArgs) -> Result<usize> {
     {
         bail!("--minutes {m} must be a positive number");
     }
+    if !(a.color_grad_weight.is_finite() && (0.0..=1.0).contains(&a.color_grad_weight)) {
+        bail!("--color-grad-weight {} must be between 0 and 1", a.color_grad_weight);
+    }
     if a.iters == Some(0) {
         bail!("--iters must be at least 1");
     }
@@ -342,6 +351,7 @@ pub(crate) fn train_config(
     let seconds = a.minutes.map(|m| m * 60.0);
     let mut tc = TrainConfig::new(kind);
     tc.batch = a.batch;
+    tc.color_grad_weight = a.color_grad_weight;
     tc.iters = match (a.iters, seconds) {
         (Some(n), _) => n,
         (None, Some(_)) => u64::MAX,
@@ -706,6 +716,8 @@ pub fn train(a: TrainArgs) -> Result<()> {
     let mut last_ckpt = Instant::now();
     let every = Duration::from_secs_f64(a.checkpoint_every_minutes * 60.0);
     let mut step_time = 0.0f64; // smoothed seconds per iteration
+    let mut step_samples = 0.0f64; // smoothed samples per iteration
+    let mut samples_done = 0u64;
     let mut last_psnr = trainer.history.last().map_or(f32::NAN, |h| h.2);
     let mut val_text = String::new();
     let batch = trainer.config.batch as f64;
@@ -725,7 +737,10 @@ pub fn train(a: TrainArgs) -> Result<()> {
         last_psnr = s.psnr;
         let k = if step_time == 0.0 { 1.0 } else { 0.05 };
         step_time += k * (s.seconds - step_time);
+        step_samples += k * (s.samples as f64 - step_samples);
+        samples_done += s.samples as u64;
         let rays_per_s = batch / step_time.max(1e-9);
+        let samples_per_s = step_samples / step_time.max(1e-9);
         if let Some(n) = a.val_every
             && !val_frames.is_empty()
             && s.iter.is_multiple_of(n)
@@ -743,13 +758,14 @@ pub fn train(a: TrainArgs) -> Result<()> {
             time_left(limit_iters, s.iter, step_time, trainer.config.seconds, trainer.elapsed());
         pb.set_position((trainer.progress() * 1000.0) as u64);
         pb.set_message(format!(
-            "it {}{} | loss {:.5} | psnr {:.2}{} | {:.2} M rays/s | plane {} | left {}{val_text}",
+            "it {}{} | loss {:.5} | psnr {:.2}{} | {:.2} M rays/s, {:.1} M samples/s | plane {} | left {}{val_text}",
             s.iter,
             limit_iters.map(|n| format!("/{n}")).unwrap_or_default(),
             s.loss,
             s.psnr,
             s.semantic_loss.map(|l| format!(" | semantic {l:.4}")).unwrap_or_default(),
             rays_per_s / 1e6,
+            samples_per_s / 1e6,
             trainer.field.config.res[0].max(trainer.field.config.res[1]),
             fmt_duration(left)
         ));
@@ -781,7 +797,11 @@ pub fn train(a: TrainArgs) -> Result<()> {
         if done > 0 { format!(", {done} new") } else { String::new() }
     );
     let rays = if done > 0 && session_s > 0.0 {
-        format!(", {:.2} M rays/s", done as f64 * batch / session_s / 1e6)
+        format!(
+            ", {:.2} M rays/s, {:.1} M samples/s",
+            done as f64 * batch / session_s / 1e6,
+            samples_done as f64 / session_s / 1e6
+        )
     } else {
         String::new()
     };
