@@ -436,25 +436,9 @@ impl Field {
                     dm[k] = d_feat * h;
                     dh[k] = d_feat * m;
                 }
-                // separate passes: border taps may name the same texel twice
-                for t in 0..4 {
-                    let w = b.w[t];
-                    if w != 0.0 {
-                        let dst = &mut grad[c.plane + b.idx[t] + q0..][..n];
-                        for k in 0..n {
-                            dst[k] += w * dm[k];
-                        }
-                    }
-                }
-                for t in 0..2 {
-                    let w = l.w[t];
-                    if w != 0.0 {
-                        let dst = &mut grad[line + l.idx[t] + q0..][..n];
-                        for k in 0..n {
-                            dst[k] += w * dh[k];
-                        }
-                    }
-                }
+                // tap by tap: border taps may name the same texel twice
+                b.scatter(&mut grad[c.plane + q0..], &dm[..n]);
+                l.scatter(&mut grad[line + q0..], &dh[..n]);
             }
         }
     }
@@ -670,24 +654,8 @@ impl Field {
                                 dm[k] = da * w.h[at + k];
                                 dh[k] = da * w.m[at + k];
                             }
-                            for t in 0..4 {
-                                let wt = b.w[t];
-                                if wt != 0.0 {
-                                    let dst = &mut grad[c.plane + b.idx[t] + q0..][..nq];
-                                    for k in 0..nq {
-                                        dst[k] = wt.mul_add(dm[k], dst[k]);
-                                    }
-                                }
-                            }
-                            for t in 0..2 {
-                                let wt = l.w[t];
-                                if wt != 0.0 {
-                                    let dst = &mut grad[line + l.idx[t] + q0..][..nq];
-                                    for k in 0..nq {
-                                        dst[k] = wt.mul_add(dh[k], dst[k]);
-                                    }
-                                }
-                            }
+                            b.scatter(&mut grad[c.plane + q0..], &dm[..nq]);
+                            l.scatter(&mut grad[line + q0..], &dh[..nq]);
                         }
                         off += c.ch;
                     }
