@@ -163,12 +163,13 @@ fn every_scene_synthesises_and_its_ground_truth_matches_the_script() {
 }
 
 #[test]
-fn the_readme_example_resolves() {
-    let readme = std::fs::read_to_string(assetfield_tests::repo().join("README.md")).unwrap();
-    let block = readme
+fn the_layout_language_example_resolves() {
+    let page = assetfield_tests::repo().join("docs/layout-language.md");
+    let page = std::fs::read_to_string(page).unwrap();
+    let block = page
         .split("```ron\n")
         .nth(1)
-        .expect("README has a ```ron block")
+        .expect("docs/layout-language.md has a ```ron block")
         .split("```")
         .next()
         .unwrap();

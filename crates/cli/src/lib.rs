@@ -7,8 +7,8 @@ use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 
 pub use commands::{
-    BenchArgs, ComposeArgs, DemoArgs, EditArgs, EvalArgs, InspectArgs, LayoutArgs, LibraryArgs,
-    MineArgs, PlanesArgs, RefineArgs, RenderArgs, SynthArgs, TrainArgs,
+    BenchArgs, ComposeArgs, DemoArgs, DemoStep, EditArgs, EvalArgs, InspectArgs, LayoutArgs,
+    LibraryArgs, MineArgs, PlanesArgs, RefineArgs, RenderArgs, SynthArgs, TrainArgs, demo_plan,
 };
 
 /// AssetField: editable neural scenes on ground feature planes.
@@ -86,7 +86,7 @@ fn parse_limit(s: &str) -> Result<LimitSetting, String> {
 pub enum Command {
     /// The whole pipeline on the built-in default scene (scenes/conference_room.ron), from
     /// the repository root: synthesise the dataset and an edited version, train an
-    /// S-AssetField (--minutes, 3 by default), evaluate, draw the planes, mine the asset
+    /// S-AssetField (--iters, 6000 by default), evaluate, draw the planes, mine the asset
     /// library, compose the edit from it and compare with the ground truth, and render a
     /// turntable of the composed scene. Everything lands in --out (runs/demo).
     Demo(DemoArgs),

@@ -17,7 +17,7 @@ mod util;
 
 pub use bench::{BenchArgs, bench};
 pub use compose::{ComposeArgs, compose};
-pub use demo::{DemoArgs, demo};
+pub use demo::{DemoArgs, DemoStep, demo, demo_plan};
 pub use edit::{EditArgs, edit};
 pub use eval::{EvalArgs, eval};
 pub use mine::{LibraryArgs, MineArgs, library, mine};
