@@ -7,12 +7,14 @@
 //! - [`sh3f`]: Sweet Home 3D furniture catalogs (real meshes read from `.sh3f` zips);
 //! - [`random`]: random scenes drawn from a seed (`assetfield synth --random SEED`);
 //! - [`tracer`]: the CPU ray tracer (Lambert + ambient, anti-aliasing, transparent background);
-//! - [`synth`]: the camera rig and dataset writer behind `assetfield synth`.
+//! - [`synth`]: the camera rig and dataset writer behind `assetfield synth`;
+//! - [`export`]: the scene as meshes (OBJ, MTL, textures) for another renderer.
 
 pub mod assets;
 pub mod bvh;
 pub mod curated;
 pub mod error;
+pub mod export;
 pub mod geometry;
 pub mod random;
 pub mod sh3f;

@@ -34,6 +34,9 @@ pub struct SynthOptions {
     pub elevation_deg: Option<(f32, f32)>,
     pub fov_deg: Option<f32>,
     pub samples_per_side: Option<u32>,
+    /// Also write the scene's meshes into `mesh/` ([`crate::export::export_obj`]), for
+    /// rendering the same cameras with another renderer.
+    pub mesh: bool,
 }
 
 /// Validated settings, ready to run.
@@ -343,6 +346,9 @@ pub struct SynthReport {
     pub camera_radius: f32,
     pub seconds: f64,
     pub rays_per_second: f64,
+    /// Triangles written to `mesh/scene.obj` (with `--mesh`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh_triangles: Option<usize>,
 }
 
 /// Progress of a run: views rendered so far and in all.
@@ -466,6 +472,11 @@ pub fn synthesize_loaded(
     if let Some(text) = script_text {
         write_atomic(&dir.join("scene.ron"), text.as_bytes())?;
     }
+    let mesh = if opts.mesh {
+        Some(crate::export::export_obj(&layout, &assets, &dir.join("mesh"))?)
+    } else {
+        None
+    };
 
     if let Some((escene, elayout, egt)) = &edited_scene {
         let edir = dir.join("edited");
@@ -506,6 +517,7 @@ pub fn synthesize_loaded(
             .unwrap_or(0.0),
         seconds,
         rays_per_second: rays / seconds.max(1e-9),
+        mesh_triangles: mesh.map(|m| m.triangles),
     };
     let json = serde_json::to_string_pretty(&report).expect("report serialises");
     write_atomic(&dir.join("synth.json"), json.as_bytes())?;

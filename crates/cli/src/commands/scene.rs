@@ -58,6 +58,11 @@ pub struct SynthArgs {
     /// Also render this edited layout from the same test cameras into OUT/edited/.
     #[arg(long)]
     pub edited: Option<PathBuf>,
+    /// Also write the scene as meshes into OUT/mesh/ (scene.obj in world coordinates, Z
+    /// up; scene.mtl; textures/), so that another renderer can render the same cameras:
+    /// scripts/blender_render.py renders the dataset again with Blender's Cycles.
+    #[arg(long)]
+    pub mesh: bool,
     /// Replace the output folder if it exists.
     #[arg(long)]
     pub force: bool,
@@ -104,6 +109,7 @@ pub fn synth(a: SynthArgs) -> Result<()> {
         elevation_deg: elevation,
         fov_deg: a.fov,
         samples_per_side: a.aa,
+        mesh: a.mesh,
     };
     let pb = progress_bar(0, "rendering views");
     let mut progress = |done: usize, total: usize| {
@@ -164,6 +170,9 @@ pub fn synth(a: SynthArgs) -> Result<()> {
             r.units_per_metre,
             out.join("scene.ron").display()
         );
+    }
+    if let Some(t) = report.mesh_triangles {
+        println!("meshes: {} triangles in {}", t, out.join("mesh/scene.obj").display());
     }
     println!("wrote {}", out.display());
     Ok(())

@@ -55,9 +55,10 @@ impl<'a> Ctx<'a> {
         }
         p.validate().map_err(|(name, reason)| MiningError::InvalidParameter { name, reason })?;
         let floor = if p.stages.floor { floor_band(vol, p) } else { None };
+        // a ground slab tilted against the planes is refused whether or not a floor was
+        // found on it (seen from above, a tilt spreads the floor's top over many levels)
         if p.stages.floor
-            && floor.is_none()
-            && let Some((degrees, coverage)) = ground_tilt(vol, p)
+            && let Some((degrees, coverage)) = ground_tilt(vol, floor, p)
             && degrees > MAX_GROUND_TILT_DEG
         {
             return Err(MiningError::TiltedGround { degrees, coverage_pct: 100.0 * coverage });

@@ -13,7 +13,7 @@ pub struct FloorBand {
     pub hi: usize,
     /// World height of the slab's top level.
     pub z_top: f32,
-    /// Fraction of the plane covered at the slab's densest level.
+    /// Fraction of the plane whose surface seen from above is the floor (at or below `hi`).
     pub coverage: f32,
 }
 
@@ -21,44 +21,67 @@ pub struct FloorBand {
 /// midpoint of the opacity range.
 const FLOOR_OPACITY: f32 = 0.5;
 
-/// Find the floor slab: the lowest level (in the lower half of the volume) where at least
-/// [`DetectParams::floor_coverage`] of the plane has opacity 0.5 or more, extended upwards
-/// while that coverage stays above it and above [`DetectParams::floor_step_share`] of the
-/// floor's (sidewalks, steps), then over its blurred top (coverage above
-/// [`DetectParams::floor_blur_coverage`] and falling). `None` for scenes on an invisible
-/// ground, and for a "floor" reaching over half the volume (a solid block).
+/// Per column, the level where the opacity accumulated from the top first reaches one half:
+/// the surface a camera looking straight down would see (`None`: the column stays more
+/// than half transparent). Haze over a surface and the blur of the surface itself move it by
+/// less than a level, whatever the surface's thickness or texture.
+pub fn surface_levels(vol: &OpacityVolume) -> Vec<Option<usize>> {
+    (0..vol.rows * vol.cols)
+        .map(|i| {
+            let col = &vol.data[i * vol.nz..(i + 1) * vol.nz];
+            let mut transmitted = 1f32;
+            (0..vol.nz).rev().find(|&k| {
+                transmitted *= 1.0 - col[k];
+                transmitted <= SURFACE_TRANSMITTANCE
+            })
+        })
+        .collect()
+}
+
+/// The transmittance from above at which a column's surface is reached. Not tuned: the
+/// midpoint, where a ray from above has even odds of having stopped.
+const SURFACE_TRANSMITTANCE: f32 = 0.5;
+
+/// Find the floor: the lowest surface seen from above over a large part of the plane. Each
+/// column's surface is the level where the opacity accumulated from the top reaches one
+/// half ([`surface_levels`]); the floor's top is the lowest level at or below which
+/// [`DetectParams::floor_coverage`] of the plane has its surface, raised while the next
+/// level up still holds [`DetectParams::floor_step_share`] of the columns of the level
+/// below it (a gently tilted or stepped floor spreads over a few levels; objects start
+/// much sparser). Seen from above, a slab's thickness, the opaque copies an undertrained
+/// field leaves below it and the haze it leaves above it do not move its top. The band
+/// starts at the lowest level where `floor_coverage` of the plane is opaque (0.5), or at
+/// the top. `None` for scenes on an invisible ground, and for a "floor" reaching over half
+/// the volume (a solid block).
 pub fn floor_band(vol: &OpacityVolume, p: &DetectParams) -> Option<FloorBand> {
     let n = vol.rows * vol.cols;
     if n == 0 || vol.nz == 0 {
         return None;
     }
-    let coverage: Vec<f32> = (0..vol.nz)
-        .map(|k| {
-            let c = (0..n).filter(|&i| vol.data[i * vol.nz + k] >= FLOOR_OPACITY).count();
-            c as f32 / n as f32
-        })
-        .collect();
-    let lo = (0..vol.nz.div_ceil(2)).find(|&k| coverage[k] >= p.floor_coverage)?;
-    let mut hi = lo;
-    // the slab goes on while it still covers a large share of the plane (objects rarely do)
-    let densest = coverage[lo..].iter().take(3).fold(0f32, |m, &v| m.max(v));
-    while hi + 1 < vol.nz
-        && coverage[hi + 1] >= (p.floor_step_share * densest).max(p.floor_coverage)
-    {
-        hi += 1;
+    let half = vol.nz.div_ceil(2);
+    let mut count = vec![0usize; half];
+    for k in surface_levels(vol).into_iter().flatten() {
+        if k < half {
+            count[k] += 1;
+        }
     }
-    // and its blurred top: coverage still above its share and falling level by level (by
-    // a tenth at least: a steady coverage is a slab, not blur)
-    while hi + 1 < vol.nz
-        && coverage[hi + 1] >= p.floor_blur_coverage
-        && coverage[hi + 1] < coverage[hi] * 0.9
-    {
+    let need = p.floor_coverage * n as f32;
+    let mut below = 0usize;
+    let mut hi = (0..half).find(|&k| {
+        below += count[k];
+        below as f32 >= need
+    })?;
+    while hi + 1 < half && count[hi + 1] as f32 >= p.floor_step_share * count[hi] as f32 {
         hi += 1;
     }
     if hi + 1 > vol.nz / 2 {
         return None;
     }
-    let coverage = coverage[lo..=hi].iter().fold(0f32, |m, &v| m.max(v));
+    let opaque_share = |k: usize| {
+        (0..n).filter(|&i| vol.data[i * vol.nz + k] >= FLOOR_OPACITY).count() as f32 / n as f32
+    };
+    let lo = (0..=hi).find(|&k| opaque_share(k) >= p.floor_coverage).unwrap_or(hi);
+    let coverage = count[..=hi].iter().sum::<usize>() as f32 / n as f32;
     Some(FloorBand { lo, hi, z_top: vol.height(hi), coverage })
 }
 
@@ -88,26 +111,38 @@ pub fn ground_level(
 /// search's coverage rule tolerates.
 pub const MAX_GROUND_TILT_DEG: f32 = 3.0;
 
-/// The tilt of a ground slab the floor search could not find level: per column, the lowest
-/// level with opacity 0.5 or more in the lower half of the volume; a least-squares plane
-/// through those heights (texels and levels are cubic voxels, so its gradient is the
-/// slope). `Some((degrees, coverage))` when such a bottom surface covers at least
-/// [`DetectParams::floor_coverage`] of the plane and the plane fits it (median residual
+/// The tilt of the ground slab. With a floor found, its top seen from above: every column
+/// whose surface ([`surface_levels`]) is the floor's (at or below `floor.hi`), at that
+/// level. With none, the slab the floor search could not find level: per column, the
+/// lowest level with opacity 0.5 or more in the lower half of the volume. A least-squares
+/// plane through those heights (texels and levels are cubic voxels, so its gradient is the
+/// slope). `Some((degrees, coverage))` when the points cover at least
+/// [`DetectParams::floor_coverage`] of the plane and the plane fits them (median residual
 /// within two levels); `None` otherwise (no ground slab: objects on an invisible ground).
-pub fn ground_tilt(vol: &OpacityVolume, p: &DetectParams) -> Option<(f32, f32)> {
+pub fn ground_tilt(
+    vol: &OpacityVolume,
+    floor: Option<FloorBand>,
+    p: &DetectParams,
+) -> Option<(f32, f32)> {
     let (rows, cols, nz) = (vol.rows, vol.cols, vol.nz);
     if rows < 2 || cols < 2 || nz < 2 {
         return None;
     }
     let half = nz.div_ceil(2);
-    let mut pts: Vec<(f64, f64, f64)> = Vec::new();
-    for r in 0..rows {
-        for c in 0..cols {
-            if let Some(k) = vol.column(r, c)[..half].iter().position(|&o| o >= FLOOR_OPACITY) {
-                pts.push((c as f64, r as f64, k as f64));
-            }
-        }
-    }
+    let point = |i: usize, k: usize| ((i % cols) as f64, (i / cols) as f64, k as f64);
+    let pts: Vec<(f64, f64, f64)> = match floor {
+        Some(f) => surface_levels(vol)
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, k)| k.filter(|&k| k <= f.hi).map(|k| point(i, k)))
+            .collect(),
+        None => (0..rows * cols)
+            .filter_map(|i| {
+                let col = &vol.data[i * nz..i * nz + half];
+                col.iter().position(|&o| o >= FLOOR_OPACITY).map(|k| point(i, k))
+            })
+            .collect(),
+    };
     let coverage = pts.len() as f32 / (rows * cols) as f32;
     if coverage < p.floor_coverage {
         return None;

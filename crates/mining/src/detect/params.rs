@@ -17,7 +17,7 @@
 //! metric scale there: what the field resolves, not what a tape measure says.
 //!
 //! [`DetectParams::count_tuned`] counts the values that were tuned (the switches, the seed
-//! and the number of clusters are choices, not tuned values): 38 here, where the detector
+//! and the number of clusters are choices, not tuned values): 37 here, where the detector
 //! had about 85 (30 of them in metres) before it was one documented set (61 when it first
 //! was). Four filters made for the suite's 3-minute fields went since, with their six
 //! values, for changing nothing on the dev fields and losing real objects of an unseen
@@ -189,15 +189,13 @@ pub struct DetectParams {
     pub voxel_threshold_range: (f32, f32),
 
     // --- floor ---
-    /// A level is floor where this share of the plane has opacity >= 0.5 (0.3: a floor
-    /// covering under a third of the box is indistinguishable from a large object).
+    /// The floor is a surface seen from above over at least this share of the plane (0.3: a
+    /// floor showing under a third of the box is indistinguishable from a large object).
     pub floor_coverage: f32,
-    /// The slab goes on upwards while a level still covers this share of the densest floor
-    /// level (0.4: sidewalks and steps cover less than the road, objects much less).
+    /// The floor's top goes on upwards while the next level is the surface of at least this
+    /// share of the columns of the level below (0.4: a gently tilted or stepped floor spreads
+    /// evenly over a few levels; the lowest parts of objects are much sparser).
     pub floor_step_share: f32,
-    /// ... and its blurred top while coverage stays above this share of the plane and falls
-    /// level by level (0.15).
-    pub floor_blur_coverage: f32,
 
     // --- walls ---
     /// Half the thickness of the thickest wall, texels (3.5: 20 cm walls in the suite's
@@ -268,7 +266,6 @@ impl Default for DetectParams {
             voxel_threshold_range: (0.1, 0.9),
             floor_coverage: 0.3,
             floor_step_share: 0.4,
-            floor_blur_coverage: 0.15,
             wall_half_thickness_texels: 3.5,
             wall_min_length: 0.25,
             ground_min_share: 1.0 / 2000.0,
@@ -476,7 +473,6 @@ impl DetectParams {
         }
         share("floor_coverage", self.floor_coverage)?;
         share("floor_step_share", self.floor_step_share)?;
-        share("floor_blur_coverage", self.floor_blur_coverage)?;
         share("wall_min_length", self.wall_min_length)?;
         share("ground_min_share", self.ground_min_share)?;
         share("walled_outline_share", self.walled_outline_share)?;
@@ -508,8 +504,8 @@ mod tests {
 
     #[test]
     fn the_tuned_values_are_counted_from_the_parameters_themselves() {
-        assert_eq!(DetectParams::default().count_tuned(), 38);
-        assert_eq!(DetectParams::paper().count_tuned(), 38);
+        assert_eq!(DetectParams::default().count_tuned(), 37);
+        assert_eq!(DetectParams::paper().count_tuned(), 37);
     }
 
     #[test]

@@ -762,20 +762,22 @@ fn a_tilted_ground_is_refused_with_advice_and_a_level_one_is_measured() {
         fill(&mut v, (0, rows), (c, c + 1), (k, k + 2), 0.95);
     }
     fill(&mut v, (5, 12), (5, 12), (3, 9), 0.9);
-    let (deg, cov) = floor::ground_tilt(&v, &params()).unwrap();
-    assert!((deg - 7.1).abs() < 0.5 && cov > 0.99, "{deg} {cov}");
+    let (deg, cov) = floor::ground_tilt(&v, floor_band(&v, &params()), &params()).unwrap();
+    assert!((deg - 7.1).abs() < 1.0 && cov > 0.99, "{deg} {cov}");
     let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
     let color = PlaneImage::zeros(rows, cols, 3).unwrap();
     let e = detect(&grid, &v, &color, None, &params()).unwrap_err().to_string();
-    assert!(e.contains("tilted by 7") && e.contains("--align-ground pca"), "{e}");
+    assert!(e.contains(&format!("tilted by {deg:.1}")) && e.contains("--align-ground pca"), "{e}");
     // without the floor search the tilt is not judged
     let no_floor = DetectParams { stages: Stages { floor: false, ..Stages::ALL }, ..params() };
     let r = detect(&grid, &v, &color, None, &no_floor);
     assert!(r.as_ref().map_or_else(|e| !e.to_string().contains("tilted"), |_| true), "{r:?}");
     // a level floor measures no tilt; no floor at all measures none either
     let level = floor_volume(rows, cols, nz);
-    assert!(floor::ground_tilt(&level, &params()).unwrap().0 < 0.01);
-    assert!(floor::ground_tilt(&OpacityVolume::empty(rows, cols, nz, 0.05), &params()).is_none());
+    assert!(floor::ground_tilt(&level, floor_band(&level, &params()), &params()).unwrap().0 < 0.01);
+    assert!(
+        floor::ground_tilt(&OpacityVolume::empty(rows, cols, nz, 0.05), None, &params()).is_none()
+    );
 }
 
 #[test]
@@ -887,4 +889,32 @@ fn a_monitor_along_a_desk_s_faded_back_edge_unpacks() {
     let d = detect_small(&v, &color);
     let child = only_child(&d);
     assert!(within_a_texel(child.rect, PixelRect::new(8, 20, 12, 36)), "{:?}", child.rect);
+}
+
+#[test]
+fn the_floor_is_the_surface_seen_from_above_whatever_lies_under_and_over_it() {
+    // what a short run leaves: the floor's top at levels 6..=8, a partial opaque copy of it
+    // at levels 1..=2 (40% of the plane), faint haze over it, and two boxes standing on it
+    let (rows, cols, nz) = (40, 60, 30);
+    let mut v = OpacityVolume::empty(rows, cols, nz, 0.05);
+    fill(&mut v, (0, rows), (0, cols), (6, 9), 0.9);
+    fill(&mut v, (0, 16), (0, cols), (1, 3), 0.6);
+    fill(&mut v, (0, rows), (0, cols), (9, 13), 0.05);
+    fill(&mut v, (5, 12), (5, 12), (9, 16), 0.9);
+    fill(&mut v, (20, 30), (30, 44), (9, 14), 0.9);
+    let f = floor_band(&v, &params()).unwrap();
+    assert_eq!(f.hi, 8, "the top seen from above: {f:?}");
+    assert_eq!(f.lo, 1, "the band reaches down to the opaque copy (the container's): {f:?}");
+    let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+    let color = PlaneImage::zeros(rows, cols, 3).unwrap();
+    let d = detect(&grid, &v, &color, None, &params()).unwrap();
+    let mut rects: Vec<PixelRect> = d.detections.iter().map(|x| x.rect).collect();
+    rects.sort_by_key(|r| r.r0);
+    assert_eq!(rects.len(), 2, "{rects:?}");
+    assert!(within_a_texel(rects[0], PixelRect::new(5, 5, 12, 12)), "{rects:?}");
+    assert!(within_a_texel(rects[1], PixelRect::new(20, 30, 30, 44)), "{rects:?}");
+    // a thick slab: its top, not its bottom
+    let mut thick = OpacityVolume::empty(rows, cols, nz, 0.05);
+    fill(&mut thick, (0, rows), (0, cols), (0, 7), 0.95);
+    assert_eq!(floor_band(&thick, &params()).map(|f| (f.lo, f.hi)), Some((0, 6)));
 }

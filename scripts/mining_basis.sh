@@ -1,0 +1,162 @@
+#!/usr/bin/env bash
+# The mining basis (issue 31): a fixed set of dev scenes, each trained at fixed iteration
+# budgets (the same fields on every machine, however fast or busy), mined with the default
+# detector and with `--preset paper`, scored against the ground truth. Every change to
+# mining (or to the trainer, for mining's sake) is reported on the whole basis.
+#
+#   scripts/mining_basis.sh [build|mine|table|all]     (default all)
+#
+# build: synthesise the scenes (40 + 10 views at 256 x 256) and train an S field per scene
+#        and budget; finished fields are skipped, so a stopped build resumes. About 40
+#        minutes from nothing on 2 cores.
+# mine:  mine every field (default and paper presets) into $MINE_OUT; finished ones are
+#        skipped (delete $MINE_OUT to mine again). Under two minutes on 2 cores.
+# table: $MINE_OUT/table.md: F1, ARI and yaw per scene and budget, the paper preset beside,
+#        and the robustness checks (F1 at a third of the budget within 0.1 of the full
+#        budget's; no F1 under 0.5).
+#
+# The scenes: suite scenes of every kind of ground (a room with walls, a floor, carpet,
+# concrete, a street) with objects on tables, desks and pallets, and random dev scenes of
+# scenes/validation_seeds.txt with a partial, a thick and an asphalt floor, walls, no floor,
+# and unit scales from 0.9 to 1.9 units per metre, and scenes rendered by a second renderer
+# (`blender:SCENE`: the scene's meshes rendered again by Blender's Cycles with soft shadows
+# and its own shading, scripts/blender_render.py; needs Debian's `blender`). SCENES
+# overrides the list: names of scenes/*.ron, random:SEED, blender:NAME or blender:random:SEED.
+# BUDGETS: the iteration budgets (default "2000 6000": the demo's budget and a third of it).
+# BASIS_OUT (default runs/basis): data/, fields/NAME_ITERS.safetensors, logs/.
+# MINE_OUT (default $BASIS_OUT/mine): NAME_ITERS and NAME_ITERS_paper libraries, table.md.
+# BIN: the binary (default target/release/assetfield, built if missing); MINE_ARGS: more
+# flags for every default-preset `assetfield mine`.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+WHAT=${1:-all}
+case "$WHAT" in build|mine|table|all) ;; *) echo "usage: $0 [build|mine|table|all]" >&2; exit 2 ;; esac
+DEFAULT_SCENES="conference_room living_room office warehouse street_trees random:2 random:6 random:12 random:1003 blender:cafe blender:random:11"
+read -r -a SCENES <<< "${SCENES:-$DEFAULT_SCENES}"
+read -r -a BUDGETS <<< "${BUDGETS:-2000 6000}"
+OUT=${BASIS_OUT:-runs/basis}
+MOUT=${MINE_OUT:-$OUT/mine}
+BIN=${BIN:-target/release/assetfield}
+[ -x "$BIN" ] || cargo build --release --locked
+read -r -a MINE_EXTRA <<< "${MINE_ARGS:-}"
+mkdir -p "$OUT/data" "$OUT/fields" "$OUT/logs" "$MOUT/logs"
+
+name_of() { local n="${1/blender:/blender_}"; echo "${n/random:/random_}"; }
+
+# synthesise SCENE (a suite name or random:SEED) into DIR, with EXTRA flags
+synth_into() {
+  case "$1" in
+    random:*) "$BIN" synth --random "${1#random:}" --out "$2" --res 256 --force "${@:3}" ;;
+    *) "$BIN" synth "scenes/$1.ron" --out "$2" --res 256 --force "${@:3}" ;;
+  esac
+}
+
+build() {
+  local start=$SECONDS
+  for scene in "${SCENES[@]}"; do
+    local name data
+    name=$(name_of "$scene"); data="$OUT/data/$name"
+    if [ ! -f "$data/transforms_test.json" ]; then
+      case "$scene" in
+        blender:*)
+          command -v blender > /dev/null ||
+            { echo "== $name: needs Debian's blender (apt-get install blender)"; continue; }
+          synth_into "${scene#blender:}" "$data.src" --mesh > "$OUT/logs/$name.synth.log" 2>&1
+          rm -rf "$data"
+          blender -b --factory-startup -P scripts/blender_render.py -- "$data.src" "$data" \
+            > "$OUT/logs/$name.blender.log" 2>&1
+          rm -rf "$data.src" ;;
+        *) synth_into "$scene" "$data" > "$OUT/logs/$name.synth.log" 2>&1 ;;
+      esac
+    fi
+    for it in "${BUDGETS[@]}"; do
+      local field="$OUT/fields/${name}_$it.safetensors" t0=$SECONDS
+      [ -f "$field" ] && continue
+      echo "== $name: training $it iterations"
+      start_flag=(--force)
+      [ -f "${field%.safetensors}.ckpt.safetensors" ] && start_flag=(--resume)
+      "$BIN" train "$data" --out "$field" --model s --iters "$it" "${start_flag[@]}" \
+        --discard-checkpoint > "$OUT/logs/${name}_$it.train.log" 2>&1
+      echo "   $((SECONDS - t0)) s"
+    done
+  done
+  echo "== build: $((SECONDS - start)) s"
+}
+
+mine() {
+  local start=$SECONDS
+  for scene in "${SCENES[@]}"; do
+    local name gt
+    name=$(name_of "$scene"); gt="$OUT/data/$name/gt_layout.json"
+    for it in "${BUDGETS[@]}"; do
+      local field="$OUT/fields/${name}_$it.safetensors"
+      [ -f "$field" ] || { echo "== $name $it: no field (run build)"; continue; }
+      [ -f "$MOUT/${name}_$it/metrics.json" ] ||
+        "$BIN" mine "$field" --out "$MOUT/${name}_$it" --gt "$gt" --force \
+          ${MINE_EXTRA[@]+"${MINE_EXTRA[@]}"} > "$MOUT/logs/${name}_$it.log" 2>&1 ||
+        echo "== $name $it: mining failed (see $MOUT/logs/${name}_$it.log)"
+      [ -f "$MOUT/${name}_${it}_paper/metrics.json" ] ||
+        "$BIN" mine "$field" --out "$MOUT/${name}_${it}_paper" --gt "$gt" --force --preset paper \
+          > "$MOUT/logs/${name}_${it}_paper.log" 2>&1 ||
+        echo "== $name $it: mining with --preset paper failed"
+    done
+  done
+  echo "== mine: $((SECONDS - start)) s"
+}
+
+table() {
+  local names=()
+  for scene in "${SCENES[@]}"; do names+=("$(name_of "$scene")"); done
+  python3 - "$MOUT" "${BUDGETS[*]}" "${names[@]}" <<'PY'
+import json, os, sys
+out, budgets, names = sys.argv[1], [int(b) for b in sys.argv[2].split()], sys.argv[3:]
+def load(p):
+    try:
+        return json.load(open(p))
+    except (OSError, ValueError):
+        return None
+def cell(m):
+    if m is None:
+        return "failed"
+    yaw = m.get("yaw_median_deg")
+    yaw = "-" if yaw is None else f"{yaw:.1f}"
+    return f"{m['f1']:.3f} / {m['ari']:.3f} / {yaw}"
+head = "| scene | " + " | ".join(f"{b} it: F1 / ARI / yaw" for b in budgets) + " | " + \
+       " | ".join(f"paper {b} it: F1 / ARI" for b in budgets) + " |"
+rows = [head, "|---|" + "---|" * (2 * len(budgets))]
+sums = {b: [] for b in budgets}
+psums = {b: [] for b in budgets}
+problems = []
+for n in names:
+    ms = {b: load(os.path.join(out, f"{n}_{b}", "metrics.json")) for b in budgets}
+    ps = {b: load(os.path.join(out, f"{n}_{b}_paper", "metrics.json")) for b in budgets}
+    for b in budgets:
+        sums[b].append(ms[b]["f1"] if ms[b] else 0.0)
+        psums[b].append(ps[b]["f1"] if ps[b] else 0.0)
+    pc = [f"{p['f1']:.3f} / {p['ari']:.3f}" if p else "failed" for p in ps.values()]
+    rows.append(f"| {n} | " + " | ".join(cell(ms[b]) for b in budgets) + " | " + " | ".join(pc) + " |")
+    f1 = {b: (ms[b]["f1"] if ms[b] else 0.0) for b in budgets}
+    full, third = max(budgets), min(budgets)
+    if f1[third] < f1[full] - 0.1:
+        problems.append(f"{n}: F1 {f1[third]:.3f} at {third} it, {f1[full]:.3f} at {full} it")
+    for b in budgets:
+        if f1[b] < 0.5:
+            problems.append(f"{n}: F1 {f1[b]:.3f} at {b} it")
+mean = lambda v: sum(v) / len(v) if v else 0.0
+rows.append("| mean | " + " | ".join(f"**{mean(sums[b]):.3f}**" for b in budgets) + " | " +
+            " | ".join(f"{mean(psums[b]):.3f}" for b in budgets) + " |")
+rows.append("")
+rows.append("Robustness (F1 at the smallest budget within 0.1 of the largest's, no F1 under 0.5): " +
+            ("holds on every scene." if not problems else "fails: " + "; ".join(problems) + "."))
+text = "\n".join(rows) + "\n"
+open(os.path.join(out, "table.md"), "w").write(text)
+print(text)
+PY
+}
+
+case "$WHAT" in
+  build) build ;;
+  mine) mine ;;
+  table) table ;;
+  all) build; mine; table ;;
+esac
