@@ -13,11 +13,11 @@
 #        skipped (delete $MINE_OUT to mine again). Under two minutes on 2 cores.
 # table: $MINE_OUT/table.md: F1, ARI and yaw per scene and budget, the paper preset beside,
 #        and the robustness checks (F1 at a third of the budget within 0.1 of the full
-#        budget's; no F1 under 0.5).
+#        budget's; no F1 under 0.5); $MINE_OUT/f1_budget.svg: F1 against the budget per scene.
 #
 # The scenes: suite scenes of every kind of ground (a room with walls, a floor, carpet,
 # concrete, a street) with objects on tables, desks and pallets, and random dev scenes of
-# scenes/validation_seeds.txt with a partial, a thick and an asphalt floor, walls, no floor,
+# scenes/validation_seeds.txt with a partial, a thick, a thin and an asphalt floor, walls, no floor,
 # and unit scales from 0.9 to 1.9 units per metre, and scenes rendered by a second renderer
 # (`blender:SCENE`: the scene's meshes rendered again by Blender's Cycles with soft shadows
 # and its own shading, scripts/blender_render.py; needs Debian's `blender`). SCENES
@@ -31,7 +31,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 WHAT=${1:-all}
 case "$WHAT" in build|mine|table|all) ;; *) echo "usage: $0 [build|mine|table|all]" >&2; exit 2 ;; esac
-DEFAULT_SCENES="conference_room living_room office warehouse street_trees random:2 random:6 random:12 random:1003 blender:cafe blender:random:11"
+DEFAULT_SCENES="conference_room living_room office warehouse street_trees random:2 random:6 random:12 random:1003 blender:cafe blender:random:1001"
 read -r -a SCENES <<< "${SCENES:-$DEFAULT_SCENES}"
 read -r -a BUDGETS <<< "${BUDGETS:-2000 6000}"
 OUT=${BASIS_OUT:-runs/basis}
@@ -151,6 +151,43 @@ rows.append("Robustness (F1 at the smallest budget within 0.1 of the largest's, 
 text = "\n".join(rows) + "\n"
 open(os.path.join(out, "table.md"), "w").write(text)
 print(text)
+
+# the picture: F1 against the budget per scene, the default detector solid, the paper dashed
+W, H, L, B, T, R = 720, 420, 60, 50, 20, 200
+xs = sorted(budgets)
+def px(b):
+    return L + (W - L - R) * (0.5 if len(xs) == 1 else (b - xs[0]) / (xs[-1] - xs[0]))
+def py(f):
+    return T + (H - T - B) * (1.0 - f)
+palette = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+           "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#637939", "#8c6d31", "#843c39"]
+svg = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-family="sans-serif" font-size="12">',
+       f'<rect width="{W}" height="{H}" fill="white"/>']
+for f in (0.0, 0.25, 0.5, 0.75, 0.9, 1.0):
+    svg.append(f'<line x1="{L}" y1="{py(f):.1f}" x2="{W - R}" y2="{py(f):.1f}" stroke="#ddd"/>')
+    svg.append(f'<text x="{L - 8}" y="{py(f) + 4:.1f}" text-anchor="end">{f:g}</text>')
+for b in xs:
+    svg.append(f'<text x="{px(b):.1f}" y="{H - B + 18}" text-anchor="middle">{b}</text>')
+svg.append(f'<text x="{(L + W - R) / 2:.0f}" y="{H - 8}" text-anchor="middle">training iterations</text>')
+svg.append(f'<text x="14" y="{(T + H - B) / 2:.0f}" transform="rotate(-90 14 {(T + H - B) / 2:.0f})" text-anchor="middle">detection F1</text>')
+for i, n in enumerate(names):
+    col = palette[i % len(palette)]
+    for suffix, dash in (("", ""), ("_paper", ' stroke-dasharray="4 3"')):
+        pts = []
+        for b in xs:
+            m = load(os.path.join(out, f"{n}_{b}{suffix}", "metrics.json"))
+            pts.append((px(b), py(m["f1"] if m else 0.0)))
+        d = " ".join(f"{x:.1f},{y:.1f}" for x, y in pts)
+        svg.append(f'<polyline points="{d}" fill="none" stroke="{col}" stroke-width="2"{dash}/>')
+        for x, y in pts:
+            svg.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="3" fill="{col}"/>')
+    svg.append(f'<line x1="{W - R + 15}" y1="{T + 14 + 18 * i}" x2="{W - R + 35}" y2="{T + 14 + 18 * i}" stroke="{col}" stroke-width="2"/>')
+    svg.append(f'<text x="{W - R + 40}" y="{T + 18 + 18 * i}">{n}</text>')
+k = len(names)
+svg.append(f'<text x="{W - R + 15}" y="{T + 26 + 18 * k}">solid: default</text>')
+svg.append(f'<text x="{W - R + 15}" y="{T + 44 + 18 * k}">dashed: --preset paper</text>')
+svg.append("</svg>")
+open(os.path.join(out, "f1_budget.svg"), "w").write("\n".join(svg) + "\n")
 PY
 }
 

@@ -78,9 +78,8 @@ pub(super) fn assemble(cx: &Ctx, parts: &[Part], second: SecondRound) -> Result<
         };
         // with no floor found, the ground (or a floating object) stands on the level below
         let base = if p.kmin <= ground + ground_tol {
-            floor.map_or(vol.height_below(ground), |f| {
-                vol.height(f.hi).max(vol.height_below(ground))
-            })
+            // on a floor: the level above its top
+            floor.map_or(vol.height_below(ground), |f| vol.height(f.hi + 1))
         } else {
             vol.height_below(p.kmin)
         };

@@ -18,7 +18,8 @@ pub(super) struct Ctx<'a> {
     pub p: &'a DetectParams,
     /// The floor slab, when one was found (and looked for).
     pub floor: Option<FloorBand>,
-    /// First volume level counted as object evidence (two above the floor's top).
+    /// First volume level counted as object evidence (the first above the field's vertical
+    /// blur over the floor's top).
     pub start: usize,
     /// Level of the ground objects stand on.
     pub ground: usize,
@@ -63,15 +64,21 @@ impl<'a> Ctx<'a> {
         {
             return Err(MiningError::TiltedGround { degrees, coverage_pct: 100.0 * coverage });
         }
-        let start = floor.map_or(0, |f| (f.hi + 2).min(vol.nz.saturating_sub(1)));
+        // within the field's vertical blur over the floor's top nothing can be told from
+        // the floor (a rug, a carpet, a kerb, the floor's own blur): evidence starts above it
+        let start = floor.map_or(0, |f| (f.hi + p.blur_levels + 1).min(vol.nz.saturating_sub(1)));
         let evidence = vol.window_max_above(start, p.blur_levels.max(2));
         if evidence.iter().all(|&e| e < EMPTY_EVIDENCE) {
             return Err(MiningError::InvalidParameter {
                 name: "field",
-                reason:
-                    "the density field is empty above the ground (no texel reaches 1% opacity): \
-                         did its training fail? (check its PSNR with `assetfield eval`)"
-                        .into(),
+                reason: format!(
+                    "nothing stands {} (no texel reaches 1% opacity): a scene with no objects, \
+                     or a field whose training failed (check its PSNR with `assetfield eval`)",
+                    match floor {
+                        Some(f) => format!("on the floor (its top at height {:.3})", f.z_top),
+                        None => "in the field".to_string(),
+                    }
+                ),
             });
         }
         let distinct = {

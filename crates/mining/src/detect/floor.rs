@@ -6,12 +6,13 @@ use serde::{Deserialize, Serialize};
 use super::params::DetectParams;
 use crate::planes::OpacityVolume;
 
-/// The floor slab found by [`floor_band`]: levels `lo..=hi` of the opacity volume.
+/// The floor found by [`floor_band`]: levels `lo..=hi` of the opacity volume, `hi` its top
+/// seen from above.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FloorBand {
     pub lo: usize,
     pub hi: usize,
-    /// World height of the slab's top level.
+    /// World height of the floor's top level.
     pub z_top: f32,
     /// Fraction of the plane whose surface seen from above is the floor (at or below `hi`).
     pub coverage: f32,
@@ -51,7 +52,8 @@ const SURFACE_TRANSMITTANCE: f32 = 0.5;
 /// much sparser). Seen from above, a slab's thickness, the opaque copies an undertrained
 /// field leaves below it and the haze it leaves above it do not move its top. The band
 /// starts at the lowest level where `floor_coverage` of the plane is opaque (0.5), or at
-/// the top. `None` for scenes on an invisible ground, and for a "floor" reaching over half
+/// the top. (Object evidence starts above the field's vertical blur over the top:
+/// [`super::context`].) `None` for scenes on an invisible ground, and for a "floor" reaching over half
 /// the volume (a solid block).
 pub fn floor_band(vol: &OpacityVolume, p: &DetectParams) -> Option<FloorBand> {
     let n = vol.rows * vol.cols;
