@@ -18,7 +18,7 @@ pub(super) struct Ctx<'a> {
     pub p: &'a DetectParams,
     /// The floor slab, when one was found (and looked for).
     pub floor: Option<FloorBand>,
-    /// First volume level counted as object evidence (the first above the field's vertical
+    /// First volume level counted as object evidence (the first past the field's vertical
     /// blur over the floor's top).
     pub start: usize,
     /// Level of the ground objects stand on.
@@ -64,9 +64,10 @@ impl<'a> Ctx<'a> {
         {
             return Err(MiningError::TiltedGround { degrees, coverage_pct: 100.0 * coverage });
         }
-        // within the field's vertical blur over the floor's top nothing can be told from
-        // the floor (a rug, a carpet, a kerb, the floor's own blur): evidence starts above it
-        let start = floor.map_or(0, |f| (f.hi + p.blur_levels + 1).min(vol.nz.saturating_sub(1)));
+        // the floor's top spreads over the field's vertical blur (`blur_levels` levels from
+        // its top up): nothing within it can be told from the floor (a rug, a carpet, the
+        // floor's own spread), so evidence starts at the first level past it
+        let start = floor.map_or(0, |f| (f.hi + p.blur_levels).min(vol.nz.saturating_sub(1)));
         let evidence = vol.window_max_above(start, p.blur_levels.max(2));
         if evidence.iter().all(|&e| e < EMPTY_EVIDENCE) {
             return Err(MiningError::InvalidParameter {
