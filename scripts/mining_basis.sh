@@ -29,6 +29,7 @@
 # flags for every default-preset `assetfield mine`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source scripts/mine.sh
 WHAT=${1:-all}
 case "$WHAT" in build|mine|table|all) ;; *) echo "usage: $0 [build|mine|table|all]" >&2; exit 2 ;; esac
 DEFAULT_SCENES="conference_room living_room office warehouse street_trees random:2 random:6 random:12 random:1003 blender:cafe blender:random:1001"
@@ -91,14 +92,8 @@ mine() {
     for it in "${BUDGETS[@]}"; do
       local field="$OUT/fields/${name}_$it.safetensors"
       [ -f "$field" ] || { echo "== $name $it: no field (run build)"; continue; }
-      [ -f "$MOUT/${name}_$it/metrics.json" ] ||
-        "$BIN" mine "$field" --out "$MOUT/${name}_$it" --gt "$gt" --force \
-          ${MINE_EXTRA[@]+"${MINE_EXTRA[@]}"} > "$MOUT/logs/${name}_$it.log" 2>&1 ||
-        echo "== $name $it: mining failed (see $MOUT/logs/${name}_$it.log)"
-      [ -f "$MOUT/${name}_${it}_paper/metrics.json" ] ||
-        "$BIN" mine "$field" --out "$MOUT/${name}_${it}_paper" --gt "$gt" --force --preset paper \
-          > "$MOUT/logs/${name}_${it}_paper.log" 2>&1 ||
-        echo "== $name $it: mining with --preset paper failed"
+      mine_presets "$BIN" "$field" "$gt" "$MOUT/${name}_$it" "$MOUT/${name}_${it}_paper" \
+        "$MOUT/logs/${name}_$it" "$name $it" ${MINE_EXTRA[@]+"${MINE_EXTRA[@]}"}
     done
   done
   echo "== mine: $((SECONDS - start)) s"

@@ -20,6 +20,7 @@ cd "$(dirname "$0")/.."
 SET=${SET:-dev}
 MINUTES=${1:-6000it}
 source scripts/budget.sh
+source scripts/mine.sh
 budget_flags "$MINUTES"
 shift $(( $# > 0 ? 1 : 0 ))
 case "$SET" in
@@ -60,14 +61,8 @@ for seed in "${SEEDS[@]}"; do
   [ -f "$eval_dir/metrics.json" ] ||
     "$BIN" eval "$field" --data "$data" --out "$eval_dir" --force > "$OUT/logs/$scene.eval.log" 2>&1 ||
     echo "== $scene: eval failed (see $OUT/logs/$scene.eval.log)"
-  [ -f "$lib/metrics.json" ] ||
-    "$BIN" mine "$field" --out "$lib" --gt "$data/gt_layout.json" --force ${MINE_EXTRA[@]+"${MINE_EXTRA[@]}"} \
-      > "$OUT/logs/$scene.mine.log" 2>&1 ||
-    echo "== $scene: mining failed (see $OUT/logs/$scene.mine.log)"
-  [ -f "$OUT/mining_paper/${scene}_s/metrics.json" ] ||
-    "$BIN" mine "$field" --out "$OUT/mining_paper/${scene}_s" --gt "$data/gt_layout.json" --force --preset paper \
-      > "$OUT/logs/$scene.mine_paper.log" 2>&1 ||
-    echo "== $scene: mining with --preset paper failed (see $OUT/logs/$scene.mine_paper.log)"
+  mine_presets "$BIN" "$field" "$data/gt_layout.json" "$lib" "$OUT/mining_paper/${scene}_s" \
+    "$OUT/logs/$scene" "$scene" ${MINE_EXTRA[@]+"${MINE_EXTRA[@]}"}
 done
 
 python3 - "$OUT" "$SET" "$BUDGET_NAME" "${SEEDS[@]}" <<'PY' || echo "(python3 missing: see $OUT/eval/*/metrics.json and $OUT/mining/*/metrics.json)"

@@ -57,11 +57,16 @@ fn commands(block: &(usize, Vec<&str>)) -> Vec<(usize, Vec<String>)> {
     out
 }
 
+/// The README's tour section.
+fn tour() -> String {
+    let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
+    section(&readme, "## A tour").to_string()
+}
+
 #[test]
 fn the_readme_tour_is_the_demo() {
-    let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
-    let tour = section(&readme, "## A tour");
-    let sh = blocks(tour, "sh");
+    let tour = tour();
+    let sh = blocks(&tour, "sh");
     assert_eq!(sh.len(), 1, "the tour is one sh block");
     let lines: Vec<String> = commands(&sh[0]).into_iter().map(|(_, a)| a.join(" ")).collect();
     let Command::Demo(args) = Cli::try_parse_from_args(&["assetfield", "demo"]).unwrap().command
@@ -90,9 +95,8 @@ fn the_readme_tour_is_the_demo() {
 
 #[test]
 fn the_readme_edit_is_the_demo_edit() {
-    let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
-    let tour = section(&readme, "## A tour");
-    let ron = blocks(tour, "ron");
+    let tour = tour();
+    let ron = blocks(&tour, "ron");
     assert_eq!(ron.len(), 1, "the tour shows one edit script");
     let file = std::fs::read_to_string(repo().join("scenes/edits/conference_room.ron")).unwrap();
     let code: Vec<&str> = file.lines().filter(|l| !l.trim_start().starts_with("//")).collect();
