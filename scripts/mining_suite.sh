@@ -5,7 +5,8 @@
 #   scripts/mining_suite.sh [MODELS] [SCENES...]
 #
 # MODELS: comma-separated subset of s,i (default s,i); the fields come from
-# $SUITE/fields/SCENE_MODEL.safetensors (SUITE as for quality_suite.sh, default runs/suite):
+# $SUITE/fields/SCENE_MODEL.safetensors (SUITE and RES as for quality_suite.sh, default
+# runs/suite and 400):
 # train them with an iteration budget (e.g. `scripts/quality_suite.sh 6000it s`) so that the
 # mining figures do not depend on how fast or busy the machine was.
 # Output under $SUITE/mining (runs/mining for the default suite): SCENE_MODEL (the library,
@@ -26,6 +27,9 @@ fi
 BIN=${BIN:-target/release/assetfield}
 [ -x "$BIN" ] || cargo build --release --locked
 SUITE=${SUITE:-runs/suite}
+# the ground truth of the views the fields were trained on (RES as for quality_suite.sh)
+DATA_ROOT=runs/suite/data
+[ "${RES:-400}" = 400 ] || DATA_ROOT="runs/suite/data_$RES"
 OUT=runs/mining
 [ "$SUITE" = runs/suite ] || OUT="$SUITE/mining"
 OUT=${MINING_OUT:-$OUT}
@@ -35,7 +39,7 @@ mkdir -p "$OUT/logs"
 for scene in "${SCENES[@]}"; do
   for model in ${MODELS//,/ }; do
     field="$SUITE/fields/${scene}_$model.safetensors"
-    gt="runs/suite/data/$scene/gt_layout.json"
+    gt="$DATA_ROOT/$scene/gt_layout.json"
     [ -f "$field" ] && [ -f "$gt" ] || continue
     lib="$OUT/${scene}_$model"
     [ -f "$lib/metrics.json" ] ||
