@@ -183,6 +183,12 @@ impl GroundView {
     }
 }
 
+/// An sRGB component (0..1, clamped) as linear light (the sRGB transfer function).
+pub fn srgb_to_linear(u: f32) -> f32 {
+    let u = u.clamp(0.0, 1.0);
+    if u <= 0.04045 { u / 12.92 } else { ((u + 0.055) / 1.055).powf(2.4) }
+}
+
 /// A distinct colour for index `i` (categories, clusters), well spread in hue.
 pub fn palette(i: usize) -> Rgba {
     const P: [Rgba; 12] = [

@@ -429,11 +429,7 @@ pub fn voxel_sites(vol: &OpacityVolume, dets: &Detections) -> Result<Vec<VoxelSi
 
 /// CIELAB (D65) of an sRGB colour with components in 0..1: `[L*, a*, b*]`, L* in 0..100.
 pub fn srgb_to_lab(rgb: [f32; 3]) -> [f32; 3] {
-    let lin = |u: f32| {
-        let u = u.clamp(0.0, 1.0);
-        if u <= 0.04045 { u / 12.92 } else { ((u + 0.055) / 1.055).powf(2.4) }
-    };
-    let [r, g, b] = rgb.map(lin);
+    let [r, g, b] = rgb.map(assetfield_core::canvas::srgb_to_linear);
     let x = (0.412_456_4 * r + 0.357_576_1 * g + 0.180_437_5 * b) / 0.950_47;
     let y = 0.212_672_9 * r + 0.715_152_2 * g + 0.072_175 * b;
     let z = (0.019_333_9 * r + 0.119_192 * g + 0.950_304_1 * b) / 1.088_83;

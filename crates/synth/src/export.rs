@@ -10,11 +10,11 @@
 
 use crate::assets::AssetSet;
 use crate::error::SynthError;
-use crate::geometry::{AssetGeometry, Shape, Texture};
+use crate::geometry::{AssetGeometry, Shape, Texture, from_axis_frame};
 use assetfield_core::CoreError;
-use assetfield_core::fsx::write_atomic;
+use assetfield_core::canvas::srgb_to_linear;
+use assetfield_core::fsx::{save_png, write_atomic};
 use assetfield_layout::ResolvedLayout;
-use assetfield_layout::script::Axis;
 use glam::{Affine3A, Vec2, Vec3};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -78,7 +78,7 @@ fn tessellate(shape: &Shape, b: &mut Batch) {
             }
         }
         Shape::Frustum { base, axis, r0, r1, height } => {
-            let frame = |v: Vec3| base + from_axis(axis, v);
+            let frame = |v: Vec3| base + from_axis_frame(axis, v);
             let ring = |r: f32, z: f32, i: usize| {
                 let a = std::f32::consts::TAU * i as f32 / ROUND_SEGMENTS as f32;
                 frame(Vec3::new(r * a.cos(), r * a.sin(), z))
@@ -127,20 +127,6 @@ fn tessellate(shape: &Shape, b: &mut Batch) {
     }
 }
 
-/// A frustum's local frame (axis along local z) to the asset's frame.
-fn from_axis(axis: Axis, v: Vec3) -> Vec3 {
-    match axis {
-        Axis::Z => v,
-        Axis::X => Vec3::new(v.z, v.x, v.y),
-        Axis::Y => Vec3::new(v.y, v.z, v.x),
-    }
-}
-
-fn srgb_to_linear(c: f32) -> f32 {
-    let c = c.clamp(0.0, 1.0);
-    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
-}
-
 /// A texture times a colour, as an RGB8 image.
 fn tinted(t: &Texture, color: Vec3) -> image::RgbImage {
     image::RgbImage::from_fn(t.width, t.height, |x, y| {
@@ -156,31 +142,36 @@ pub fn export_obj(
     dir: &Path,
 ) -> Result<MeshExport, SynthError> {
     std::fs::create_dir_all(dir.join("textures")).map_err(|e| CoreError::io(dir, e))?;
-    // one batch per (asset, material), so that the MTL lists each material once
-    let mut batches: BTreeMap<(String, usize), Batch> = BTreeMap::new();
-    let mut used: BTreeMap<String, &AssetGeometry> = BTreeMap::new();
-    let mut local = Batch::default();
+    // every asset tessellated once, per material, in its own frame
+    let mut local: BTreeMap<&str, BTreeMap<usize, Batch>> = BTreeMap::new();
     for inst in &layout.instances {
         let Some(g) = assets.geometry.get(&inst.asset) else { continue };
+        local.entry(inst.asset.as_str()).or_insert_with(|| {
+            let mut per_material: BTreeMap<usize, Batch> = BTreeMap::new();
+            for (shape, &m) in g.shapes.iter().zip(&g.shape_material) {
+                tessellate(shape, per_material.entry(m as usize).or_default());
+            }
+            per_material
+        });
+    }
+    // one batch per (asset, material) in world coordinates, so that the MTL lists each
+    // material once
+    let mut batches: BTreeMap<(&str, usize), Batch> = BTreeMap::new();
+    for inst in &layout.instances {
+        let Some(per_material) = local.get(inst.asset.as_str()) else { continue };
         let world: Affine3A = inst.transform.to_affine();
-        for (s, shape) in g.shapes.iter().enumerate() {
-            local.p.clear();
-            local.n.clear();
-            local.uv.clear();
-            tessellate(shape, &mut local);
-            let m = g.shape_material[s] as usize;
-            let out = batches.entry((inst.asset.clone(), m)).or_default();
-            out.p.extend(local.p.iter().map(|&p| world.transform_point3(p)));
-            out.n.extend(local.n.iter().map(|&n| world.transform_vector3(n).normalize_or_zero()));
-            out.uv.extend(&local.uv);
+        for (&m, b) in per_material {
+            let out = batches.entry((inst.asset.as_str(), m)).or_default();
+            out.p.extend(b.p.iter().map(|&p| world.transform_point3(p)));
+            out.n.extend(b.n.iter().map(|&n| world.transform_vector3(n).normalize_or_zero()));
+            out.uv.extend(&b.uv);
         }
-        used.entry(inst.asset.clone()).or_insert(g.as_ref());
     }
     let mut mtl = String::new();
     let mut obj = String::from("# assetfield scene: world coordinates, Z up\nmtllib scene.mtl\n");
     let (mut vertices, mut textures) = (0usize, 0usize);
     for (i, ((asset, m), b)) in batches.iter().enumerate() {
-        let g = used[asset];
+        let g: &AssetGeometry = &assets.geometry[*asset];
         let mat = &g.materials[*m];
         let name = format!("m{i}");
         let lin = mat.color.to_array().map(srgb_to_linear);
@@ -191,9 +182,7 @@ pub fn export_obj(
         );
         if let Some(t) = mat.texture.and_then(|t| g.textures.get(t)) {
             let file = format!("textures/{name}.png");
-            tinted(t, mat.color)
-                .save(dir.join(&file))
-                .map_err(|e| CoreError::io(dir.join(&file), std::io::Error::other(e)))?;
+            save_png(&dir.join(&file), &image::DynamicImage::ImageRgb8(tinted(t, mat.color)))?;
             let _ = writeln!(mtl, "map_Kd {file}");
             textures += 1;
         }

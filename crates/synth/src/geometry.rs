@@ -86,7 +86,7 @@ fn to_axis_frame(axis: Axis, v: Vec3) -> Vec3 {
     }
 }
 
-fn from_axis_frame(axis: Axis, v: Vec3) -> Vec3 {
+pub(crate) fn from_axis_frame(axis: Axis, v: Vec3) -> Vec3 {
     match axis {
         Axis::Z => v,
         Axis::X => Vec3::new(v.z, v.x, v.y),

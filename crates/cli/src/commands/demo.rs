@@ -50,18 +50,18 @@ pub fn demo_plan(a: &DemoArgs) -> Vec<DemoStep> {
         title,
         args: args.iter().map(|a| a.to_string()).collect(),
     };
-    let mut train = vec!["train".to_string(), data.clone(), "--out".into(), field.clone()];
-    train.extend(["--iters".into(), a.iters.to_string()]);
-    if let Some(m) = a.minutes {
-        train.extend(["--minutes".into(), m.to_string(), "--clock".into(), "cpu".into()]);
+    let (iters, minutes) = (a.iters.to_string(), a.minutes.map(|m| m.to_string()));
+    let mut train = vec!["train", &data, "--out", &field, "--iters", &iters];
+    if let Some(m) = &minutes {
+        train.extend(["--minutes", m, "--clock", "cpu"]);
     }
-    train.extend(["--force".into(), "--discard-checkpoint".into()]);
+    train.extend(["--force", "--discard-checkpoint"]);
     vec![
         step(
             "render the scene and its edit (ground truth)",
             &["synth", &s(&a.scene), "--out", &data, "--edited", &s(&a.edit), "--force"],
         ),
-        DemoStep { title: "train an S-AssetField", args: train },
+        step("train an S-AssetField", &train),
         step(
             "evaluate on the test views",
             &["eval", &field, "--data", &data, "--out", &o("eval"), "--force"],

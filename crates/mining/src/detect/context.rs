@@ -2,7 +2,9 @@
 //! found (floor, ground, thresholds, evidence), so that stage functions take `&Ctx` instead
 //! of ten positional arguments.
 
-use super::floor::{FloorBand, MAX_GROUND_TILT_DEG, floor_band, ground_level, ground_tilt};
+use super::floor::{
+    FloorBand, MAX_GROUND_TILT_DEG, floor_on_surfaces, ground_level, ground_tilt, surface_levels,
+};
 use super::params::DetectParams;
 use crate::error::{MiningError, Result};
 use crate::image::PlaneImage;
@@ -55,11 +57,13 @@ impl<'a> Ctx<'a> {
             });
         }
         p.validate().map_err(|(name, reason)| MiningError::InvalidParameter { name, reason })?;
-        let floor = if p.stages.floor { floor_band(vol, p) } else { None };
+        let surfaces = if p.stages.floor { surface_levels(vol) } else { Vec::new() };
+        let floor = if p.stages.floor { floor_on_surfaces(vol, &surfaces, p) } else { None };
         // a ground slab tilted against the planes is refused whether or not a floor was
         // found on it (seen from above, a tilt spreads the floor's top over many levels)
         if p.stages.floor
-            && let Some((degrees, coverage)) = ground_tilt(vol, floor, p)
+            && let Some((degrees, coverage)) =
+                ground_tilt(vol, floor.map(|f| (f, surfaces.as_slice())), p)
             && degrees > MAX_GROUND_TILT_DEG
         {
             return Err(MiningError::TiltedGround { degrees, coverage_pct: 100.0 * coverage });

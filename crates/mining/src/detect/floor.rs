@@ -56,13 +56,22 @@ const SURFACE_TRANSMITTANCE: f32 = 0.5;
 /// [`super::context`].) `None` for scenes on an invisible ground, and for a "floor" reaching over half
 /// the volume (a solid block).
 pub fn floor_band(vol: &OpacityVolume, p: &DetectParams) -> Option<FloorBand> {
+    floor_on_surfaces(vol, &surface_levels(vol), p)
+}
+
+/// [`floor_band`] on the columns' surfaces already found ([`surface_levels`] of `vol`).
+pub fn floor_on_surfaces(
+    vol: &OpacityVolume,
+    surfaces: &[Option<usize>],
+    p: &DetectParams,
+) -> Option<FloorBand> {
     let n = vol.rows * vol.cols;
     if n == 0 || vol.nz == 0 {
         return None;
     }
     let half = vol.nz.div_ceil(2);
     let mut count = vec![0usize; half];
-    for k in surface_levels(vol).into_iter().flatten() {
+    for &k in surfaces.iter().flatten() {
         if k < half {
             count[k] += 1;
         }
@@ -113,9 +122,9 @@ pub fn ground_level(
 /// search's coverage rule tolerates.
 pub const MAX_GROUND_TILT_DEG: f32 = 3.0;
 
-/// The tilt of the ground slab. With a floor found, its top seen from above: every column
-/// whose surface ([`surface_levels`]) is the floor's (at or below `floor.hi`), at that
-/// level. With none, the slab the floor search could not find level: per column, the
+/// The tilt of the ground slab. With a floor found (with the columns' [`surface_levels`]),
+/// its top seen from above: every column whose surface is the floor's (at or below
+/// `floor.hi`), at that level. With none, the slab the floor search could not find level: per column, the
 /// lowest level with opacity 0.5 or more in the lower half of the volume. A least-squares
 /// plane through those heights (texels and levels are cubic voxels, so its gradient is the
 /// slope). `Some((degrees, coverage))` when the points cover at least
@@ -123,7 +132,7 @@ pub const MAX_GROUND_TILT_DEG: f32 = 3.0;
 /// within two levels); `None` otherwise (no ground slab: objects on an invisible ground).
 pub fn ground_tilt(
     vol: &OpacityVolume,
-    floor: Option<FloorBand>,
+    floor: Option<(FloorBand, &[Option<usize>])>,
     p: &DetectParams,
 ) -> Option<(f32, f32)> {
     let (rows, cols, nz) = (vol.rows, vol.cols, vol.nz);
@@ -133,8 +142,9 @@ pub fn ground_tilt(
     let half = nz.div_ceil(2);
     let point = |i: usize, k: usize| ((i % cols) as f64, (i / cols) as f64, k as f64);
     let pts: Vec<(f64, f64, f64)> = match floor {
-        Some(f) => surface_levels(vol)
-            .into_iter()
+        Some((f, surfaces)) => surfaces
+            .iter()
+            .copied()
             .enumerate()
             .filter_map(|(i, k)| k.filter(|&k| k <= f.hi).map(|k| point(i, k)))
             .collect(),

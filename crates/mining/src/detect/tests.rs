@@ -752,6 +752,14 @@ fn floating_heads_do_not_stand_on_specks() {
     assert!(!stands(&vol(&|_, _, _| false), rect, &all, 0, 2, 0.5, 3));
 }
 
+/// The ground's tilt as detection measures it: on the floor's surface columns when a floor
+/// is found.
+fn tilt(v: &OpacityVolume) -> Option<(f32, f32)> {
+    let surfaces = floor::surface_levels(v);
+    let f = floor::floor_on_surfaces(v, &surfaces, &params());
+    floor::ground_tilt(v, f.map(|f| (f, surfaces.as_slice())), &params())
+}
+
 #[test]
 fn a_tilted_ground_is_refused_with_advice_and_a_level_one_is_measured() {
     // a ground slab rising one level every 8 texels (7.1 degrees) under boxes
@@ -762,7 +770,7 @@ fn a_tilted_ground_is_refused_with_advice_and_a_level_one_is_measured() {
         fill(&mut v, (0, rows), (c, c + 1), (k, k + 2), 0.95);
     }
     fill(&mut v, (5, 12), (5, 12), (3, 9), 0.9);
-    let (deg, cov) = floor::ground_tilt(&v, floor_band(&v, &params()), &params()).unwrap();
+    let (deg, cov) = tilt(&v).unwrap();
     assert!((deg - 7.1).abs() < 1.0 && cov > 0.99, "{deg} {cov}");
     let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
     let color = PlaneImage::zeros(rows, cols, 3).unwrap();
@@ -774,7 +782,7 @@ fn a_tilted_ground_is_refused_with_advice_and_a_level_one_is_measured() {
     assert!(r.as_ref().map_or_else(|e| !e.to_string().contains("tilted"), |_| true), "{r:?}");
     // a level floor measures no tilt; no floor at all measures none either
     let level = floor_volume(rows, cols, nz);
-    assert!(floor::ground_tilt(&level, floor_band(&level, &params()), &params()).unwrap().0 < 0.01);
+    assert!(tilt(&level).unwrap().0 < 0.01);
     assert!(
         floor::ground_tilt(&OpacityVolume::empty(rows, cols, nz, 0.05), None, &params()).is_none()
     );
