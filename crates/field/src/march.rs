@@ -262,28 +262,27 @@ pub fn backward(
             let (alpha, trans) = (w.s_alpha[i], w.s_trans[i]);
             let weight = trans * alpha;
             let ci = w.s_color[i];
-            let g = if ci == NO_COLOR {
-                0.0
-            } else if ci & REST != 0 {
-                sample_rgb(w, ci).map_or(0.0, |c| dc.dot(c))
-            } else {
-                let k = ci as usize * 3;
-                let c = Vec3::new(w.color.rgb[k], w.color.rgb[k + 1], w.color.rgb[k + 2]);
-                let scale = w.color_grad_scale[ci as usize];
-                w.d_rgb[k] = scale * dc.x;
-                w.d_rgb[k + 1] = scale * dc.y;
-                w.d_rgb[k + 2] = scale * dc.z;
-                let mut g = dc.dot(c);
-                if let Some(ds) = d_sem {
-                    let ci = w.s_color[i] as usize * nc;
-                    let dray = &ds[r * nc..][..nc];
-                    let s = &w.color.sem[ci..][..nc];
-                    for q in 0..nc {
-                        g += dray[q] * s[q];
-                        w.d_sem[ci + q] = weight * dray[q];
+            let g = match sample_rgb(w, ci) {
+                None => 0.0,
+                Some(c) if ci & REST != 0 => dc.dot(c),
+                Some(c) => {
+                    let k = ci as usize * 3;
+                    let scale = w.color_grad_scale[ci as usize];
+                    w.d_rgb[k] = scale * dc.x;
+                    w.d_rgb[k + 1] = scale * dc.y;
+                    w.d_rgb[k + 2] = scale * dc.z;
+                    let mut g = dc.dot(c);
+                    if let Some(ds) = d_sem {
+                        let ci = w.s_color[i] as usize * nc;
+                        let dray = &ds[r * nc..][..nc];
+                        let s = &w.color.sem[ci..][..nc];
+                        for q in 0..nc {
+                            g += dray[q] * s[q];
+                            w.d_sem[ci + q] = weight * dray[q];
+                        }
                     }
+                    g
                 }
-                g
             };
             let d_sigma = delta * (trans * (1.0 - alpha) * g - after);
             after += weight * g;
