@@ -46,7 +46,8 @@ const SURFACE_TRANSMITTANCE: f32 = 0.5;
 /// Find the floor: the lowest surface seen from above over a large part of the plane. Each
 /// column's surface is the level where the opacity accumulated from the top reaches one
 /// half ([`surface_levels`]); the floor's top is the lowest level at or below which
-/// [`DetectParams::floor_coverage`] of the plane has its surface, raised while the next
+/// [`DetectParams::floor_coverage`] of the plane has its surface (counting the floor hidden
+/// under what stands on it, [`hidden_floor`]), raised while the next
 /// level up still holds [`DetectParams::floor_step_share`] of the columns of the level
 /// below it (a gently tilted or stepped floor spreads over a few levels; objects start
 /// much sparser). Seen from above, a slab's thickness, the opaque copies an undertrained
@@ -81,6 +82,7 @@ pub fn floor_on_surfaces(
     let mut hi = (0..half).find(|&k| {
         below += count[k];
         below as f32 >= need
+            || (below > 0 && (below + hidden_floor(vol, surfaces, k)) as f32 >= need)
     })?;
     while hi + 1 < half && count[hi + 1] as f32 >= p.floor_step_share * count[hi] as f32 {
         hi += 1;
@@ -94,6 +96,83 @@ pub fn floor_on_surfaces(
     let lo = (0..=hi).find(|&k| opaque_share(k) >= p.floor_coverage).unwrap_or(hi);
     let coverage = count[..=hi].iter().sum::<usize>() as f32 / n as f32;
     Some(FloorBand { lo, hi, z_top: vol.height(hi), coverage })
+}
+
+/// The columns whose floor at level `k` is hidden from above by what stands on it: patches of
+/// columns opaque (0.5) at `k` whose surface is higher, bounded mostly by a visible floor
+/// larger than themselves (more of the patch's edges between neighbouring columns lead to
+/// a connected stretch of columns whose surface is at or below `k`, and at least as large
+/// as the patch, than to anything else; edges off the plane do not count). A floor is
+/// continuous under the furniture on it, and larger than each piece. An object on an
+/// invisible ground is bounded by empty columns; a slab's lower levels under its own top are
+/// bounded by the slab's edge and by specks where the slab shows thinner, each far smaller
+/// than the slab. Not tuned: the majority of the patch's boundary, and the comparison of
+/// areas.
+fn hidden_floor(vol: &OpacityVolume, surfaces: &[Option<usize>], k: usize) -> usize {
+    let (rows, cols) = (vol.rows, vol.cols);
+    let on_floor = |i: usize| surfaces[i].is_some_and(|s| s <= k);
+    let candidate = |i: usize| !on_floor(i) && vol.data[i * vol.nz + k] >= FLOOR_OPACITY;
+    let neighbours = |i: usize| {
+        let (r, c) = (i / cols, i % cols);
+        [
+            (r > 0).then(|| i - cols),
+            (r + 1 < rows).then(|| i + cols),
+            (c > 0).then(|| i - 1),
+            (c + 1 < cols).then(|| i + 1),
+        ]
+        .into_iter()
+        .flatten()
+    };
+    // 4-connected components of a set of columns: (label per column, size per label)
+    let components = |member: &dyn Fn(usize) -> bool| {
+        let mut label = vec![u32::MAX; rows * cols];
+        let mut sizes = Vec::new();
+        let mut stack = Vec::new();
+        for seed in 0..rows * cols {
+            if label[seed] != u32::MAX || !member(seed) {
+                continue;
+            }
+            let id = sizes.len() as u32;
+            label[seed] = id;
+            stack.push(seed);
+            let mut size = 0usize;
+            while let Some(i) = stack.pop() {
+                size += 1;
+                for j in neighbours(i) {
+                    if label[j] == u32::MAX && member(j) {
+                        label[j] = id;
+                        stack.push(j);
+                    }
+                }
+            }
+            sizes.push(size);
+        }
+        (label, sizes)
+    };
+    let (floor_label, floor_size) = components(&on_floor);
+    let (patch_label, patch_size) = components(&candidate);
+    // per patch: edges to a visible floor at least its size, and edges to anything else
+    let mut to_floor = vec![0usize; patch_size.len()];
+    let mut to_other = vec![0usize; patch_size.len()];
+    for i in 0..rows * cols {
+        let id = patch_label[i];
+        if id == u32::MAX {
+            continue;
+        }
+        let size = patch_size[id as usize];
+        for j in neighbours(i) {
+            if patch_label[j] == id {
+                continue;
+            }
+            let f = floor_label[j];
+            if f != u32::MAX && floor_size[f as usize] >= size {
+                to_floor[id as usize] += 1;
+            } else if f != u32::MAX || surfaces[j].is_none() {
+                to_other[id as usize] += 1;
+            }
+        }
+    }
+    (0..patch_size.len()).filter(|&id| to_floor[id] > to_other[id]).map(|id| patch_size[id]).sum()
 }
 
 /// The level objects stand on: the first evidence level above a floor; with no floor, the

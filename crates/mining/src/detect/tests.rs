@@ -940,3 +940,41 @@ fn a_floor_with_nothing_on_it_is_said_to_be_empty() {
     let e = detect(&grid, &empty, &color, None, &params()).unwrap_err().to_string();
     assert!(e.contains("nothing stands in the field"), "{e}");
 }
+
+#[test]
+fn a_partial_floor_counts_what_stands_on_it() {
+    // a rug-like floor over 40% of the plane (rows 0..24 of 60), 45% of it hidden from
+    // above by boxes standing on it: 22% of the plane shows the floor's surface, but the
+    // floor is there under the boxes
+    let (rows, cols, nz) = (60, 80, 24);
+    let mut v = OpacityVolume::empty(rows, cols, nz, 0.05);
+    fill(&mut v, (0, 24), (0, cols), (0, 2), 0.95);
+    for c0 in [4, 30, 56] {
+        fill(&mut v, (3, 21), (c0, c0 + 16), (2, 10), 0.9);
+    }
+    let f = floor_band(&v, &params()).expect("the partial floor");
+    assert_eq!(f.hi, 1, "{f:?}");
+    assert!(f.coverage < params().floor_coverage, "the visible floor alone is too small: {f:?}");
+    // boxes on an invisible ground, with a floor nowhere: their bases are opaque at the
+    // lowest level over 19% of the plane, but nothing around them is a floor
+    let mut bare = OpacityVolume::empty(rows, cols, nz, 0.05);
+    for r0 in [2, 22, 42] {
+        for c0 in [4, 30, 56] {
+            fill(&mut bare, (r0, r0 + 10), (c0, c0 + 10), (0, 8), 0.9);
+        }
+    }
+    assert_eq!(floor_band(&bare, &params()), None);
+    // nor are a few low objects' tops on an invisible ground the floor of the boxes around them
+    fill(&mut bare, (20, 38), (20, 28), (0, 1), 0.9);
+    assert_eq!(floor_band(&bare, &params()), None);
+    // nor the lower levels of a thick slab whose top is at level 6, where it shows thinner in
+    // specks: the slab's own top is the floor
+    let mut slab = OpacityVolume::empty(rows, cols, nz, 0.05);
+    fill(&mut slab, (0, rows), (0, cols), (0, 7), 0.95);
+    for r in (3..rows).step_by(6) {
+        for c in (3..cols).step_by(5) {
+            fill(&mut slab, (r, r + 1), (c, c + 1), (2, 7), 0.0);
+        }
+    }
+    assert_eq!(floor_band(&slab, &params()).map(|f| f.hi), Some(6));
+}
