@@ -143,8 +143,8 @@ pub enum Command {
     /// Detection: the floor slab is found from the density volume and removed, walls are
     /// dropped as thin long structures, per texel the opacity above the floor is split with
     /// K-means (--k), specks are dropped and Suzuki-Abe contours give regions; touching
-    /// objects are separated (thin bridges, 3D connectivity, colour boundaries), ragged low
-    /// floaters dropped, and a second round inside every object treats its top surface as
+    /// objects are separated (thin bridges, 3D connectivity, colour boundaries), and a
+    /// second round inside every object treats its top surface as
     /// background to find objects standing on it. Grouping: K-means labels of the colour
     /// plane (--labels), label histograms, Jensen-Shannon divergence plus a size term and
     /// the divergence of the objects' vertical profiles, average-linkage clustering cut where

@@ -132,9 +132,8 @@ pub struct MineArgs {
     #[arg(long, value_name = "TEXELS")]
     pub wall_half_thickness: Option<f32>,
     /// Switch off one of the detector's filters (repeatable; `mining.json` names the
-    /// filter that removed each region): walls (thin, long structures), ragged-haze (small,
-    /// low, ragged streaks of floaters), duplicates (an object found both on the ground and
-    /// standing on its host).
+    /// filter that removed each region): walls (thin, long structures), duplicates (an
+    /// object found both on the ground and standing on its host).
     #[arg(long, value_name = "FILTER", value_parser = clap::builder::PossibleValuesParser::new(assetfield_mining::detect::Filters::NAMES))]
     pub no_filter: Vec<String>,
     /// Skip the second round inside every object (objects standing on tables are then not

@@ -17,7 +17,6 @@ pub(super) type SecondRound = fn(&Ctx, &Part) -> (Vec<Child>, Option<usize>);
 pub(super) fn assemble(cx: &Ctx, parts: &[Part], second: SecondRound) -> Result<Vec<Detection>> {
     let (vol, grid, floor, ground, ground_tol, tau) =
         (cx.vol, cx.grid, cx.floor, cx.ground, cx.ground_tol, cx.tau);
-    let share = cx.p.shape_top_share;
     let texel_area = grid.texel_area().max(1e-12);
     let mut detections: Vec<Detection> = Vec::new();
     for p in parts {
@@ -60,7 +59,6 @@ pub(super) fn assemble(cx: &Ctx, parts: &[Part], second: SecondRound) -> Result<
                     surface.unwrap_or(p.kmax),
                     ch.kmax,
                     tau,
-                    share,
                 )),
                 parent: Some(id),
                 children: Vec::new(),
@@ -73,7 +71,7 @@ pub(super) fn assemble(cx: &Ctx, parts: &[Part], second: SecondRound) -> Result<
             (Some(s), false) => (vol.height(s), vol.height(s)),
             _ => (
                 vol.height(p.kmax),
-                vol.height(robust_top_level(vol, p.rect, &p.footprint, p.kmin, p.kmax, tau, share)),
+                vol.height(robust_top_level(vol, p.rect, &p.footprint, p.kmin, p.kmax, tau)),
             ),
         };
         // with no floor found, the ground (or a floating object) stands on the level below

@@ -4,7 +4,7 @@
 //! (a sofa against an armchair, stools against a bar) become objects.
 
 use super::context::Ctx;
-use super::shape::{Part, at_least, fill_holes, is_thin, more_than, or_into, share_of};
+use super::shape::{Part, fill_holes, is_thin, more_than, or_into};
 use super::split::{geodesic_assign, lowest_level};
 use crate::image::{Mask, PlaneImage};
 use crate::kmeans::{KMeansOptions, kmeans};
@@ -96,13 +96,14 @@ pub(super) fn principal_components(plane: &PlaneImage, over: &Mask, k: usize) ->
 }
 
 /// Separate objects that touch but differ in colour (a sofa against an armchair, chairs
-/// pushed against a table): a K-means (k = 3) on the colour principal components of the
+/// pushed against a table): a K-means (k = 2) on the colour principal components of the
 /// part gives connected pieces; a piece becomes an object of its own when it stands on the
 /// ground, is large, differs clearly in colour from what surrounds it, and touches the rest
 /// only along a short part of its outline (a cushion framed by a sofa's arms and back, or
 /// books inside a shelf, share most of their outline and stay). Applied recursively.
 pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usize) -> Vec<Part> {
     let (vol, start, tau, min_texels) = (cx.vol, cx.start, cx.tau, cx.min_texels);
+    let strip = cx.p.bridge_radius_texels.max(1);
     let thin = cx.p.thin_radius_texels.max(1);
     let cs = &cx.p.colour;
     let (rect, f) = (part.rect, &part.footprint);
@@ -121,8 +122,9 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
         return vec![part];
     }
     let pts: Vec<f32> = idx.iter().flat_map(|&i| pcs[gi(i)].iter().copied()).collect();
-    let Ok(km) = kmeans(&pts, dim, None, &KMeansOptions { k: cs.k.max(2), ..Default::default() })
-    else {
+    // two clusters, as the paper's second round: a piece and what it is not (three, for a
+    // shadow or trim besides, lost objects on the suite and the basis)
+    let Ok(km) = kmeans(&pts, dim, None, &KMeansOptions { k: 2, ..Default::default() }) else {
         return vec![part];
     };
     let mut label = vec![u32::MAX; h * w];
@@ -130,12 +132,12 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
         label[i] = km.labels[t];
     }
     // connected pieces of each label; small ones go to their geodesic neighbours
-    let min_piece = share_of(cs.min_piece_share, n).max(smallest_piece);
+    let min_piece = smallest_piece;
     let mut seeds: Vec<Mask> = Vec::new();
     for l in 0..km.k as u32 {
         // cut thin strips of one colour joining separate objects (an opening, padded so the
         // box edge does not protect texels)
-        let o = cs.strip_opening_texels;
+        let o = strip;
         let m = Mask::from_fn(h + 2 * o, w + 2 * o, |r, c| {
             r >= o
                 && c >= o
@@ -173,14 +175,7 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
         if !cx.on_ground(lowest_level(vol, rect, piece, start, tau)) {
             continue;
         }
-        // outline shared with the rest of the part vs outline; and whether the top surface
-        // runs on across the shared outline (one object's surface with two colours below it,
-        // as a desk top over a drawer block, is no boundary between objects)
-        let top = |i: usize| {
-            let col = vol.column(rect.r0 + i / w, rect.c0 + i % w);
-            (start..vol.nz).rev().find(|&k| col[k] >= tau)
-        };
-        let (mut pairs, mut level) = (0usize, 0usize);
+        // outline shared with the rest of the part vs outline
         let (mut outline, mut shared) = (0usize, 0usize);
         let mut near: Vec<usize> = Vec::new();
         for r in 0..h {
@@ -197,12 +192,7 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
                         edge = true;
                         if inside && f.get(nr as usize, nc as usize) {
                             touches = true;
-                            let q = nr as usize * w + nc as usize;
-                            near.push(q);
-                            pairs += 1;
-                            if let (Some(a), Some(b)) = (top(r * w + c), top(q)) {
-                                level += usize::from(a.abs_diff(b) <= 1);
-                            }
+                            near.push(nr as usize * w + nc as usize);
                         }
                     }
                 }
@@ -236,15 +226,7 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
         let contrast = d2 / (0.5 * (va + vb)).max(1e-6);
         // touching objects make a concave outline that the split straightens
         let solid = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
-        let (s_all, s_piece) = (solid(f), solid(piece));
-        // (85% of it: a chair's back beside a desk's top meets it at one height along a good
-        // part of a short shared outline; a desk top over its drawers runs on all along it).
-        // A piece touching the rest along less than a fifth of its outline is a neighbour
-        // pushed against it, whatever their heights: an armchair's arm against a sofa's arm
-        // of the same height; a drawer block shares a whole side or more.
-        let continuous = pairs > 0
-            && at_least(level, cs.continuous_top_share, pairs)
-            && at_least(shared, cs.neighbour_outline_share, outline);
+        let s_all = solid(f);
         tracing::debug!(
             ?rect,
             piece = piece.count(),
@@ -255,17 +237,14 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part, depth: usi
             na,
             nb,
             s_all,
-            s_piece,
-            level,
-            pairs,
             "colour split candidate"
         );
+        // (framed by the rest: a piece sharing most of its outline with it, a cushion in a
+        // sofa; a majority, not a tuned share)
         if nb == 0
-            || more_than(shared, cs.max_shared_outline, outline)
+            || more_than(shared, 0.5, outline)
             || contrast < cx.p.colour_contrast
             || s_all > cs.max_part_solidity
-            || s_piece < cs.min_piece_solidity
-            || continuous
             || is_thin(piece, thin)
         {
             continue;

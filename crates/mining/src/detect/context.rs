@@ -105,7 +105,8 @@ impl<'a> Ctx<'a> {
         // voxels: the same threshold (the voxel opacities are per level spacing)
         let (lo, hi) = p.voxel_threshold_range;
         let tau = tau_e.clamp(lo, hi);
-        let ground = ground_level(vol, floor, start, tau, p);
+        let min_texels = p.min_area_texels.max(4);
+        let ground = ground_level(vol, floor, start, tau, min_texels);
         Ok(Ctx {
             grid,
             vol,
@@ -119,7 +120,7 @@ impl<'a> Ctx<'a> {
             above,
             tau_e,
             tau,
-            min_texels: p.min_area_texels.max(4),
+            min_texels,
         })
     }
 

@@ -1,10 +1,6 @@
-//! Stage 3d: filters. Walls (thin, long structures) and ragged haze (small, low streaks of
-//! floaters along camera rays) are dropped, each with a typed [`RemovalReason`]. Every
-//! filter is a judgement on the opacity volume and can be switched off
-//! ([`super::Filters`]). (Four more filters, for flat background, faint haze, floating
-//! specks and faint islands, were made for the suite's 3-minute fields; they changed nothing
-//! on any 10-minute dev field nor on the briefly trained ones kept, and the faint-haze one
-//! removed real objects of an unseen room, so they went.)
+//! Stage 3d: filters. Walls (thin, long structures) are dropped with a typed
+//! [`RemovalReason`]; the filter is a judgement on the opacity volume and can be switched off
+//! ([`super::Filters`]).
 
 use std::fmt;
 
@@ -21,8 +17,6 @@ pub enum RemovalReason {
     /// A thin, long structure: `thickness` texels thick (at most), running `length` of the
     /// plane's longer side.
     Wall { thickness: f32, length: f32 },
-    /// Ragged (`solidity` of its footprint), low and small.
-    RaggedHaze { solidity: f32, height: usize },
 }
 
 impl RemovalReason {
@@ -30,7 +24,6 @@ impl RemovalReason {
     pub fn filter(&self) -> &'static str {
         match self {
             RemovalReason::Wall { .. } => "walls",
-            RemovalReason::RaggedHaze { .. } => "ragged-haze",
         }
     }
 }
@@ -43,9 +36,6 @@ impl fmt::Display for RemovalReason {
                 "wall: a thin ({thickness:.1} texels) and long ({:.0}% of the plane) structure",
                 100.0 * length
             ),
-            RemovalReason::RaggedHaze { solidity, height } => {
-                write!(f, "haze: ragged (solidity {solidity:.2}), low ({height} levels) and small")
-            }
         }
     }
 }
@@ -53,7 +43,7 @@ impl fmt::Display for RemovalReason {
 /// The wall judgement of a mask (a region's own pixels or a part's footprint): thin (half
 /// its thickness, the erosions it takes to vanish, within
 /// [`super::DetectParams::wall_half_thickness_texels`]) and long (its box's longer side at
-/// least [`super::DetectParams::wall_min_length`] of the plane's).
+/// least [`WALL_MIN_LENGTH`] of the plane's).
 pub(super) fn wall(cx: &Ctx, m: &Mask, rect: crate::image::PixelRect) -> Option<RemovalReason> {
     let p = cx.p;
     if !p.walls_on() {
@@ -61,26 +51,18 @@ pub(super) fn wall(cx: &Ctx, m: &Mask, rect: crate::image::PixelRect) -> Option<
     }
     let half = erosions_to_vanish(m, 64);
     let length = rect.rows().max(rect.cols()) as f32 / cx.grid.rows.max(cx.grid.cols) as f32;
-    (half as f32 <= p.wall_half_thickness_texels && length >= p.wall_min_length)
+    (half as f32 <= p.wall_half_thickness_texels && length >= WALL_MIN_LENGTH)
         .then_some(RemovalReason::Wall { thickness: 2.0 * half as f32, length })
 }
 
-/// Judge one part: the reason it is background or haze, if it is.
+/// A wall runs along at least this share of the plane's longer side. Not tuned: half (a
+/// room's shell runs along whole sides; a quarter mined the basis the same).
+pub const WALL_MIN_LENGTH: f32 = 0.5;
+
+/// Judge one part: the reason it is background, if it is.
 pub(super) fn judge(cx: &Ctx, p: &Part) -> Result<(), RemovalReason> {
-    let prm = cx.p;
-    let count = p.footprint.count();
-    if let Some(reason) = wall(cx, &p.footprint, p.rect) {
-        return Err(reason);
+    match wall(cx, &p.footprint, p.rect) {
+        Some(reason) => Err(reason),
+        None => Ok(()),
     }
-    let height = p.kmax.saturating_sub(cx.ground);
-    let small = count < prm.small_factor * cx.min_texels;
-    let solidity = count as f32 / crate::group::hull_area(&p.footprint).max(1.0);
-    if prm.filters.ragged_haze
-        && solidity < prm.ragged_solidity
-        && height < prm.ragged_low_levels
-        && small
-    {
-        return Err(RemovalReason::RaggedHaze { solidity, height });
-    }
-    Ok(())
 }

@@ -39,6 +39,12 @@ pub fn surface_levels(vol: &OpacityVolume) -> Vec<Option<usize>> {
         .collect()
 }
 
+/// The floor's top goes on upwards while the next level is the surface of at least this
+/// share of the columns of the level below: a gently tilted or stepped floor spreads evenly
+/// over a few levels; the lowest parts of objects are much sparser. Not tuned: half (0.4
+/// mined the basis and the suite the same).
+const FLOOR_STEP_SHARE: f32 = 0.5;
+
 /// The transmittance from above at which a column's surface is reached. Not tuned: the
 /// midpoint, where a ray from above has even odds of having stopped.
 const SURFACE_TRANSMITTANCE: f32 = 0.5;
@@ -48,7 +54,7 @@ const SURFACE_TRANSMITTANCE: f32 = 0.5;
 /// half ([`surface_levels`]); the floor's top is the lowest level at or below which
 /// [`DetectParams::floor_coverage`] of the plane has its surface (counting the floor hidden
 /// under what stands on it, [`hidden_floor`]), raised while the next
-/// level up still holds [`DetectParams::floor_step_share`] of the columns of the level
+/// level up still holds [`FLOOR_STEP_SHARE`] of the columns of the level
 /// below it (a gently tilted or stepped floor spreads over a few levels; objects start
 /// much sparser). Seen from above, a slab's thickness, the opaque copies an undertrained
 /// field leaves below it and the haze it leaves above it do not move its top. The band
@@ -84,7 +90,7 @@ pub fn floor_on_surfaces(
         below as f32 >= need
             || (below > 0 && (below + hidden_floor(vol, surfaces, k)) as f32 >= need)
     })?;
-    while hi + 1 < half && count[hi + 1] as f32 >= p.floor_step_share * count[hi] as f32 {
+    while hi + 1 < half && count[hi + 1] as f32 >= FLOOR_STEP_SHARE * count[hi] as f32 {
         hi += 1;
     }
     if hi + 1 > vol.nz / 2 {
@@ -176,22 +182,21 @@ fn hidden_floor(vol: &OpacityVolume, surfaces: &[Option<usize>], k: usize) -> us
 }
 
 /// The level objects stand on: the first evidence level above a floor; with no floor, the
-/// lowest level occupied (`>= tau`) in [`DetectParams::ground_min_share`] of the plane (at
-/// least 20 texels), else 0.
+/// lowest level occupied (`>= tau`) over at least `min_texels` texels (the smallest object's
+/// area), else 0.
 pub fn ground_level(
     vol: &OpacityVolume,
     floor: Option<FloorBand>,
     start: usize,
     tau: f32,
-    p: &DetectParams,
+    min_texels: usize,
 ) -> usize {
     if floor.is_some() {
         return start;
     }
     let n = vol.rows * vol.cols;
-    let need = super::shape::share_of(p.ground_min_share, n).max(20);
     (0..vol.nz)
-        .find(|&k| (0..n).filter(|&i| vol.data[i * vol.nz + k] >= tau).count() >= need)
+        .find(|&k| (0..n).filter(|&i| vol.data[i * vol.nz + k] >= tau).count() >= min_texels)
         .unwrap_or(0)
 }
 

@@ -47,7 +47,7 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
     let longest = rows.max(cols) as f32;
     for reg in components(&thin)? {
         let length = reg.bbox.rows().max(reg.bbox.cols()) as f32 / longest;
-        if length >= p.wall_min_length {
+        if length >= super::filters::WALL_MIN_LENGTH {
             removed.push(Removed {
                 world: cx.grid.rect_to_world(reg.bbox),
                 reason: RemovalReason::Wall {
