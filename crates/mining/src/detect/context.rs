@@ -72,7 +72,7 @@ impl<'a> Ctx<'a> {
         // its top up): nothing within it can be told from the floor (a rug, a carpet, the
         // floor's own spread), so evidence starts at the first level past it
         let start = floor.map_or(0, |f| (f.hi + p.blur_levels).min(vol.nz.saturating_sub(1)));
-        let evidence = vol.window_max_above(start, p.blur_levels.max(2));
+        let evidence = vol.window_max_above(start, p.blur_levels);
         if evidence.iter().all(|&e| e < EMPTY_EVIDENCE) {
             return Err(MiningError::InvalidParameter {
                 name: "field",

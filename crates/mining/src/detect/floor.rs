@@ -213,7 +213,7 @@ pub const MAX_GROUND_TILT_DEG: f32 = 3.0;
 /// plane through those heights (texels and levels are cubic voxels, so its gradient is the
 /// slope). `Some((degrees, coverage))` when the points cover at least
 /// [`DetectParams::floor_coverage`] of the plane and the plane fits them (median residual
-/// within two levels); `None` otherwise (no ground slab: objects on an invisible ground).
+/// within the field's vertical blur, `blur_levels`); `None` otherwise (no ground slab: objects on an invisible ground).
 pub fn ground_tilt(
     vol: &OpacityVolume,
     floor: Option<(FloorBand, &[Option<usize>])>,
@@ -265,7 +265,7 @@ pub fn ground_tilt(
     let mut res: Vec<f64> =
         pts.iter().map(|&(c, r, k)| (k - (mk + b * (c - mc) + d * (r - mr))).abs()).collect();
     res.sort_by(f64::total_cmp);
-    if res[res.len() / 2] > 2.0 {
+    if res[res.len() / 2] > p.blur_levels as f64 {
         return None;
     }
     Some(((b.hypot(d)).atan().to_degrees() as f32, coverage))

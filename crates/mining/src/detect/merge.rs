@@ -97,10 +97,10 @@ const DUPLICATE_OVERLAP: f32 = 0.5;
 /// Drop every object found twice, as a piece of the ground (a colour split of its host's
 /// column) and standing on its host: a ground detection without children whose footprint
 /// and a supported detection's each cover [`DUPLICATE_OVERLAP`] of the other, with tops
-/// within two levels (`dz` apart). Ids, parents and children are renumbered (ids must equal the
+/// within `tolerance` (world height: the field's vertical blur, `blur_levels` levels). Ids, parents and children are renumbered (ids must equal the
 /// indices). The dropped copy's texels lie within its host's footprint, which the container
 /// fills anyway.
-pub fn drop_duplicates(detections: Vec<Detection>, dz: f32) -> Vec<Detection> {
+pub fn drop_duplicates(detections: Vec<Detection>, tolerance: f32) -> Vec<Detection> {
     debug_assert!(detections.iter().enumerate().all(|(i, d)| d.id == i));
     let duplicate = |g: &Detection, s: &Detection| {
         let overlap = footprint_overlap(g, s) as f32;
@@ -109,7 +109,7 @@ pub fn drop_duplicates(detections: Vec<Detection>, dz: f32) -> Vec<Detection> {
             && s.parent.is_some()
             && overlap >= DUPLICATE_OVERLAP * g.footprint.count() as f32
             && overlap >= DUPLICATE_OVERLAP * s.footprint.count() as f32
-            && (g.top - s.top).abs() <= 2.0 * dz
+            && (g.top - s.top).abs() <= tolerance
     };
     let dropped: Vec<bool> =
         detections.iter().map(|g| detections.iter().any(|s| duplicate(g, s))).collect();

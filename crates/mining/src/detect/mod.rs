@@ -152,7 +152,7 @@ pub fn detect(
         }
         let detections = assemble::assemble(&cx, &parts, unpack::unpack)?;
         let mut detections = if params.filters.duplicates {
-            drop_duplicates(detections, vol.dz)
+            drop_duplicates(detections, params.blur_levels as f32 * vol.dz)
         } else {
             detections
         };

@@ -239,7 +239,7 @@ fn an_object_found_twice_keeps_the_copy_standing_on_its_host() {
     // a laptop over a chair pushed under the table: kept (the chair is much larger)
     let laptop = det(3, PixelRect::new(14, 20, 17, 24), 0.8, Some(0));
     let chair = det(4, PixelRect::new(12, 18, 24, 30), 0.8, None);
-    let kept = drop_duplicates(vec![table, lamp, twice, laptop, chair], 0.05);
+    let kept = drop_duplicates(vec![table, lamp, twice, laptop, chair], 0.1);
     let rects: Vec<PixelRect> = kept.iter().map(|d| d.rect).collect();
     assert_eq!(rects.len(), 4, "{rects:?}");
     assert!(!rects.contains(&PixelRect::new(5, 5, 13, 12)));
