@@ -164,19 +164,7 @@ pub struct PoseOptions {
 
 impl Default for PoseOptions {
     fn default() -> Self {
-        PoseOptions {
-            margin: 3,
-            templates: Vec::new(),
-            yaw: YawOptions {
-                step_deg: 4.0,
-                period_deg: 360.0,
-                tol_deg: 0.05,
-                max_offset: 1.5,
-                align_centroids: true,
-                region: CompareRegion::Overlap,
-                starts: 3,
-            },
-        }
+        PoseOptions { margin: 3, templates: Vec::new(), yaw: YawOptions::default() }
     }
 }
 

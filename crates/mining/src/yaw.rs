@@ -71,13 +71,15 @@ fn default_starts() -> usize {
     3
 }
 
+/// The search mining runs ([`crate::pose::PoseOptions`] takes it as it is): a 4-degree coarse
+/// scan, refined to 0.05 degrees, offsets within 1.5 texels (the blur of a patch's edge).
 impl Default for YawOptions {
     fn default() -> Self {
         YawOptions {
-            step_deg: 5.0,
+            step_deg: 4.0,
             period_deg: 360.0,
-            tol_deg: 0.1,
-            max_offset: 1.0,
+            tol_deg: 0.05,
+            max_offset: 1.5,
             align_centroids: true,
             region: CompareRegion::Overlap,
             starts: default_starts(),
