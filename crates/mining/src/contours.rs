@@ -186,6 +186,15 @@ pub struct Region {
 /// Label 8-connected components of `mask` in raster order of their first pixel: returns the
 /// per-pixel label (`u32::MAX` for background) and the pixel count of each component.
 pub fn label_components(mask: &Mask) -> Result<(Vec<u32>, Vec<usize>)> {
+    label_with(mask, &DIRS)
+}
+
+/// [`label_components`] with 4-connectivity (edge neighbours only).
+pub fn label_components_4(mask: &Mask) -> Result<(Vec<u32>, Vec<usize>)> {
+    label_with(mask, &[(-1, 0), (1, 0), (0, -1), (0, 1)])
+}
+
+fn label_with(mask: &Mask, dirs: &[(isize, isize)]) -> Result<(Vec<u32>, Vec<usize>)> {
     mask.validate()?;
     let (rows, cols) = (mask.rows, mask.cols);
     let mut labels = vec![u32::MAX; rows * cols];
@@ -202,7 +211,7 @@ pub fn label_components(mask: &Mask) -> Result<(Vec<u32>, Vec<usize>)> {
         while let Some(p) = stack.pop() {
             size += 1;
             let (r, c) = (p / cols, p % cols);
-            for (dr, dc) in DIRS {
+            for &(dr, dc) in dirs {
                 let (nr, nc) = (r.wrapping_add_signed(dr), c.wrapping_add_signed(dc));
                 if nr < rows && nc < cols {
                     let q = nr * cols + nc;

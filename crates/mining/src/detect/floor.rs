@@ -4,6 +4,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::params::DetectParams;
+use crate::contours::label_components_4;
+use crate::image::Mask;
 use crate::planes::OpacityVolume;
 
 /// The floor found by [`floor_band`]: levels `lo..=hi` of the opacity volume, `hi` its top
@@ -129,31 +131,10 @@ fn hidden_floor(vol: &OpacityVolume, surfaces: &[Option<usize>], k: usize) -> us
         .into_iter()
         .flatten()
     };
-    // 4-connected components of a set of columns: (label per column, size per label)
+    // 4-connected components of the visible floor and of the candidate patches
     let components = |member: &dyn Fn(usize) -> bool| {
-        let mut label = vec![u32::MAX; rows * cols];
-        let mut sizes = Vec::new();
-        let mut stack = Vec::new();
-        for seed in 0..rows * cols {
-            if label[seed] != u32::MAX || !member(seed) {
-                continue;
-            }
-            let id = sizes.len() as u32;
-            label[seed] = id;
-            stack.push(seed);
-            let mut size = 0usize;
-            while let Some(i) = stack.pop() {
-                size += 1;
-                for j in neighbours(i) {
-                    if label[j] == u32::MAX && member(j) {
-                        label[j] = id;
-                        stack.push(j);
-                    }
-                }
-            }
-            sizes.push(size);
-        }
-        (label, sizes)
+        let m = Mask { rows, cols, data: (0..rows * cols).map(member).collect() };
+        label_components_4(&m).unwrap_or_else(|_| (vec![u32::MAX; rows * cols], Vec::new()))
     };
     let (floor_label, floor_size) = components(&on_floor);
     let (patch_label, patch_size) = components(&candidate);
