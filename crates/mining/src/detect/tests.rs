@@ -2,9 +2,8 @@
 //! six levels" is 0.3 m tall in the comments).
 
 use super::merge::fragments_merged;
-use super::shape::{Part, border_ring, is_thin};
+use super::shape::{Part, is_thin};
 use super::split::stands;
-use super::unpack::closed_shell;
 use super::*;
 use crate::image::{Mask, PixelRect};
 use assetfield_core::Rect2;
@@ -855,39 +854,6 @@ fn a_partial_floor_counts_what_stands_on_it() {
         }
     }
     assert_eq!(floor_band(&slab, &params()).map(|f| f.hi), Some(6));
-}
-
-#[test]
-fn closed_shells_are_told_from_legs_and_open_sides() {
-    // 1.0 x 2.0 m tops over levels 2..=10 of: a car's body (walls one texel thick all
-    // round), a table's four legs, a desk's panels on three sides
-    let (rect, f) = (PixelRect::new(10, 10, 30, 50), Mask::from_fn(20, 40, |_, _| true));
-    let ring = border_ring(&f);
-    let walls = |v: &mut OpacityVolume| {
-        fill(v, (10, 30), (10, 50), (2, 11), 0.95);
-        fill(v, (11, 29), (11, 49), (2, 11), 0.0);
-    };
-    let mut car = floor_volume(60, 80, 30);
-    walls(&mut car);
-    assert!(closed_shell(&car, rect, &f, &ring, 2..11, 0.25));
-    // a wall missing at a few levels (a gap above the wheels) still closes most of them
-    fill(&mut car, (10, 11), (20, 40), (5, 8), 0.0);
-    assert!(closed_shell(&car, rect, &f, &ring, 2..11, 0.25));
-    // but not one open all the way down one side
-    fill(&mut car, (10, 11), (20, 40), (2, 11), 0.0);
-    assert!(!closed_shell(&car, rect, &f, &ring, 2..11, 0.25));
-    let mut table = floor_volume(60, 80, 30);
-    for (r, c) in [(10, 10), (10, 48), (28, 10), (28, 48)] {
-        fill(&mut table, (r, r + 2), (c, c + 2), (2, 11), 0.95);
-    }
-    assert!(!closed_shell(&table, rect, &f, &ring, 2..11, 0.25));
-    let mut desk = floor_volume(60, 80, 30);
-    walls(&mut desk);
-    fill(&mut desk, (29, 30), (11, 49), (2, 11), 0.0);
-    assert!(!closed_shell(&desk, rect, &f, &ring, 2..11, 0.25));
-    // faint walls are no walls, and no levels make no shell
-    assert!(!closed_shell(&car, rect, &f, &ring, 2..11, 0.99));
-    assert!(!closed_shell(&car, rect, &f, &ring, 2..2, 0.25));
 }
 
 #[test]

@@ -14,7 +14,6 @@ use super::shape::{Part, at_least, border_ring, fill_holes, more_than, or_into};
 use crate::contours::components;
 use crate::image::{Mask, PixelRect};
 use crate::morphology::erode;
-use crate::planes::OpacityVolume;
 
 /// Whether the per-level areas (`area[k]`: occupied texels of the footprint at level `k`)
 /// show an object held above the surface ending at level `hi` on a stem: a run of at least
@@ -43,35 +42,6 @@ pub fn held_on_a_stem(area: &[usize], hi: usize, run_levels: usize, min_texels: 
 /// its blur or its body; most levels of a body covering most of it make it solid). Not
 /// tuned: the majority.
 const MOST: f32 = 0.5;
-
-/// Whether `levels` of footprint `f` (over `rect`, outline `ring`) form a closed shell: at
-/// most of them ([`MOST`]), the whole outline has a texel of opacity `ts` or more within one
-/// texel (a car's body, a side table's panels, a basin's wall; a table's legs, a desk's
-/// panels on three sides leave gaps). Not tuned: all of the outline (95% mined the basis
-/// and the suite the same; every outline, share 0, lost a stool of `random_2`).
-pub(super) fn closed_shell(
-    vol: &OpacityVolume,
-    rect: PixelRect,
-    f: &Mask,
-    ring: &Mask,
-    levels: std::ops::Range<usize>,
-    ts: f32,
-) -> bool {
-    let need = ring.count();
-    let walled = levels
-        .clone()
-        .filter(|&k| {
-            let at = Mask::from_fn(f.rows, f.cols, |r, c| {
-                f.get(r, c) && vol.column(rect.r0 + r, rect.c0 + c)[k] >= ts
-            });
-            let near = crate::morphology::dilate(&at, 1).unwrap_or(at);
-            let n = ring.data.iter().zip(&near.data).filter(|(a, b)| **a && **b).count();
-            n >= need
-        })
-        .count();
-    tracing::trace!(walled, levels = levels.len(), "outline walled in");
-    !levels.is_empty() && at_least(walled, MOST, levels.len())
-}
 
 /// A supported object found inside a part.
 #[derive(Debug, Clone)]
@@ -203,7 +173,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     let low_level = |k: usize| k.saturating_sub(start) < p.low_support_levels;
     let raise = p.blur_levels.max(1);
     let (h, w) = (rect.rows(), rect.cols());
-    // the footprint's outline: closed shells wall it in, seeds on it are a table's rim
+    // the footprint's outline: seeds on it are a table's rim
     let ring = border_ring(f);
     let mut found = None;
     for (i, &kw) in tops.iter().enumerate() {
@@ -234,13 +204,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         // the slab cover half of it, where a table's legs and ghost layers cover less)
         let below = lo.saturating_sub(start);
         let dense_below = (start..lo).filter(|&k| at_least(area[k], MOST, area[kstar])).count();
-        // (a closed shell is a solid body too: a car's body under its cabin, a side table's
-        // panels wall in the whole outline at most levels below the top, where a table's legs
-        // leave most of it open)
-        let solid = hi - lo + 1 > thin
-            || below >= thin
-                && (at_least(dense_below, MOST, below)
-                    || closed_shell(vol, rect, f, &ring, start..lo, ts));
+        let solid = hi - lo + 1 > thin || below >= thin && at_least(dense_below, MOST, below);
         if solid {
             lo = hi + 1 - thin;
         }
