@@ -139,6 +139,7 @@ pub enum Cut {
 
 impl Default for Cut {
     fn default() -> Self {
+        // fixed: a start for a cut mining does not use (its cuts are Separation and Silhouette)
         Cut::LargestGap { min_gap: 0.05 }
     }
 }

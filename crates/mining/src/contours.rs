@@ -115,7 +115,7 @@ fn follow(
     let d2 = dir_index(p2.0 as isize - start.0 as isize, p2.1 as isize - start.1 as isize);
     let mut p1 = None;
     for t in 0..8 {
-        let d = (d2 + 8 - t) % 8;
+        let d = (d2 + 8 - t) % 8; // fixed: the 8 neighbour directions
         let q = step(start, d);
         if f[at(q.0, q.1)] != 0 {
             p1 = Some(q);
@@ -134,8 +134,9 @@ fn follow(
         let dp = dir_index(prev.0 as isize - cur.0 as isize, prev.1 as isize - cur.1 as isize);
         let mut right_zero = false;
         let mut next = prev;
+        // fixed: the 8 neighbour directions
         for t in 1..=8 {
-            let d = (dp + t) % 8;
+            let d = (dp + t) % 8; // fixed: the 8 neighbour directions
             let q = step(cur, d);
             if f[at(q.0, q.1)] != 0 {
                 next = q;

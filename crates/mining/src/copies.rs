@@ -16,7 +16,7 @@
 //! must again be `T`'s rectangle.
 //!
 //! No value of its own is tuned: lengths compare within
-//! [`GroupOptions::height_tolerance`](crate::group::GroupOptions::height_tolerance) (a log
+//! [`GroupOptions::length_tolerance`](crate::group::GroupOptions::length_tolerance) (a log
 //! ratio), colours and profiles (Jensen-Shannon divergences, bits) within
 //! [`GroupOptions::min_separation`](crate::group::GroupOptions::min_separation). What it
 //! cannot tell apart is a single object that really is `k` times another (a long table
@@ -25,8 +25,9 @@
 use crate::detect::{Detection, Detections};
 use crate::image::{Mask, PixelRect};
 
-/// The most copies a region is tested for.
-pub const MAX_COPIES: usize = 3;
+/// The most copies a region is tested for (3). Without a bound, `random_6` at 2000
+/// iterations cut four more false objects (F1 0.814 -> 0.778) and no dev field gained.
+pub const MAX_COPIES: usize = 3; // tuned: group.max_copies
 
 /// A minimum-area rectangle around a footprint, in texels: the unit vector of its first
 /// side, the extents along that side and across it (`len` along `axis`, `wid` across; not
@@ -54,6 +55,7 @@ impl MinRect {
 /// empty mask.
 pub fn min_area_rect(mask: &Mask, row0: usize, col0: usize) -> Option<MinRect> {
     let h = mask.corner_hull(row0, col0);
+    // fixed: a polygon has 3 corners
     if h.len() < 3 {
         return None;
     }
@@ -373,6 +375,7 @@ mod tests {
             ground_level: 0,
             threshold: 0.5,
             voxel_threshold: 0.5,
+            blur_levels: 3,
             evidence: vec![1.0; rows * cols],
             mask: Mask::from_fn(rows, cols, |r, c| masks.iter().any(|m| m.get(r, c))),
             detections: masks.iter().enumerate().map(|(i, m)| detection(i, &grid, m)).collect(),

@@ -76,10 +76,12 @@ pub struct GroupOptions {
     /// a plant of one size and one colour differ there). 0: off, as in the paper.
     #[serde(default = "one")]
     pub profile_weight: f64,
-    /// Dead zone of the area ratio in the shape term (log ratio; 0.3 tolerates 35%).
-    pub area_tolerance: f64,
-    /// Dead zone of the height ratio in the shape term (log ratio; 0.15 tolerates 16%).
-    pub height_tolerance: f64,
+    /// Dead zone of a length ratio in the shape term (log ratio; 0.15 tolerates 16%, the
+    /// reconstruction noise between two instances of one object): heights compare within
+    /// it, footprint areas within twice it (an area is a length squared; it was a value of
+    /// its own, 0.3, twice this one).
+    #[serde(alias = "height_tolerance")]
+    pub length_tolerance: f64,
     /// Smallest merge height (JSD in bits plus the shape term) that can separate categories
     /// in the automatic cuts: two groups of objects closer than this are one category.
     /// Between instances of one object the distance is reconstruction noise (a few
@@ -97,16 +99,15 @@ pub struct GroupOptions {
 impl Default for GroupOptions {
     fn default() -> Self {
         GroupOptions {
-            labels: 24,
+            labels: 24, // tuned: group.labels
             soft: true,
             cut: GroupCut::Separation,
             linkage: Linkage::Average,
             shape_weight: 1.0,
             profile_weight: 1.0,
-            area_tolerance: 0.3,
-            height_tolerance: 0.15,
-            min_separation: 0.12,
-            max_samples: 40_000,
+            length_tolerance: 0.15, // tuned: group.length_tolerance
+            min_separation: 0.12,   // tuned: group.min_separation
+            max_samples: 40_000,    // fixed: a sample budget (80,000 mined the same)
             split_copies: true,
             seed: crate::kmeans::DEFAULT_SEED,
         }
@@ -162,6 +163,7 @@ impl Shape {
 /// Area (in texels) of the convex hull of the cells of a mask (each set texel a unit square).
 pub fn hull_area(mask: &crate::image::Mask) -> f32 {
     let hull = mask.corner_hull(0, 0);
+    // fixed: a polygon has 3 corners
     if hull.len() < 3 {
         return 0.0;
     }
@@ -173,10 +175,11 @@ pub fn hull_area(mask: &crate::image::Mask) -> f32 {
     (twice.abs() as f32) * 0.5
 }
 
-/// The shape term (before its weight).
-pub fn shape_distance(a: Shape, b: Shape, area_tol: f64, height_tol: f64) -> f64 {
+/// The shape term (before its weight): how far the log ratio of the heights exceeds the
+/// length tolerance, or that of the footprint areas twice it (an area is a length squared).
+pub fn shape_distance(a: Shape, b: Shape, length_tol: f64) -> f64 {
     let lr = |x: f32, y: f32| (f64::from(x.max(1e-6)) / f64::from(y.max(1e-6))).ln().abs();
-    (lr(a.area, b.area) - area_tol).max(lr(a.height, b.height) - height_tol).max(0.0)
+    (lr(a.area, b.area) - 2.0 * length_tol).max(lr(a.height, b.height) - length_tol).max(0.0)
 }
 
 /// Number of merges to apply: the cut lies where the next merge height is largest relative
@@ -315,6 +318,7 @@ impl Samples {
         for d in &dets.detections {
             for (r, c) in own_texels(d) {
                 let i = r * cols + c;
+                // fixed: a weight floor (every texel counts)
                 s.push(d.id, dets.evidence[i].max(1e-3), &feature.data[i * ch..(i + 1) * ch]);
             }
         }
@@ -322,7 +326,7 @@ impl Samples {
     }
 
     /// Samples from the object itself rather than its columns: the colour the field decodes
-    /// (seen along [`VOXEL_VIEW`]; in CIELAB, lightness at [`LIGHTNESS_WEIGHT`]) at the
+    /// (seen along [`VOXEL_VIEW`]; in CIELAB, a perceptually uniform space) at the
     /// object's [`voxel_sites`], weighted by their opacity. A crate on a pallet then has the
     /// colours of a crate on the floor, and two cars that differ only in paint differ in
     /// most of their samples rather than in a mixed column feature.
@@ -345,12 +349,14 @@ impl Samples {
             })
             .collect();
         let mut s = Samples {
-            dim: 3,
-            points: vec![0.0; 3 * sites.len()],
+            dim: 3,                             // fixed: CIELAB has 3 axes
+            points: vec![0.0; 3 * sites.len()], // fixed: CIELAB has 3 axes
+            // fixed: a weight floor (every voxel counts)
             weights: sites.iter().map(|x| x.opacity.max(1e-3)).collect(),
             owner: sites.iter().map(|x| x.owner as u32).collect(),
         };
-        const TILE: usize = 4096;
+        const TILE: usize = 4096; // fixed: a work size of the parallel loop
+        // fixed: three CIELAB axes per point
         s.points.par_chunks_mut(TILE * 3).zip(pos.par_chunks(TILE)).for_each_init(
             ColorWork::default,
             |work, (rgb, p)| {
@@ -358,14 +364,16 @@ impl Samples {
                 work.pos.extend_from_slice(p);
                 work.dir.resize(p.len(), VOXEL_VIEW);
                 field.color_forward(work);
-                rgb.copy_from_slice(&work.rgb[..p.len() * 3]);
+                rgb.copy_from_slice(&work.rgb[..p.len() * 3]); // fixed: RGB
             },
         );
         // CIELAB with the lightness at reduced weight: shading changes a colour's lightness
         // far more than its hue, and a ball lit from above is still one colour
+        // fixed: CIELAB has 3 axes
         s.points.par_chunks_mut(3).for_each(|p| {
             let [l, a, b] = srgb_to_lab([p[0], p[1], p[2]]);
-            p.copy_from_slice(&[LIGHTNESS_WEIGHT * l / 100.0, a / 100.0, b / 100.0]);
+            // fixed: CIELAB axes span about 100
+            p.copy_from_slice(&[l / 100.0, a / 100.0, b / 100.0]);
         });
         Ok(s)
     }
@@ -430,20 +438,20 @@ pub fn voxel_sites(vol: &OpacityVolume, dets: &Detections) -> Result<Vec<VoxelSi
 /// CIELAB (D65) of an sRGB colour with components in 0..1: `[L*, a*, b*]`, L* in 0..100.
 pub fn srgb_to_lab(rgb: [f32; 3]) -> [f32; 3] {
     let [r, g, b] = rgb.map(assetfield_core::canvas::srgb_to_linear);
+    // fixed: sRGB's primaries and D65 white (IEC 61966-2-1)
     let x = (0.412_456_4 * r + 0.357_576_1 * g + 0.180_437_5 * b) / 0.950_47;
+    // fixed: sRGB's primaries and D65 white (IEC 61966-2-1)
     let y = 0.212_672_9 * r + 0.715_152_2 * g + 0.072_175 * b;
+    // fixed: sRGB's primaries and D65 white (IEC 61966-2-1)
     let z = (0.019_333_9 * r + 0.119_192 * g + 0.950_304_1 * b) / 1.088_83;
     let f = |t: f32| {
-        const E: f32 = 216.0 / 24389.0;
-        const K: f32 = 24389.0 / 27.0;
-        if t > E { t.cbrt() } else { (K * t + 16.0) / 116.0 }
+        const E: f32 = 216.0 / 24389.0; // fixed: CIELAB (CIE 15)
+        const K: f32 = 24389.0 / 27.0; // fixed: CIELAB (CIE 15)
+        if t > E { t.cbrt() } else { (K * t + 16.0) / 116.0 } // fixed: CIELAB (CIE 15)
     };
     let (fx, fy, fz) = (f(x), f(y), f(z));
-    [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)]
+    [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)] // fixed: CIELAB (CIE 15)
 }
-
-/// Weight of CIELAB lightness against its two colour axes in [`Samples::from_voxels`].
-pub const LIGHTNESS_WEIGHT: f32 = 0.5;
 
 /// The direction the colours of [`Samples::from_voxels`] are decoded along: looking down at
 /// 45 degrees, as most training cameras of a ground scene do.
@@ -546,13 +554,18 @@ pub fn group_samples_with(
         fit.iter().flat_map(|&i| samples.points[i * ch..(i + 1) * ch].iter().copied()).collect();
     let w: Vec<f32> = fit.iter().map(|&i| samples.weights[i]).collect();
     let k = opts.labels.min(fit.len());
-    let km = kmeans(&pts, ch, Some(&w), &KMeansOptions { k, seed: opts.seed, max_iter: 60 })?;
+    let km = kmeans(
+        &pts,
+        ch,
+        Some(&w),
+        &KMeansOptions { k, seed: opts.seed, ..KMeansOptions::default() },
+    )?;
     // Hard labels, or soft memberships: exp(-(d_j^2 - d_min^2) / (2 s^2)) with s^2 the mean
     // squared distance of the points to their centroid, so that a colour the codebook
     // happens to split between two labels does not make identical objects look different.
     let s2 = (km.inertia / w.iter().map(|&x| f64::from(x)).sum::<f64>().max(1e-12)).max(1e-12);
     let soft = opts.soft;
-    const CHUNK: usize = 8192;
+    const CHUNK: usize = 8192; // fixed: a work size of the parallel loop
     let mut histograms: Vec<Vec<f64>> = (0..samples.len())
         .into_par_iter()
         .step_by(CHUNK)
@@ -600,8 +613,7 @@ pub fn group_samples_with(
     let jsd = jsd_matrix(&histograms)?;
     let distance = DistanceMatrix::from_fn(n, |i, j| {
         jsd.get(i, j).unwrap_or(0.0)
-            + opts.shape_weight
-                * shape_distance(shapes[i], shapes[j], opts.area_tolerance, opts.height_tolerance)
+            + opts.shape_weight * shape_distance(shapes[i], shapes[j], opts.length_tolerance)
             + if profiles.is_empty() {
                 0.0
             } else {
@@ -904,10 +916,10 @@ mod tests {
     #[test]
     fn shape_term_has_a_dead_zone() {
         let a = Shape { area: 1.0, height: 1.0 };
-        assert_eq!(shape_distance(a, Shape { area: 1.3, height: 0.95 }, 0.3, 0.15), 0.0);
-        let d = shape_distance(a, Shape { area: 2.0, height: 1.0 }, 0.3, 0.15);
+        assert_eq!(shape_distance(a, Shape { area: 1.3, height: 0.95 }, 0.15), 0.0);
+        let d = shape_distance(a, Shape { area: 2.0, height: 1.0 }, 0.15);
         assert!((d - (2f64.ln() - 0.3)).abs() < 1e-6);
-        let d = shape_distance(a, Shape { area: 1.0, height: 0.5 }, 0.3, 0.15);
+        let d = shape_distance(a, Shape { area: 1.0, height: 0.5 }, 0.15);
         assert!((d - (2f64.ln() - 0.15)).abs() < 1e-6);
     }
 }

@@ -15,10 +15,14 @@ use crate::image::{LabelImage, Mask, PlaneImage};
 use crate::rng::SplitMix64;
 
 /// Seed used by the convenience functions that take none.
-pub const DEFAULT_SEED: u64 = 0x5EED_A55E;
+pub const DEFAULT_SEED: u64 = 0x5EED_A55E; // fixed: a seed
+
+/// Default bound on Lloyd's iterations (a guard: every K-means of mining uses it; the
+/// grouping's codebook had 60 of its own, and the basis and the suite mine the same with 100).
+pub const MAX_ITER: usize = 100; // fixed: an iteration guard
 
 /// Points per parallel work item (fixed, so reductions do not depend on the thread count).
-const CHUNK: usize = 2048;
+const CHUNK: usize = 2048; // fixed: a work size of the parallel loop
 
 /// Parameters of [`kmeans`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -26,6 +30,8 @@ pub struct KMeansOptions {
     /// Number of clusters (at least 1, at most the number of points).
     pub k: usize,
     /// Maximum number of Lloyd iterations (0: only the K-means++ seeding and one assignment).
+    /// A guard, not a tuned value: Lloyd's iterations stop when no label changes, and the
+    /// default, [`MAX_ITER`], only bounds a run that would cycle.
     pub max_iter: usize,
     /// Seed of the K-means++ sampling.
     pub seed: u64,
@@ -33,7 +39,7 @@ pub struct KMeansOptions {
 
 impl Default for KMeansOptions {
     fn default() -> Self {
-        KMeansOptions { k: 2, max_iter: 100, seed: DEFAULT_SEED }
+        KMeansOptions { k: 2, max_iter: MAX_ITER, seed: DEFAULT_SEED }
     }
 }
 

@@ -25,26 +25,59 @@ use crate::library::{Entry, EntryKind, LibraryIndex};
 /// is at most R times the median of the residuals measured on the same kind of patch (a
 /// compact layout, as in the paper's reconfiguration; rotating a template resamples it, which
 /// costs detail on thin parts).
-pub const OWN_PATCH_RESIDUAL: f32 = 0.0;
+pub const OWN_PATCH_RESIDUAL: f32 = 0.0; // fixed: a choice (own patches everywhere)
 
-/// Residuals of one kind needed for a median that can judge an instance's fit.
-const MIN_RESIDUALS: usize = 3;
+/// Residuals of one kind needed for a median that can judge an instance's fit (the fewest
+/// with a median that is not one of two extremes).
+const MIN_RESIDUALS: usize = 3; // fixed: the smallest sample with a median
 
-fn round3(v: f32) -> f32 {
-    (v * 1000.0).round() / 1000.0
+/// A layout script shows lengths to the decimal place where a texel's this-many-th part
+/// shows: finer than anything a field resolves, and in the capture's own unit (millimetres
+/// for the suite's 2.4-7.7 cm texels, whatever unit COLMAP solved a capture in).
+/// Presentation, not a tuned value.
+const TEXEL_PARTS_SHOWN: f32 = 20.0; // fixed: printed precision
+
+/// Degrees are shown to the thousandth.
+fn round_deg(v: f32) -> f32 {
+    (v * 1000.0).round() / 1000.0 // fixed: printed precision
+}
+
+/// How lengths are rounded in a layout script (see [`TEXEL_PARTS_SHOWN`]).
+#[derive(Debug, Clone, Copy)]
+struct Lengths {
+    /// `10^places`.
+    scale: f32,
+}
+
+impl Lengths {
+    fn of(index: &LibraryIndex) -> Self {
+        let texel = index.texel_size.0.min(index.texel_size.1);
+        let places = if texel.is_finite() && texel > 0.0 {
+            // fixed: decimal places f32 holds
+            (TEXEL_PARTS_SHOWN / texel).log10().ceil().clamp(0.0, 9.0) as i32
+        } else {
+            3 // fixed: millimetres when the texel is unknown
+        };
+        Lengths { scale: 10f32.powi(places) } // fixed: decimal
+    }
+
+    fn round(self, v: f32) -> f32 {
+        (v * self.scale).round() / self.scale
+    }
 }
 
 /// The layout asset of a library entry in `category` (its patch at the entry's extent, its
-/// pivot where it is off the patch centre, sizes rounded to the millimetre), with its height.
-fn library_asset(e: &Entry, category: &str, library_path: &str) -> (AssetDef, f32) {
-    let size = (round3(e.extent.0), round3(e.extent.1), round3(e.extent.2.max(1e-3)));
+/// pivot where it is off the patch centre, lengths rounded by `len`), with its height.
+fn library_asset(e: &Entry, category: &str, library_path: &str, len: Lengths) -> (AssetDef, f32) {
+    let size =
+        (len.round(e.extent.0), len.round(e.extent.1), len.round(e.extent.2).max(1.0 / len.scale));
     let pivot = e.pivot_offset();
-    let pivot = (round3(pivot.x), round3(pivot.y));
+    let pivot = (len.round(pivot.x), len.round(pivot.y));
     let def = AssetDef {
         parts: Vec::new(),
         obj: None,
         category: Some(category.to_string()),
-        yaw_symmetry_deg: 360.0,
+        yaw_symmetry_deg: 360.0, // fixed: a full turn (no symmetry known)
         container: false,
         library: Some(LibraryRef {
             path: library_path.to_string(),
@@ -73,6 +106,8 @@ pub fn layout_script(
     own_patch_residual: f32,
 ) -> Result<Script> {
     let display = |entry: &str| names.get(entry).cloned().unwrap_or_else(|| entry.to_string());
+    let len = Lengths::of(index);
+    let texel = index.texel_size.0.min(index.texel_size.1);
     let mut assets = BTreeMap::new();
     let mut heights = BTreeMap::new();
     for c in &index.categories {
@@ -83,7 +118,7 @@ pub fn layout_script(
                 c.name, c.template
             ),
         })?;
-        let (def, height) = library_asset(t, &c.name, library_path);
+        let (def, height) = library_asset(t, &c.name, library_path, len);
         heights.insert(c.name.clone(), height);
         assets.insert(c.name.clone(), def);
     }
@@ -120,7 +155,7 @@ pub fn layout_script(
     for e in &index.entries {
         let own = e.kind == EntryKind::Instance && (e.residual < 0.0 || e.residual > cut(e));
         let (asset, t) = if own {
-            let (def, height) = library_asset(e, &e.category, library_path);
+            let (def, height) = library_asset(e, &e.category, library_path, len);
             assets.insert(e.name.clone(), def);
             heights.insert(e.name.clone(), height);
             (e.name.clone(), GroundTransform::new(e.pivot_world(), 0.0, 1.0, 0.0))
@@ -140,8 +175,8 @@ pub fn layout_script(
         match e.supported_by.as_deref() {
             None => layout.push(Item::Instance {
                 asset,
-                at: (round3(t.position.x), round3(t.position.y)),
-                yaw: round3(t.yaw_deg),
+                at: (len.round(t.position.x), len.round(t.position.y)),
+                yaw: round_deg(t.yaw_deg),
                 scale: 1.0,
                 base: 0.0,
                 name: Some(display(&e.name)),
@@ -157,13 +192,15 @@ pub fn layout_script(
                     })?;
                 let local = pt.inverse_transform_point2(t.position);
                 let top = heights.get(&passet).copied().unwrap_or(0.0);
-                let base = round3(e.base - top);
+                let base = len.round(e.base - top);
                 children.entry(parent).or_default().push(Item::Instance {
                     asset,
-                    at: (round3(local.x), round3(local.y)),
-                    yaw: round3(wrap_degrees(t.yaw_deg - pt.yaw_deg)),
+                    at: (len.round(local.x), len.round(local.y)),
+                    yaw: round_deg(wrap_degrees(t.yaw_deg - pt.yaw_deg)),
                     scale: 1.0,
-                    base: if base.abs() < 5e-3 { 0.0 } else { base },
+                    // within half a level of its host's top (the voxels are cubic: half a
+                    // texel), it stands on it: the field resolves no finer
+                    base: if base.abs() < 0.5 * texel { 0.0 } else { base },
                     name: Some(
                         display(&e.name)
                             .strip_prefix(&format!("{}/", display(parent)))
@@ -237,6 +274,21 @@ mod tests {
             entries,
             containers: vec![],
         }
+    }
+
+    #[test]
+    fn lengths_are_shown_to_a_twentieth_of_a_texel_in_any_unit() {
+        let at = |texel: f32, v: f32| Lengths::of(&index_of(texel, vec![], vec![])).round(v);
+        // the suite's texels (metres): millimetres
+        assert_eq!(at(0.028, 1.234_567), 1.235);
+        assert_eq!(at(0.077, 1.234_567), 1.235);
+        // the same scene in centimetres: tenths of a centimetre, the same length
+        assert_eq!(at(2.8, 123.456_7), 123.5);
+        // a capture solved in tiny units keeps its detail
+        assert!((at(0.000_28, 0.012_345_67) - 0.012_35).abs() < 1e-7);
+        assert!(at(0.000_28, 0.000_9) > 0.0);
+        // a degenerate texel falls back to thousandths
+        assert_eq!(at(0.0, 1.234_567), 1.235);
     }
 
     #[test]

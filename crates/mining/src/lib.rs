@@ -35,6 +35,7 @@ pub mod pose;
 pub mod regroup;
 mod rng;
 pub mod rotate;
+pub mod tuned;
 pub mod yaw;
 
 pub use agglomerative::{Cut, Dendrogram, DistanceMatrix, Linkage, Merge, agglomerative, linkage};

@@ -167,7 +167,7 @@ pub struct MineReport {
     pub seconds: f64,
 }
 
-const STEPS: usize = 7;
+const STEPS: usize = 7; // fixed: progress steps
 
 /// The detection evidence picture colours (row 0 = ymin).
 fn evidence_colors(dets: &Detections) -> Vec<[u8; 3]> {
@@ -466,7 +466,7 @@ pub fn mine(
     }
     check_interrupt()?;
 
-    progress.step(3, STEPS, "grouping into categories");
+    progress.step(3, STEPS, "grouping into categories"); // fixed: progress step
     // the grouping of a set of detections, with their sharp vertical profiles; objects on
     // different supports are compared with their profiles blurred by the field's vertical
     // blur (`blur_levels`: a base is estimated within it), copies standing on one ground
@@ -503,7 +503,7 @@ pub fn mine(
                     .max(profile_jsd(&sharp[i], &sharp[j]))
             },
             g.min_separation,
-            g.height_tolerance,
+            g.length_tolerance,
         )
     } else {
         Vec::new()
@@ -513,7 +513,7 @@ pub fn mine(
     }
     check_interrupt()?;
 
-    progress.step(4, STEPS, "matching templates (yaw)");
+    progress.step(4, STEPS, "matching templates (yaw)"); // fixed: progress step
     let mut pose_opts = opts.pose.clone();
     for (c, d) in &opts.templates {
         pose_opts.templates.push((parse_category(c, grouping.n_categories)?, *d));
@@ -527,11 +527,11 @@ pub fn mine(
         &pose_opts,
     )?;
     // every object turns about the centre of its ground contact (a lamp about its pole)
-    let pivots = contact_pivots(&vol, &dets);
+    let pivots = contact_pivots(&vol, &dets, opts.pose.yaw.max_offset);
     poses.to_pivots(&dets, &grouping.category, &pivots);
     check_interrupt()?;
 
-    progress.step(5, STEPS, "writing the library");
+    progress.step(5, STEPS, "writing the library"); // fixed: progress step
     let source = field_path.display().to_string();
     let (index, patches) = build_library(
         &source,
@@ -595,8 +595,8 @@ pub fn mine(
     write_atomic(&dir.join("layout.ron"), text.as_bytes())?;
     check_interrupt()?;
 
-    progress.step(6, STEPS, "pictures and metrics");
-    let scale = picture_scale(grid.rows, grid.cols, 900);
+    progress.step(6, STEPS, "pictures and metrics"); // fixed: progress step
+    let scale = picture_scale(grid.rows, grid.cols, 900); // fixed: picture size in pixels
     let boxes: Vec<BoxMark> = dets
         .detections
         .iter()

@@ -11,7 +11,9 @@
 //! lies beside the box centre, is a compact post (at most [`MAX_CONTACT_SHARE`] of the
 //! object, its box at most [`MAX_CONTACT_ASPECT`] times longer than wide), and a column
 //! rises from it through at least [`MIN_COLUMN_SHARE`] of the object's height (a pole
-//! carrying an arm); pivots within [`SNAP_TEXELS`] of the centre snap to it.
+//! carrying an arm); a pivot within the pose search's sub-texel offset bound of the centre
+//! ([`crate::yaw::YawOptions::max_offset`], half the field's blur: what a pose cannot tell
+//! apart) is the centre.
 //!
 //! Every decision is logged with `tracing` at debug level; at trace level also the contact
 //! map of objects whose pivot stays centred (`#` contact, `+` touched in too few levels, `o`
@@ -22,41 +24,38 @@ use glam::Vec2;
 use crate::detect::{Detection, Detections};
 use crate::planes::OpacityVolume;
 
-/// Share of an object's height counted as its contact band (at least [`MIN_BAND_LEVELS`]
-/// levels): a chair's legs, a lamp's foot, a car's wheels.
-pub const CONTACT_BAND: f32 = 0.1;
-
-/// Fewest levels in the contact band.
-pub const MIN_BAND_LEVELS: usize = 2;
-
-/// A pivot this close to the box centre (in texels) is the box centre.
-pub const SNAP_TEXELS: f32 = 1.5;
+/// Share of an object's height counted as its contact band (at least the field's vertical
+/// blur, [`Detections::blur_levels`], so that the band reaches past the blur of the surface
+/// it stands on: 2 levels mined positions worse on two dev fields, `random_6` at 2000
+/// iterations and the suite's living room): a chair's legs, a lamp's foot, a car's wheels.
+pub const CONTACT_BAND: f32 = 0.1; // tuned: pivot.contact_band
 
 /// Largest share of an object's own texels its contact may cover for the pivot to leave the
 /// box centre.
-pub const MAX_CONTACT_SHARE: f32 = 0.25;
+pub const MAX_CONTACT_SHARE: f32 = 0.25; // tuned: pivot.max_contact_share
 
 /// Largest aspect ratio of the contact's box for the pivot to leave the box centre: a post
 /// (a pole, a trunk), not a panel or a strip of a neighbour's foot.
-pub const MAX_CONTACT_ASPECT: f32 = 2.0;
+pub const MAX_CONTACT_ASPECT: f32 = 2.0; // tuned: pivot.max_contact_aspect
 
 /// Smallest share of the levels from the contact to the object's top at which the contact's
 /// box must be occupied (a column carrying the object, not a neighbour's foot in its mask).
-pub const MIN_COLUMN_SHARE: f32 = 0.8;
+pub const MIN_COLUMN_SHARE: f32 = 0.8; // tuned: pivot.min_column_share
 
 /// World centre of a detection's box.
 pub fn box_centre(d: &Detection) -> Vec2 {
     (d.world.min + d.world.max) * 0.5
 }
 
-/// The pivot of every detection (world XY), in detection order.
-pub fn contact_pivots(vol: &OpacityVolume, dets: &Detections) -> Vec<Vec2> {
-    dets.detections.iter().map(|d| contact_pivot(vol, dets, d)).collect()
+/// The pivot of every detection (world XY), in detection order; `snap_texels` is the pose
+/// search's offset bound ([`crate::yaw::YawOptions::max_offset`]).
+pub fn contact_pivots(vol: &OpacityVolume, dets: &Detections, snap_texels: f32) -> Vec<Vec2> {
+    dets.detections.iter().map(|d| contact_pivot(vol, dets, d, snap_texels)).collect()
 }
 
 /// The pivot of one detection (see the module docs); its box centre when nothing of it
-/// touches the ground in the volume.
-pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> Vec2 {
+/// touches the ground in the volume, or when the pivot lies within `snap_texels` of it.
+pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection, snap: f32) -> Vec2 {
     let centre = box_centre(d);
     if vol.nz == 0 || vol.dz <= 0.0 || vol.rows != dets.grid.rows || vol.cols != dets.grid.cols {
         return centre;
@@ -65,7 +64,7 @@ pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> V
     let (k_base, _) = vol.levels_between(d.base, d.top);
     let k0 = if d.parent.is_some() { k_base } else { k_base.max(dets.start_level) };
     let band =
-        (((d.top - d.base).max(0.0) * CONTACT_BAND / vol.dz).ceil() as usize).max(MIN_BAND_LEVELS);
+        (((d.top - d.base).max(0.0) * CONTACT_BAND / vol.dz).ceil() as usize).max(dets.blur_levels);
     let k1 = (k0 + band).min(vol.nz);
     if k0 >= k1 {
         return centre;
@@ -99,7 +98,7 @@ pub fn contact_pivot(vol: &OpacityVolume, dets: &Detections, d: &Detection) -> V
     }
     let pivot = dets.grid.to_world((cmin + cmax) as f32 * 0.5, (rmin + rmax) as f32 * 0.5);
     let texel = Vec2::new(dets.grid.texel[0], dets.grid.texel[1]);
-    if ((pivot - centre) / texel).length() <= SNAP_TEXELS {
+    if ((pivot - centre) / texel).length() <= snap {
         if tracing::enabled!(tracing::Level::TRACE) {
             let mut map = String::new();
             for r in 0..d.rect.rows() {

@@ -74,7 +74,9 @@ impl PlaneGrid {
         let (c0, r0) = self.to_texel(w.min);
         let (c1, r1) = self.to_texel(w.max);
         // cell k covers [k - 0.5, k + 0.5); edges exactly on a cell border do not touch it
+        // fixed: rounding slack, far below one texel
         let lo = |v: f32| (v + 0.5 + 1e-4).floor().max(0.0);
+        // fixed: rounding slack, far below one texel
         let hi = |v: f32, n: usize| (v + 0.5 - 1e-4).ceil().min(n as f32);
         let rect = PixelRect::new(
             lo(r0) as usize,

@@ -136,26 +136,30 @@ impl Poses {
     }
 }
 
-/// Texels added to the radius both patches of a pair are grown to (see [`estimate_poses`]):
-/// the centroid alignment and bilinear taps reach a little past the offset search's bound.
-pub const ROTATION_SLACK_TEXELS: f32 = 2.0;
+/// Texels added to the radius both patches of a pair are grown to (see [`estimate_poses`]),
+/// past the offset search's bound: a bilinear tap reaches one texel further, and the disc is
+/// rounded to whole texels (one more). Geometry, not a tuned value.
+pub const ROTATION_SLACK_TEXELS: f32 = 2.0; // fixed: geometry
 
 /// Two yaw estimates of a pair at most this many coarse steps apart are in the same basin
 /// (see [`estimate_poses`]): golden-section refinement starts within one step of a coarse
-/// minimum and may settle on either side of it.
-pub const SAME_BASIN_STEPS: f32 = 2.0;
+/// minimum and may settle on either side of it, so two refinements of one basin end at most
+/// two steps apart. Geometry, not a tuned value.
+pub const SAME_BASIN_STEPS: f32 = 2.0; // fixed: geometry
 
 /// How many times worse the tight pose must score than the wide search's pose, on the wide
 /// patches, for [`match_pair`] to move to the wide pose's basin (a ratio of weighted mean
 /// residuals). Round or square objects have many basins of nearly equal residual and keep
 /// their tight pose: ratios of 1.0-1.1 measured on fountains, against 5.7 for a street lamp
 /// that tight crops turned 114 degrees the wrong way.
-pub const DECISIVE_RESIDUAL_RATIO: f32 = 2.0;
+pub const DECISIVE_RESIDUAL_RATIO: f32 = 2.0; // tuned: pose.decisive_residual_ratio
 
 /// Parameters of [`estimate_poses`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PoseOptions {
-    /// Patch margin around the bounding boxes, in texels.
+    /// Patch margin around the bounding boxes, in texels. By default the field's blur,
+    /// [`DetectParams::blur_levels`](crate::detect::DetectParams::blur_levels): a patch holds
+    /// its object's blurred edge, which spreads as far across as up (the voxels are cubic).
     pub margin: usize,
     /// Template overrides: (category, detection).
     pub templates: Vec<(usize, usize)>,
@@ -164,7 +168,11 @@ pub struct PoseOptions {
 
 impl Default for PoseOptions {
     fn default() -> Self {
-        PoseOptions { margin: 3, templates: Vec::new(), yaw: YawOptions::default() }
+        PoseOptions {
+            margin: crate::detect::DetectParams::default().blur_levels,
+            templates: Vec::new(),
+            yaw: YawOptions::default(),
+        }
     }
 }
 

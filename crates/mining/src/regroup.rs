@@ -33,10 +33,10 @@ use rayon::prelude::*;
 /// Opacity above which a voxel counts as occupied in an entry's vertical profile: a
 /// library keeps no scene's own threshold, so the scale-free middle of the opacity range
 /// (more likely opaque than not) stands for all of them.
-pub const PROFILE_VOXEL_THRESHOLD: f32 = 0.5;
+pub const PROFILE_VOXEL_THRESHOLD: f32 = 0.5; // fixed: the middle
 
 /// Smallest sample weight (opacity) of an own texel, so that a faint texel still counts.
-const MIN_SAMPLE_WEIGHT: f32 = 1e-3;
+const MIN_SAMPLE_WEIGHT: f32 = 1e-3; // fixed: a weight floor (every texel counts)
 
 /// What [`regroup`] measured and decided.
 #[derive(Debug, Clone)]

@@ -68,18 +68,21 @@ pub struct YawOptions {
 }
 
 fn default_starts() -> usize {
-    3
+    3 // tuned: pose.yaw.starts
 }
 
 /// The search mining runs ([`crate::pose::PoseOptions`] takes it as it is): a 4-degree coarse
-/// scan, refined to 0.05 degrees, offsets within 1.5 texels (the blur of a patch's edge).
+/// scan, refined to 0.05 degrees, offsets within half the field's blur
+/// ([`DetectParams::blur_levels`](crate::detect::DetectParams::blur_levels), 3 texels across
+/// as up, the voxels being cubic): a blurred edge lies anywhere within it, so a patch's
+/// position is known to half of it either way (1.5 texels, which was a value of its own).
 impl Default for YawOptions {
     fn default() -> Self {
         YawOptions {
-            step_deg: 4.0,
-            period_deg: 360.0,
-            tol_deg: 0.05,
-            max_offset: 1.5,
+            step_deg: 4.0,     // tuned: pose.yaw.step_deg
+            period_deg: 360.0, // fixed: a full turn (no symmetry known)
+            tol_deg: 0.05,     // fixed: a precision (0.01 mined the same, medians within 0.002 deg)
+            max_offset: 0.5 * crate::detect::DetectParams::default().blur_levels as f32,
             align_centroids: true,
             region: CompareRegion::Overlap,
             starts: default_starts(),
@@ -210,11 +213,13 @@ fn refine(p: &Problem<'_>, start: Pose, step: f64, tol: f64, m: f32) -> Pose {
         // Alternate offset and angle refinement with shrinking brackets: a sub-texel shift
         // can masquerade as a small rotation at zero offset, so the first angle pass must be
         // allowed to move back by up to half a coarse step.
+        // fixed: the refinement's shrinking brackets (degrees), ending at the precision
         for (round, half) in [0.5 * step, 1.0, 0.25].into_iter().enumerate() {
+            // fixed: the refinement's shrinking offset steps
             best = compass(p, best, m, 0.25 * m * 0.5f32.powi(round as i32));
             best = golden_theta(p, best, half.max(2.0 * tol), tol * 0.5);
         }
-        best = compass(p, best, m, 1.0 / 16.0);
+        best = compass(p, best, m, 1.0 / 16.0); // fixed: the refinement's last offset step (texels)
     }
     best
 }
@@ -285,6 +290,7 @@ fn check_options(o: &YawOptions) -> Result<()> {
     if !(o.step_deg.is_finite() && o.step_deg > 0.0) {
         return Err(bad("step_deg", o.step_deg));
     }
+    // fixed: a full turn
     if !(o.period_deg.is_finite() && o.period_deg > 0.0 && o.period_deg <= 360.0) {
         return Err(bad("period_deg", o.period_deg));
     }
@@ -307,7 +313,7 @@ struct Pose {
 /// Golden-section search of the angle over `[theta - half, theta + half]`, offset fixed;
 /// never returns a pose worse than `start`.
 fn golden_theta(p: &Problem<'_>, start: Pose, half: f64, tol: f64) -> Pose {
-    let g = (5f64.sqrt() - 1.0) * 0.5;
+    let g = (5f64.sqrt() - 1.0) * 0.5; // fixed: the golden section
     let f = |t: f64| p.residual(t, start.delta);
     let (mut a, mut b) = (start.theta - half, start.theta + half);
     let mut c = b - g * (b - a);
@@ -341,6 +347,7 @@ fn golden_theta(p: &Problem<'_>, start: Pose, half: f64, tol: f64) -> Pose {
 fn compass(p: &Problem<'_>, start: Pose, limit: f32, step: f32) -> Pose {
     let mut best = start;
     let mut s = step;
+    // fixed: the offset precision (texels)
     while s >= 1.0 / 32.0 {
         let mut moved = false;
         for (ux, uy) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
@@ -565,6 +572,7 @@ impl<'a> Problem<'a> {
                     row_acc += w * e;
                     row_w += w;
                 } else {
+                    // fixed: a coverage floor (no overlap)
                     if !inside || cov <= 1e-4 {
                         continue;
                     }

@@ -157,7 +157,7 @@ pub struct MineArgs {
     pub no_copies: bool,
     /// Number of labels the grouping features are discretised into (K-means over the
     /// objects' texels or voxels, weighted by opacity).
-    #[arg(long, default_value_t = 24)]
+    #[arg(long, default_value_t = assetfield_mining::group::GroupOptions::default().labels)]
     pub labels: usize,
     /// Number of categories [default: automatic, see --auto-cut].
     #[arg(long, conflicts_with = "distance")]
@@ -209,9 +209,10 @@ pub struct MineArgs {
     /// K) instead of the medoid. Repeatable.
     #[arg(long, value_name = "CATEGORY=INDEX")]
     pub template: Vec<String>,
-    /// Margin around each object's box in its patches, in texels.
-    #[arg(long, default_value_t = 3)]
-    pub margin: usize,
+    /// Margin around each object's box in its patches, in texels [default: the detection's
+    /// vertical blur, 3 levels: a patch holds the blurred edge of its object].
+    #[arg(long)]
+    pub margin: Option<usize>,
     /// BEV IoU a detection needs to match a ground-truth box (with --gt).
     #[arg(long, default_value_t = 0.5)]
     pub iou: f32,
@@ -427,7 +428,7 @@ pub fn mine(a: MineArgs) -> Result<()> {
     if let Some(y) = a.yaw_on {
         o.yaw_on = y.choice();
     }
-    o.pose.margin = a.margin;
+    o.pose.margin = a.margin.unwrap_or(o.detect.blur_levels);
     o.templates = a.template.iter().map(|t| parse_template(t)).collect::<Result<_>>()?;
     o.gt = a.gt.clone();
     o.iou = a.iou;

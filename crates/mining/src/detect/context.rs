@@ -66,6 +66,7 @@ impl<'a> Ctx<'a> {
                 ground_tilt(vol, floor.map(|f| (f, surfaces.as_slice())), p)
             && degrees > MAX_GROUND_TILT_DEG
         {
+            // fixed: percent
             return Err(MiningError::TiltedGround { degrees, coverage_pct: 100.0 * coverage });
         }
         // the floor's top spreads over the field's vertical blur (`blur_levels` levels from
@@ -102,9 +103,11 @@ impl<'a> Ctx<'a> {
             });
         }
         let (tau_e, above) = super::evidence::kmeans_threshold(&evidence, p.k, p.seed)?;
-        // voxels: the same threshold (the voxel opacities are per level spacing)
-        let (lo, hi) = p.voxel_threshold_range;
-        let tau = tau_e.clamp(lo, hi);
+        // voxels: the same threshold (the voxel opacities are per level spacing, and the
+        // evidence is opacity, so the first round's split between empty and occupied serves
+        // both; it was clamped to 0.1-0.9, which no dev field ever reached)
+        let tau = tau_e;
+        // fixed: a guard (a 2 x 2 footprint has an inside)
         let min_texels = p.min_area_texels.max(4);
         let ground = ground_level(vol, floor, start, tau, min_texels);
         Ok(Ctx {
@@ -148,4 +151,4 @@ impl<'a> Ctx<'a> {
 
 /// No texel of a field with any object in it stays below this evidence (opacity): a field
 /// below it everywhere failed to train. Not tuned: a sanity bound.
-const EMPTY_EVIDENCE: f32 = 0.01;
+const EMPTY_EVIDENCE: f32 = 0.01; // fixed: a sanity bound

@@ -34,7 +34,7 @@ impl fmt::Display for RemovalReason {
             RemovalReason::Wall { thickness, length } => write!(
                 f,
                 "wall: a thin ({thickness:.1} texels) and long ({:.0}% of the plane) structure",
-                100.0 * length
+                100.0 * length // fixed: percent
             ),
         }
     }
@@ -49,7 +49,7 @@ pub(super) fn wall(cx: &Ctx, m: &Mask, rect: crate::image::PixelRect) -> Option<
     if !p.walls_on() {
         return None;
     }
-    let half = erosions_to_vanish(m, 64);
+    let half = erosions_to_vanish(m, 64); // fixed: a bound far past any wall thickness
     let length = rect.rows().max(rect.cols()) as f32 / cx.grid.rows.max(cx.grid.cols) as f32;
     (half as f32 <= p.wall_half_thickness_texels && length >= WALL_MIN_LENGTH)
         .then_some(RemovalReason::Wall { thickness: 2.0 * half as f32, length })
@@ -57,7 +57,7 @@ pub(super) fn wall(cx: &Ctx, m: &Mask, rect: crate::image::PixelRect) -> Option<
 
 /// A wall runs along at least this share of the plane's longer side. Not tuned: half (a
 /// room's shell runs along whole sides; a quarter mined the basis the same).
-pub const WALL_MIN_LENGTH: f32 = 0.5;
+pub const WALL_MIN_LENGTH: f32 = 0.5; // fixed: the majority
 
 /// Judge one part: the reason it is background, if it is.
 pub(super) fn judge(cx: &Ctx, p: &Part) -> Result<(), RemovalReason> {

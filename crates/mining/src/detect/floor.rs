@@ -22,7 +22,7 @@ pub struct FloorBand {
 
 /// Opacity at which a voxel counts towards a level's floor coverage. Not tuned: the
 /// midpoint of the opacity range.
-const FLOOR_OPACITY: f32 = 0.5;
+const FLOOR_OPACITY: f32 = 0.5; // fixed: the middle
 
 /// Per column, the level where the opacity accumulated from the top first reaches one half:
 /// the surface a camera looking straight down would see (`None`: the column stays more
@@ -45,11 +45,11 @@ pub fn surface_levels(vol: &OpacityVolume) -> Vec<Option<usize>> {
 /// share of the columns of the level below: a gently tilted or stepped floor spreads evenly
 /// over a few levels; the lowest parts of objects are much sparser. Not tuned: half (0.4
 /// mined the basis and the suite the same).
-const FLOOR_STEP_SHARE: f32 = 0.5;
+const FLOOR_STEP_SHARE: f32 = 0.5; // fixed: the majority
 
 /// The transmittance from above at which a column's surface is reached. Not tuned: the
 /// midpoint, where a ray from above has even odds of having stopped.
-const SURFACE_TRANSMITTANCE: f32 = 0.5;
+const SURFACE_TRANSMITTANCE: f32 = 0.5; // fixed: the middle
 
 /// Find the floor: the lowest surface seen from above over a large part of the plane. Each
 /// column's surface is the level where the opacity accumulated from the top reaches one
@@ -185,7 +185,7 @@ pub fn ground_level(
 /// planes (degrees): a levelled capture (`--align-ground pca`) is within about one degree,
 /// and a slab tilted by 3 degrees rises by 5% of the plane's width, more than the floor
 /// search's coverage rule tolerates.
-pub const MAX_GROUND_TILT_DEG: f32 = 3.0;
+pub const MAX_GROUND_TILT_DEG: f32 = 3.0; // tuned: detect.max_ground_tilt_deg
 
 /// The tilt of the ground slab. With a floor found (with the columns' [`surface_levels`]),
 /// its top seen from above: every column whose surface is the floor's (at or below

@@ -60,10 +60,10 @@ use context::Ctx;
 use shape::Part;
 
 pub use filters::RemovalReason;
-pub use floor::{FloorBand, floor_band};
+pub use floor::{FloorBand, MAX_GROUND_TILT_DEG, floor_band};
 pub use merge::drop_duplicates;
 pub use params::{DetectParams, Evidence, Filters, Preset, Stages};
-pub use shape::{fill_holes, robust_top_level};
+pub use shape::{SMOOTH_KEEP, fill_holes, robust_top_level};
 pub use unpack::held_on_a_stem;
 
 /// One detected object.
@@ -119,6 +119,9 @@ pub struct Detections {
     pub threshold: f32,
     /// Voxel opacity above which a voxel is occupied (3D separation, second round).
     pub voxel_threshold: f32,
+    /// The field's vertical blur the detection assumed ([`DetectParams::blur_levels`],
+    /// levels; the same number of texels across, the voxels being cubic).
+    pub blur_levels: usize,
     /// The first-round evidence map (`rows * cols`).
     pub evidence: Vec<f32>,
     /// The cleaned first-round object mask.
@@ -183,6 +186,7 @@ fn finish(cx: Ctx, mask: Mask, detections: Vec<Detection>, removed: Vec<Removed>
         ground_level: cx.ground,
         threshold: cx.tau_e,
         voxel_threshold: cx.tau,
+        blur_levels: cx.p.blur_levels,
         evidence: cx.evidence,
         mask,
         detections,
@@ -228,10 +232,7 @@ fn parts_of_regions(cx: &Ctx, mask: &Mask, removed: &mut Vec<Removed>) -> Result
             split.extend(split::split_region(cx, reg.bbox, piece));
         }
         let split = if p.stages.split_colour {
-            split
-                .into_iter()
-                .flat_map(|part| colour::split_by_colour(cx, &pcs, part, p.colour.depth))
-                .collect()
+            split.into_iter().flat_map(|part| colour::split_by_colour(cx, &pcs, part)).collect()
         } else {
             split
         };

@@ -179,7 +179,7 @@ pub(super) fn split_region(cx: &Ctx, rect: PixelRect, cols: &Mask) -> Vec<Part> 
         let mut big: Vec<(usize, usize, usize)> =
             bl.iter().map(|b| (b.proj_count, b.kmin, b.kmax)).collect();
         big.sort_by_key(|b| std::cmp::Reverse(b.0));
-        big.truncate(8);
+        big.truncate(8); // fixed: a log line shows the 8 largest
         tracing::debug!(
             ?rect,
             blobs = bl.len(),

@@ -18,7 +18,6 @@ fn params() -> DetectParams {
         blur_levels: 2,
         wall_half_thickness_texels: 2.0,
         bridge_radius_texels: 1,
-        thin_radius_texels: 2,
         low_support_levels: 5,
         ..Default::default()
     }
@@ -279,7 +278,7 @@ fn pivots_sit_at_the_centre_of_the_ground_contact() {
         "{:?}",
         d.removed
     );
-    let pivots = crate::pivot::contact_pivots(&v, &d);
+    let pivots = crate::pivot::contact_pivots(&v, &d, crate::yaw::YawOptions::default().max_offset);
     for (det, p) in d.detections.iter().zip(&pivots) {
         let centre = crate::pivot::box_centre(det);
         if det.rect.r0 == 6 {
@@ -453,10 +452,12 @@ fn a_hollow_crate_on_a_slatted_pallet_unpacks() {
 }
 
 #[test]
-fn soft_tops_and_screens_behind_a_hinge_unpack() {
+fn soft_tops_unpack_and_a_screen_raised_on_them_is_found() {
     // a body whose top is soft (every texel opaque at one of three levels, so that no
     // single level covers it) with a laptop: a raised screen, a hinge row of the
-    // surface's colour, and a dark keyboard lying on the top
+    // surface's colour, and a dark keyboard lying on the top. The screen is found; the
+    // keyboard, flat on the top beyond a row of the top's colour, is not joined to it (a
+    // jump over such a row, made for one suite scene's laptops, went: no dev field changed)
     let (rows, cols) = (60, 80);
     let mut v = floor_volume(rows, cols, 24);
     fill(&mut v, (5, 35), (10, 50), (2, 10), 0.95);
@@ -482,7 +483,7 @@ fn soft_tops_and_screens_behind_a_hinge_unpack() {
     .unwrap();
     let d = detect_small(&v, &color);
     let child = only_child(&d);
-    assert_eq!(child.rect, PixelRect::new(12, 25, 19, 33));
+    assert_eq!(child.rect, PixelRect::new(12, 25, 14, 33));
 }
 
 #[test]

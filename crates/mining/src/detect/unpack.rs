@@ -41,7 +41,7 @@ pub fn held_on_a_stem(area: &[usize], hi: usize, run_levels: usize, min_texels: 
 /// "Most of" in the judgement of a surface (a level covering most of the surface is part of
 /// its blur or its body; most levels of a body covering most of it make it solid). Not
 /// tuned: the majority.
-const MOST: f32 = 0.5;
+const MOST: f32 = 0.5; // fixed: the majority
 
 /// A supported object found inside a part.
 #[derive(Debug, Clone)]
@@ -181,15 +181,9 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
             .max_by_key(|&k| (area[k], std::cmp::Reverse(k)))
             .unwrap_or(kw);
         let mut hi = kstar;
-        // the surface with the blur above it: levels covering most of it and not growing
-        // (an object standing on it does not fade upwards); and its body below: levels
-        // covering most of it
-        // (blur fades within a few levels: a box standing on a pallet's deck covers a steady
-        // half of it all the way up and is no blur)
-        while hi + 1 < vol.nz
-            && hi + 1 < kstar + thin
-            && at_least(area[hi + 1], MOST, area[kstar])
-            && area[hi + 1] * 10 <= area[hi] * 11
+        // the surface with its blur above it: the levels within the blur covering most of
+        // it; and its body below: levels covering most of it
+        while hi + 1 < vol.nz && hi + 1 < kstar + thin && at_least(area[hi + 1], MOST, area[kstar])
         {
             hi += 1;
         }
@@ -239,12 +233,13 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     }
     let above = hi + raise;
     // the free surface: the footprint away from what rises above it (a solid body's top is
-    // judged away from its blurred fringe, which fades over many levels; a thin slab has
-    // none)
-    let near_raised = crate::morphology::dilate(&raised, 3).unwrap_or_else(|_| raised.clone());
+    // judged away from its blurred fringe; a thin slab has none): `rim_texels`, as for the
+    // rim band below
+    let near_raised =
+        crate::morphology::dilate(&raised, up.rim_texels).unwrap_or_else(|_| raised.clone());
     let judged = if solid {
         let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
-        let e = erode(&padded, 2).unwrap_or(padded);
+        let e = erode(&padded, up.rim_texels).unwrap_or(padded);
         Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1))
     } else {
         f.clone()
@@ -274,7 +269,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     // the window never reaches the rim band (edges of a table have colours of their own)
     let interior = {
         let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
-        let e = erode(&padded, 3).unwrap_or(padded);
+        let e = erode(&padded, up.rim_texels).unwrap_or(padded);
         Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1) || raised.get(r, c))
     };
     let mut taken = Mask { rows: h, cols: w, data: vec![false; h * w] };
@@ -338,11 +333,8 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
                 comp.set(r, c, true);
             }
             while let Some((r, c)) = stack.pop() {
-                // from the seed, a one-texel gap may be jumped (the hinge between a laptop's
-                // raised screen and its keyboard has a colour of its own)
-                let reach: isize = if at(r, c) { 2 } else { 1 };
-                for dr in -reach..=reach {
-                    for dc in -reach..=reach {
+                for dr in -1isize..=1 {
+                    for dc in -1isize..=1 {
                         let (nr, nc) = (r as isize + dr, c as isize + dc);
                         if nr < 0 || nc < 0 {
                             continue;
@@ -355,7 +347,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
                     }
                 }
             }
-            // close the jumped gaps
+            // close the one-texel gaps the colour clusters leave in it
             let padded =
                 Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && comp.get(r - 1, c - 1));
             match crate::morphology::close(&padded, 1) {

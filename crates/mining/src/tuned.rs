@@ -1,0 +1,289 @@
+//! Every tuned number of mining, in one list: detection, grouping, poses, pivots and
+//! regrouping (which groups and poses with the grouping's and the poses' values and has
+//! none of its own).
+//!
+//! A number is **tuned** when its value was chosen by watching how fields mine. Each entry
+//! says its unit, why it has its value and what the measurement basis (`docs/mining.md`,
+//! `scripts/mining_basis.sh`: 11 dev scenes at 2000 and 6000 iterations, plus the twelve
+//! suite fields) showed for it; the doc comment at its definition says more.
+//!
+//! A number is **not tuned**, and not listed, when it is
+//! - a majority or a middle (`0.5`: "most of", "more likely opaque than not");
+//! - geometry (a bilinear tap reaches one texel; two refinements of one basin end within two
+//!   steps; a median needs three values) or a unit conversion (CIELAB's constants);
+//! - tied to a tuned length ([`DetectParams::blur_levels`] is the blur across as well as up,
+//!   the voxels being cubic; an area tolerance is twice a length tolerance);
+//! - a guard, a limit or a precision that changes no dev field when made looser or finer
+//!   (the K-means iteration bound, the grouping's sample budget, the yaw refinement's
+//!   tolerance), or a choice the user makes (seeds, the number of first-round clusters, the
+//!   weights that switch a grouping term on, the IoU of the evaluation).
+//!
+//! `tests/tuned.rs` keeps the list honest: every number of [`MineOptions`] is either listed
+//! here or named as not tuned there, and every numeric literal of the mining source that is
+//! not 0, 1, 2 or 0.5 carries a `// tuned: NAME` comment naming an entry of this list or a
+//! `// fixed: REASON` comment saying why it is not tuned.
+
+use crate::detect::DetectParams;
+use crate::pipeline::MineOptions;
+
+/// The stage a tuned number belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    Detection,
+    Grouping,
+    Poses,
+    Pivots,
+}
+
+/// One tuned number.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tuned {
+    /// For an option, its path in [`MineOptions`] as serialised (`detect.blur_levels`); for a
+    /// constant, the name its `// tuned:` comment gives.
+    pub name: &'static str,
+    pub stage: Stage,
+    /// Whether it is a field of [`MineOptions`] (`false`: a constant of the source).
+    pub option: bool,
+    pub value: f64,
+    pub unit: &'static str,
+    /// Why this value, and what the basis showed.
+    pub why: &'static str,
+}
+
+/// The most tuned numbers mining may have (issue 31).
+pub const BUDGET: usize = 25; // fixed: the issue's bound
+
+fn option(
+    name: &'static str,
+    stage: Stage,
+    value: f64,
+    unit: &'static str,
+    why: &'static str,
+) -> Tuned {
+    Tuned { name, stage, option: true, value, unit, why }
+}
+
+fn constant(
+    name: &'static str,
+    stage: Stage,
+    value: f64,
+    unit: &'static str,
+    why: &'static str,
+) -> Tuned {
+    Tuned { name, stage, option: false, value, unit, why }
+}
+
+/// The tuned numbers of mining with the values `o` holds (the defaults:
+/// [`tuned_defaults`]).
+pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
+    use Stage::*;
+    let d: &DetectParams = &o.detect;
+    let u = |v: usize| v as f64;
+    vec![
+        option(
+            "detect.blur_levels",
+            Detection,
+            u(d.blur_levels),
+            "levels (= texels)",
+            "the thickness a soft surface spreads over in a short field; one length for every \
+             vertical and horizontal tolerance (eleven values were 2 or 3); 2 and 4 lost \
+             objects on the basis",
+        ),
+        option(
+            "detect.min_area_texels",
+            Detection,
+            u(d.min_area_texels),
+            "texels",
+            "the smallest object footprint (a vase); 32 lost small objects of a room of 10 cm \
+             texels (F1 0.759 -> 0.679), 16 and 36 mined the basis worse",
+        ),
+        option(
+            "detect.floor_coverage",
+            Detection,
+            f64::from(d.floor_coverage),
+            "share of the plane",
+            "a floor shows 26-27% of the plane through the furniture of a crowded scene; 0.3 \
+             lost random_2's floor (0.788 -> 0.971 at 2000 iterations with 0.25)",
+        ),
+        option(
+            "detect.wall_half_thickness_texels",
+            Detection,
+            f64::from(d.wall_half_thickness_texels),
+            "texels",
+            "half the thickest wall (20 cm in the suite's rooms); furniture is thicker",
+        ),
+        option(
+            "detect.bridge_radius_texels",
+            Detection,
+            u(d.bridge_radius_texels),
+            "texels",
+            "the opening that cuts blurred bridges between neighbours; 1 and 3 both lost \
+             objects on the basis",
+        ),
+        option(
+            "detect.colour_contrast",
+            Detection,
+            f64::from(d.colour_contrast),
+            "pooled standard deviations",
+            "a colour piece must differ this much from its surroundings to be an object",
+        ),
+        option(
+            "detect.low_support_levels",
+            Detection,
+            u(d.low_support_levels),
+            "levels",
+            "a surface this low carries objects over most of it (a pallet's deck); 0 lost \
+             the warehouse's crates (1.000 -> 0.900 on its three fields)",
+        ),
+        option(
+            "detect.colour.max_part_solidity",
+            Detection,
+            f64::from(d.colour.max_part_solidity),
+            "solidity",
+            "a part this convex is one object; 1.0 lost objects on six fields (living_room at \
+             2000 iterations 0.929 -> 0.632)",
+        ),
+        option(
+            "detect.unpack.surface_opacity",
+            Detection,
+            f64::from(d.unpack.surface_opacity),
+            "share of the voxel threshold",
+            "table tops are faint in places",
+        ),
+        option(
+            "detect.unpack.dense_window_share",
+            Detection,
+            f64::from(d.unpack.dense_window_share),
+            "share of the densest window",
+            "ghost layers under a table top can be denser than the top; 0.5 lost the \
+             warehouse's crates on pallets (1.000 -> 0.900)",
+        ),
+        option(
+            "detect.unpack.free_share",
+            Detection,
+            f64::from(d.unpack.free_share),
+            "share of the footprint",
+            "a chair's seat under its back is no table; 0.5 mined living_room at 2000 \
+             (0.966 -> 0.929) and random_2 at 6000 (1.000 -> 0.970) worse",
+        ),
+        option(
+            "detect.unpack.rim_texels",
+            Detection,
+            u(d.unpack.rim_texels),
+            "texels",
+            "a support's rim band and the fringe around what stands on it; 3 for the solid \
+             top's edge (was 2) mined random_12 at 2000 iterations better (0.805 -> 0.833)",
+        ),
+        constant(
+            "detect.max_ground_tilt_deg",
+            Detection,
+            f64::from(crate::detect::MAX_GROUND_TILT_DEG),
+            "degrees",
+            "a levelled capture is within about one degree; a slab tilted by 3 rises by 5% of \
+             the plane, more than the floor search tolerates (no dev field is tilted)",
+        ),
+        constant(
+            "detect.smooth_keep_share",
+            Detection,
+            crate::detect::SMOOTH_KEEP[0] as f64 / crate::detect::SMOOTH_KEEP[1] as f64,
+            "share of the footprint",
+            "smoothing a part keeps its shape unless it takes more than a third away (thin \
+             objects); a half lost objects of blender_random_1001 and random_1003 at 2000",
+        ),
+        option(
+            "group.labels",
+            Grouping,
+            u(o.group.labels),
+            "K-means labels",
+            "the codebook the label histograms are built on",
+        ),
+        option(
+            "group.length_tolerance",
+            Grouping,
+            o.group.length_tolerance,
+            "log ratio",
+            "reconstruction noise between two instances of one object (16%); areas compare \
+             within twice it",
+        ),
+        option(
+            "group.min_separation",
+            Grouping,
+            o.group.min_separation,
+            "bits (JSD) plus the shape term",
+            "where the suite's nearest distinct categories begin; instances of one object \
+             differ by a few hundredths",
+        ),
+        constant(
+            "group.max_copies",
+            Grouping,
+            crate::copies::MAX_COPIES as f64,
+            "copies",
+            "the most copies a touching region is cut into; unbounded, random_6 at 2000 \
+             iterations cut four false objects (F1 0.814 -> 0.778)",
+        ),
+        constant(
+            "pose.decisive_residual_ratio",
+            Poses,
+            f64::from(crate::pose::DECISIVE_RESIDUAL_RATIO),
+            "ratio of residuals",
+            "round objects' basins differ by 1.0-1.1; a street lamp turned the wrong way by \
+             tight crops differed by 5.7",
+        ),
+        option(
+            "pose.yaw.step_deg",
+            Poses,
+            f64::from(o.pose.yaw.step_deg),
+            "degrees",
+            "the coarse scan's step, fine enough for every basin of the suite's objects",
+        ),
+        option(
+            "pose.yaw.starts",
+            Poses,
+            u(o.pose.yaw.starts),
+            "coarse minima",
+            "near-symmetric shapes whose coarse ranking at zero offset is wrong; 1 turned \
+             the basis's objects further off (median yaw error at 2000 iterations 0.78 -> \
+             1.08 degrees), 2 mined about the same",
+        ),
+        constant(
+            "pivot.contact_band",
+            Pivots,
+            f64::from(crate::pivot::CONTACT_BAND),
+            "share of the object's height",
+            "a chair's legs, a lamp's foot, a car's wheels",
+        ),
+        constant(
+            "pivot.max_contact_share",
+            Pivots,
+            f64::from(crate::pivot::MAX_CONTACT_SHARE),
+            "share of the object's texels",
+            "a post, not a base: the pivot leaves the box centre only for a compact contact",
+        ),
+        constant(
+            "pivot.max_contact_aspect",
+            Pivots,
+            f64::from(crate::pivot::MAX_CONTACT_ASPECT),
+            "ratio of the contact box's sides",
+            "a post, not a panel: no basis field changes without it, but a chair touching down \
+             along one thin panel turned about the panel in the unit tests",
+        ),
+        constant(
+            "pivot.min_column_share",
+            Pivots,
+            f64::from(crate::pivot::MIN_COLUMN_SHARE),
+            "share of the object's height",
+            "a column carrying the object, not a neighbour's foot; 0.5 placed random_1003's \
+             objects worse at 2000 iterations (position median 0.088 -> 0.128)",
+        ),
+    ]
+}
+
+/// The tuned numbers with the default options.
+pub fn tuned_defaults() -> Vec<Tuned> {
+    tuned(&MineOptions::default())
+}
+
+/// How many numbers of mining are tuned (at most [`BUDGET`]).
+pub fn count_tuned() -> usize {
+    tuned_defaults().len()
+}
