@@ -1,6 +1,15 @@
 //! Dense layers on tiles of samples (row-major `[batch][features]`), forward and backward,
 //! written as small matrix products so the weights stay in cache.
 
+/// The sizes of a dense layer applied to a batch: `batch` rows of `inn` inputs, `out`
+/// outputs (the weights are `out x inn`, row-major).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DenseDims {
+    pub batch: usize,
+    pub inn: usize,
+    pub out: usize,
+}
+
 /// `y[b] = W x[b] + bias` for `W` of shape `[out][inn]`.
 ///
 /// Outputs narrower than [`DOT_MAX_OUT`] are dot products along the inputs in 8 independent
@@ -9,15 +18,8 @@
 /// along the outputs without a reduction and vectorises (8-wide FMA); common output widths
 /// get a kernel whose accumulators live in registers.
 #[inline]
-pub fn dense_forward(
-    w: &[f32],
-    bias: Option<&[f32]>,
-    x: &[f32],
-    y: &mut [f32],
-    batch: usize,
-    inn: usize,
-    out: usize,
-) {
+pub fn dense_forward(w: &[f32], bias: Option<&[f32]>, x: &[f32], y: &mut [f32], dims: DenseDims) {
+    let DenseDims { batch, inn, out } = dims;
     debug_assert_eq!(w.len(), inn * out);
     for b in 0..batch {
         let yb = &mut y[b * out..(b + 1) * out];
@@ -134,10 +136,9 @@ pub fn dense_backward(
     dx: Option<&mut [f32]>,
     dw: &mut [f32],
     dbias: Option<&mut [f32]>,
-    batch: usize,
-    inn: usize,
-    out: usize,
+    dims: DenseDims,
 ) {
+    let DenseDims { batch, inn, out } = dims;
     if let Some(db) = dbias {
         for b in 0..batch {
             for o in 0..out {
@@ -311,10 +312,11 @@ mod tests {
             let x: Vec<f32> = (0..batch * inn).map(|_| rnd()).collect();
             let dy: Vec<f32> = (0..batch * out).map(|_| rnd()).collect();
             let mut y = vec![0.0; batch * out];
-            dense_forward(&w, Some(&bias), &x, &mut y, batch, inn, out);
+            dense_forward(&w, Some(&bias), &x, &mut y, DenseDims { batch, inn, out });
             let (mut dx, mut dw, mut db) =
                 (vec![0.0; batch * inn], vec![0.0; inn * out], vec![0.0; out]);
-            dense_backward(&w, &x, &dy, Some(&mut dx), &mut dw, Some(&mut db), batch, inn, out);
+            let dims = DenseDims { batch, inn, out };
+            dense_backward(&w, &x, &dy, Some(&mut dx), &mut dw, Some(&mut db), dims);
             for b in 0..batch {
                 for o in 0..out {
                     let r: f64 = bias[o] as f64

@@ -4,7 +4,8 @@
 use crate::config::{DecoderKind, FieldConfig, ModelKind};
 use crate::interp::{Bilinear, Linear};
 use crate::mlp::{
-    dense_accumulate, dense_backward, dense_forward, dot, relu, relu_backward, sigmoid, softplus,
+    DenseDims, dense_accumulate, dense_backward, dense_forward, dot, relu, relu_backward, sigmoid,
+    softplus,
 };
 use crate::params::{Group, ParamSet};
 use glam::Vec3;
@@ -71,9 +72,7 @@ impl Dense {
             dx,
             gw,
             Some(gb),
-            n,
-            self.inn,
-            self.out,
+            DenseDims { batch: n, inn: self.inn, out: self.out },
         );
     }
 
@@ -85,9 +84,7 @@ impl Dense {
             Some(&d[self.b..][..self.out]),
             x,
             y,
-            n,
-            self.inn,
-            self.out,
+            DenseDims { batch: n, inn: self.inn, out: self.out },
         );
     }
 }
@@ -511,9 +508,7 @@ impl Field {
             None,
             &w.app,
             &mut w.feat,
-            n,
-            app_dim,
-            fdim,
+            DenseDims { batch: n, inn: app_dim, out: fdim },
         );
         // 3. decoder
         match &cfg.decoder {
@@ -630,9 +625,7 @@ impl Field {
             Some(&mut w.dapp),
             &mut grad[self.basis..][..fdim * app_dim],
             None,
-            n,
-            app_dim,
-            fdim,
+            DenseDims { batch: n, inn: app_dim, out: fdim },
         );
         // appearance features
         match cfg.kind {
@@ -756,9 +749,7 @@ impl Field {
             Some(&mut w.dfeat),
             &mut w.dw0f,
             Some(gb),
-            n,
-            fdim,
-            out,
+            DenseDims { batch: n, inn: fdim, out },
         );
         for o in 0..out {
             let row = &mut gw[o * inn..][..fdim];

@@ -778,15 +778,9 @@ impl<'a> Resolver<'a> {
                     })
                     .collect();
                 self.place(
-                    node,
-                    frame,
-                    &full,
-                    supporter,
-                    asset,
+                    Target { node, frame, full: &full, supporter },
+                    Copies { asset, yaw: *yaw, scale: *scale, vary: vary.as_ref() },
                     spots,
-                    *yaw,
-                    *scale,
-                    vary.as_ref(),
                 )?;
             }
             Item::Grid { asset, center, rows, cols, spacing, yaw, scale, vary, .. } => {
@@ -808,15 +802,9 @@ impl<'a> Resolver<'a> {
                     }
                 }
                 self.place(
-                    node,
-                    frame,
-                    &full,
-                    supporter,
-                    asset,
+                    Target { node, frame, full: &full, supporter },
+                    Copies { asset, yaw: *yaw, scale: *scale, vary: vary.as_ref() },
                     spots,
-                    *yaw,
-                    *scale,
-                    vary.as_ref(),
                 )?;
             }
             Item::Ring {
@@ -835,15 +823,9 @@ impl<'a> Resolver<'a> {
                     })
                     .collect();
                 self.place(
-                    node,
-                    frame,
-                    &full,
-                    supporter,
-                    asset,
+                    Target { node, frame, full: &full, supporter },
+                    Copies { asset, yaw: *yaw, scale: *scale, vary: vary.as_ref() },
                     spots,
-                    *yaw,
-                    *scale,
-                    vary.as_ref(),
                 )?;
             }
             Item::Along { asset, path, count, spacing, offset, face, yaw, scale, vary, .. } => {
@@ -853,15 +835,9 @@ impl<'a> Resolver<'a> {
                 })?;
                 let spots = along_spots(path, &plan, *offset, *face);
                 self.place(
-                    node,
-                    frame,
-                    &full,
-                    supporter,
-                    asset,
+                    Target { node, frame, full: &full, supporter },
+                    Copies { asset, yaw: *yaw, scale: *scale, vary: vary.as_ref() },
                     spots,
-                    *yaw,
-                    *scale,
-                    vary.as_ref(),
                 )?;
             }
             Item::Scatter {
@@ -879,19 +855,15 @@ impl<'a> Resolver<'a> {
                 check_count(*count, "count")?;
                 check_scale(*scale)?;
                 self.scatter(
-                    node,
-                    frame,
-                    &full,
-                    supporter,
-                    asset,
-                    region,
-                    *count,
-                    *min_distance,
-                    *seed,
-                    *yaw,
-                    *scale,
-                    *overlap,
-                    vary.as_ref(),
+                    Target { node, frame, full: &full, supporter },
+                    Copies { asset, yaw: *yaw, scale: *scale, vary: vary.as_ref() },
+                    ScatterSpec {
+                        region,
+                        count: *count,
+                        min_distance: *min_distance,
+                        seed: *seed,
+                        overlap: *overlap,
+                    },
                 )?;
             }
         }
@@ -969,16 +941,12 @@ impl<'a> Resolver<'a> {
     /// Place generated spots (in the item's frame) with variation.
     fn place(
         &mut self,
-        node: &ItemNode,
-        frame: GroundTransform,
-        full: &str,
-        supporter: Option<u32>,
-        asset: &str,
+        to: Target<'_>,
+        what: Copies<'_>,
         spots: Vec<Spot>,
-        yaw: f32,
-        scale: f32,
-        vary: Option<&Variation>,
     ) -> Result<(), LayoutError> {
+        let Target { node, frame, full, supporter } = to;
+        let Copies { asset, yaw, scale, vary } = what;
         if !(scale.is_finite() && scale > 0.0) {
             return Err(semantic(&node.location, format!("scale must be positive, got {scale}")));
         }
@@ -1084,20 +1052,13 @@ impl<'a> Resolver<'a> {
 
     fn scatter(
         &mut self,
-        node: &ItemNode,
-        frame: GroundTransform,
-        full: &str,
-        supporter: Option<u32>,
-        asset: &str,
-        region: &Region,
-        count: u32,
-        min_distance: f32,
-        seed: u64,
-        yaw: f32,
-        scale: f32,
-        overlap: bool,
-        vary: Option<&Variation>,
+        to: Target<'_>,
+        what: Copies<'_>,
+        spec: ScatterSpec<'_>,
     ) -> Result<(), LayoutError> {
+        let Target { node, frame, full, supporter } = to;
+        let Copies { asset, yaw, scale, vary } = what;
+        let ScatterSpec { region, count, min_distance, seed, overlap } = spec;
         let loc = &node.location;
         let bounds = region_bounds(region);
         self.check_scatter(loc, asset, region, &bounds, count, min_distance)?;
@@ -1526,4 +1487,34 @@ pub fn relative_to(world: &GroundTransform, parent: &GroundTransform) -> GroundT
         scale: world.scale / parent.scale,
         base: (world.base - parent.base) / parent.scale,
     }
+}
+/// Where a generator's instances go: the script node that made them, the frame they are
+/// placed in, the name their keys start with and the instance they stand on.
+#[derive(Clone, Copy)]
+struct Target<'a> {
+    node: &'a ItemNode,
+    frame: GroundTransform,
+    full: &'a str,
+    supporter: Option<u32>,
+}
+
+/// What a generator places at each of its spots: an asset, turned by `yaw` and scaled on
+/// top of each spot's own turn, then varied.
+#[derive(Clone, Copy)]
+struct Copies<'a> {
+    asset: &'a str,
+    yaw: f32,
+    scale: f32,
+    vary: Option<&'a Variation>,
+}
+
+/// A scatter's own values: where, how many, how far apart, from which seed, and whether
+/// footprints may overlap.
+#[derive(Clone, Copy)]
+struct ScatterSpec<'a> {
+    region: &'a Region,
+    count: u32,
+    min_distance: f32,
+    seed: u64,
+    overlap: bool,
 }

@@ -533,17 +533,8 @@ pub fn mine(
 
     progress.step(5, STEPS, "writing the library"); // fixed: progress step
     let source = field_path.display().to_string();
-    let (index, patches) = build_library(
-        &source,
-        field,
-        &planes,
-        &dets,
-        &grouping,
-        &poses,
-        &pivots,
-        pose_opts.margin,
-        &vol,
-    )?;
+    let found = Found { dets: &dets, grouping: &grouping, poses: &poses, pivots: &pivots };
+    let (index, patches) = build_library(&source, field, &planes, &vol, &found, pose_opts.margin)?;
     let mut shared = shared_tensors(field, &source)?;
     // what rendering the library needs besides the tensors: the background the field was
     // trained on and the ground alignment of its dataset's cameras
@@ -717,18 +708,25 @@ pub fn mine(
     })
 }
 
-/// The library index and patch tensors of a mining result (the shared part is separate).
+/// What mining found in a field: the detections, their grouping, poses and pivots.
+struct Found<'a> {
+    dets: &'a Detections,
+    grouping: &'a Grouping,
+    poses: &'a Poses,
+    pivots: &'a [Vec2],
+}
+
+/// The library index and patch tensors of a mining result (the shared part is separate);
+/// patches reach `margin` texels past each box.
 fn build_library(
     source: &str,
     field: &Field,
     planes: &FieldPlanes,
-    dets: &Detections,
-    grouping: &Grouping,
-    poses: &Poses,
-    pivots: &[Vec2],
-    margin: usize,
     vol: &OpacityVolume,
+    found: &Found<'_>,
+    margin: usize,
 ) -> Result<(LibraryIndex, TensorFile)> {
+    let Found { dets, grouping, poses, pivots } = *found;
     let grid = planes.grid;
     let floor = floor_texels(vol, dets.floor.as_ref()).filter(|f| f.len() == grid.rows * grid.cols);
     let floor = floor.as_deref();

@@ -103,6 +103,14 @@ fn patch_of<'a>(
 
 type Changed3 = Or<(Changed<Placement>, Changed<InstanceOf>, Changed<PatchOverride>)>;
 
+/// What was taken off instances since the last run: their placements (despawned or
+/// unplaced) and their patch overrides (back to their template's patch).
+#[derive(bevy_ecs::system::SystemParam)]
+struct Removals<'w, 's> {
+    placements: RemovedComponents<'w, 's, Placement>,
+    overrides: RemovedComponents<'w, 's, PatchOverride>,
+}
+
 fn track_instances(
     comp: Res<ComposedPlanes>,
     mut fp: ResMut<Footprints>,
@@ -110,16 +118,15 @@ fn track_instances(
     changed_templates: Query<Entity, Changed<Template>>,
     instances: Query<(Entity, &Placement, &InstanceOf, Option<&PatchOverride>)>,
     templates: Query<&Template>,
-    mut removed: RemovedComponents<Placement>,
-    mut removed_overrides: RemovedComponents<PatchOverride>,
+    mut removed: Removals,
 ) {
     let fp = &mut *fp;
-    for e in removed.read() {
+    for e in removed.placements.read() {
         if let Some(r) = fp.rects.remove(&e) {
             fp.pending.push(r);
         }
     }
-    let reverted: HashSet<Entity> = removed_overrides.read().collect();
+    let reverted: HashSet<Entity> = removed.overrides.read().collect();
     let retemplated: HashSet<Entity> = changed_templates.iter().collect();
     let grid = comp.0.grid;
     for (e, place, of, ov) in &instances {

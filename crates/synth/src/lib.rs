@@ -24,6 +24,7 @@ pub mod tracer;
 pub use assets::AssetSet;
 pub use error::SynthError;
 pub use synth::{
-    SynthConfig, SynthOptions, SynthReport, camera_rig, load_scene, synthesize, synthesize_loaded,
+    LoadedScene, SynthConfig, SynthOptions, SynthReport, camera_rig, load_scene, synthesize,
+    synthesize_loaded,
 };
 pub use tracer::{Light, Scene};

@@ -405,22 +405,30 @@ pub fn synthesize(
     progress: Progress<'_>,
 ) -> Result<SynthReport, SynthError> {
     let script = assetfield_layout::load(scene)?;
-    synthesize_loaded(&script, scene, None, opts, out, overwrite, edited, progress)
+    let loaded = LoadedScene { script: &script, path: scene, text: None };
+    synthesize_loaded(loaded, opts, out, overwrite, edited, progress)
 }
 
-/// [`synthesize`] for a script already loaded (`scene` names it in the report); with
-/// `script_text` the script's text is also written into the dataset as `scene.ron`, so a
-/// generated scene can be read and rendered again.
+/// A scene script already loaded: the script, the path that names it in the report, and
+/// its text when the dataset is to hold it as `scene.ron` (so that a generated scene can be
+/// read and rendered again).
+#[derive(Debug, Clone, Copy)]
+pub struct LoadedScene<'a> {
+    pub script: &'a LoadedScript,
+    pub path: &'a Path,
+    pub text: Option<&'a str>,
+}
+
+/// [`synthesize`] for a script already loaded ([`LoadedScene`]).
 pub fn synthesize_loaded(
-    script: &LoadedScript,
-    scene: &Path,
-    script_text: Option<&str>,
+    loaded: LoadedScene<'_>,
     opts: &SynthOptions,
     out: &Path,
     overwrite: bool,
     edited: Option<&Path>,
     progress: Progress<'_>,
 ) -> Result<SynthReport, SynthError> {
+    let LoadedScene { script, path: scene, text: script_text } = loaded;
     let start = Instant::now();
     let assets = AssetSet::from_script(script)?;
     let layout = resolve(script, &assets)?;

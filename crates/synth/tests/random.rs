@@ -7,7 +7,7 @@
 use assetfield_layout::{ResolvedLayout, load_str, resolve};
 use assetfield_synth::random::{CATEGORIES, RANDOM_RESOLUTION, UNITS_PER_METRE, random_scene};
 use assetfield_synth::sh3f::{ALLOWED_CATALOGS, DIR_ENV, catalog_dir};
-use assetfield_synth::{AssetSet, SynthOptions, synthesize_loaded};
+use assetfield_synth::{AssetSet, LoadedScene, SynthOptions, synthesize_loaded};
 use glam::Vec2;
 use std::path::{Path, PathBuf};
 
@@ -175,17 +175,8 @@ fn every_validation_and_dev_seed_synthesises() {
         with_table_objects += usize::from(check_properties(seed, &layout, r.units_per_metre) > 0);
         let out = root.join(seed.to_string());
         let mut progress = |_: usize, _: usize| {};
-        let report = synthesize_loaded(
-            &loaded,
-            &path,
-            Some(&r.text),
-            &opts,
-            &out,
-            false,
-            None,
-            &mut progress,
-        )
-        .unwrap();
+        let source = LoadedScene { script: &loaded, path: &path, text: Some(&r.text) };
+        let report = synthesize_loaded(source, &opts, &out, false, None, &mut progress).unwrap();
         assert_eq!(report.units_per_metre, r.units_per_metre);
         assert_eq!(report.categories.len(), layout.categories().len());
         // the dataset holds the script, and the ground truth records units and sources

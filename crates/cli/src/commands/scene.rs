@@ -3,7 +3,7 @@
 use super::util::progress_bar;
 use anyhow::{Context, Result};
 use assetfield_data::{Dataset, DatasetSummary, LoadOptions, Split};
-use assetfield_synth::{SynthOptions, synthesize, synthesize_loaded};
+use assetfield_synth::{LoadedScene, SynthOptions, synthesize, synthesize_loaded};
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -120,16 +120,8 @@ pub fn synth(a: SynthArgs) -> Result<()> {
         Some(r) => assetfield_layout::load_str(&scene, &r.text)
             .map_err(assetfield_synth::SynthError::from)
             .and_then(|loaded| {
-                synthesize_loaded(
-                    &loaded,
-                    &scene,
-                    Some(&r.text),
-                    &opts,
-                    &out,
-                    a.force,
-                    a.edited.as_deref(),
-                    &mut progress,
-                )
+                let source = LoadedScene { script: &loaded, path: &scene, text: Some(&r.text) };
+                synthesize_loaded(source, &opts, &out, a.force, a.edited.as_deref(), &mut progress)
             }),
         None => synthesize(&scene, &opts, &out, a.force, a.edited.as_deref(), &mut progress),
     };
