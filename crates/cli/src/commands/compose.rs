@@ -1,6 +1,6 @@
 //! `assetfield compose`: a layout script composed from an asset library and rendered.
 
-use super::bench::{BackendArg, device};
+use super::backend::{BackendArg, device};
 use super::util::{progress_bar, save_rgb};
 use anyhow::{Context, Result, bail};
 use assetfield_core::Camera;

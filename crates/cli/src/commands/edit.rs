@@ -1,6 +1,6 @@
 //! `assetfield edit`: the scene editor in the browser, served from this process.
 
-use super::bench::{BackendArg, device};
+use super::backend::{BackendArg, device};
 use anyhow::{Context, Result, bail};
 use assetfield_editor::{EditSession, SessionOptions};
 use clap::Args;

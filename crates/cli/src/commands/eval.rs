@@ -1,15 +1,15 @@
 //! `assetfield eval`: render held-out views with a trained field and measure PSNR / SSIM.
 
-use super::util::{open_field, progress_bar, save_rgb};
+use super::util::{dataset_dir, open_field, progress_bar, save_rgb};
 use anyhow::{Context, Result, bail};
 use assetfield_core::fsx::{StagingDir, write_atomic};
 use assetfield_core::metrics::error_image;
 use assetfield_core::plot::{pca_colors, rgb_image};
 use assetfield_data::{Dataset, Frame, LoadOptions, Split};
-use assetfield_field::eval::{FieldInfo, evaluate};
+use assetfield_field::eval::evaluate;
 use assetfield_field::render_semantic_view;
 use clap::Args;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
@@ -38,30 +38,6 @@ pub struct EvalArgs {
     /// Replace the output folder if it exists.
     #[arg(long)]
     pub force: bool,
-}
-
-/// The dataset a field command works on: `--data`, else the one stored in the field.
-pub fn dataset_dir(given: Option<&Path>, info: &FieldInfo, field: &Path) -> Result<PathBuf> {
-    match (given, &info.dataset) {
-        (Some(d), stored) => {
-            if let (Some(s), Ok(g)) = (stored, d.canonicalize())
-                && &g != s
-            {
-                eprintln!(
-                    "note: {} was trained on {}; evaluating on {}",
-                    field.display(),
-                    s.display(),
-                    g.display()
-                );
-            }
-            Ok(d.to_path_buf())
-        }
-        (None, Some(s)) => Ok(s.clone()),
-        (None, None) => bail!(
-            "{} does not say which dataset it was trained on; pass --data DATA_DIR",
-            field.display()
-        ),
-    }
 }
 
 pub fn eval(a: EvalArgs) -> Result<()> {

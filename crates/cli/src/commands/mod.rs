@@ -1,7 +1,10 @@
-//! The subcommands, one module per group; shared helpers in `util`.
+//! The subcommands, one module per group (a command split over files is a folder: `train`
+//! with its multi-scene `joint` part, `bench` with its `edit` bench); what several commands
+//! share lives in `util` (progress bars, field loading, the dataset of a field, parsing) and
+//! `backend` (`--backend`), never in another command.
 
+mod backend;
 mod bench;
-mod bench_edit;
 mod compose;
 mod demo;
 mod edit;
@@ -12,7 +15,6 @@ mod refine;
 mod render;
 mod scene;
 mod train;
-mod train_joint;
 mod util;
 
 pub use bench::{BenchArgs, bench};

@@ -2,8 +2,8 @@
 //! (paper Sec. 3.4), writing a new library whose `layout.ron` draws every instance with its
 //! category's template.
 
-use super::train::bar;
 use super::util::fmt_duration;
+use super::util::training_bar;
 use anyhow::{Context, Result, anyhow, bail};
 use assetfield_core::fsx::{StagingDir, write_atomic};
 use assetfield_core::{Camera, interrupt};
@@ -234,7 +234,7 @@ pub fn refine(a: RefineArgs) -> Result<()> {
         }
     );
 
-    let pb = bar((options.iters != u64::MAX).then_some(options.iters));
+    let pb = training_bar((options.iters != u64::MAX).then_some(options.iters));
     let t0 = Instant::now();
     let mut last = f32::NAN;
     while !r.finished() {

@@ -1,7 +1,6 @@
 //! `assetfield render`: pictures of a trained field from a dataset's cameras or a turntable.
 
-use super::eval::dataset_dir;
-use super::util::{open_field, progress_bar, save_rgb};
+use super::util::{dataset_dir, open_field, progress_bar, save_rgb};
 use anyhow::{Context, Result, bail};
 use assetfield_core::Camera;
 use assetfield_core::fsx::StagingDir;

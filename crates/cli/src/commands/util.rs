@@ -1,11 +1,12 @@
-//! Helpers shared by the commands: progress bars, field loading with clear errors, parsing
-//! of small values, PNG output.
+//! Helpers shared by the commands: progress bars, field loading with clear errors, the
+//! dataset a field was trained on, parsing of small values, PNG output, medians of timings.
 
 use anyhow::{Context, Result, bail};
 use assetfield_data::ImageF32;
-use assetfield_field::eval::{LoadedField, load_field};
+use assetfield_field::eval::{FieldInfo, LoadedField, load_field};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 /// A bar counting items (views), with elapsed time and ETA.
 pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
@@ -114,6 +115,55 @@ pub fn fmt_duration(s: f64) -> String {
         format!("{}m{:02}s", t / 60, t % 60)
     } else {
         format!("{s:.1}s")
+    }
+}
+
+/// Median (and minimum) of seconds.
+pub(crate) fn median(t: &[f64]) -> (f64, f64) {
+    let mut v = t.to_vec();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => (f64::NAN, f64::NAN),
+        n => (v[n / 2], v[0]),
+    }
+}
+
+/// The progress bar of a training run (per mille of its budget, a message per update).
+pub(crate) fn training_bar(total_iters: Option<u64>) -> ProgressBar {
+    let pb = ProgressBar::new(1000);
+    pb.set_style(
+        ProgressStyle::with_template("{spinner:.green} [{bar:30.cyan/blue}] {percent:>3}% {msg}")
+            .expect("valid progress template")
+            .progress_chars("=> "),
+    );
+    pb.enable_steady_tick(Duration::from_millis(200));
+    if let Some(n) = total_iters {
+        pb.set_message(format!("starting ({n} iterations)"));
+    }
+    pb
+}
+
+/// The dataset a field command works on: `--data`, else the one stored in the field.
+pub fn dataset_dir(given: Option<&Path>, info: &FieldInfo, field: &Path) -> Result<PathBuf> {
+    match (given, &info.dataset) {
+        (Some(d), stored) => {
+            if let (Some(s), Ok(g)) = (stored, d.canonicalize())
+                && &g != s
+            {
+                eprintln!(
+                    "note: {} was trained on {}; evaluating on {}",
+                    field.display(),
+                    s.display(),
+                    g.display()
+                );
+            }
+            Ok(d.to_path_buf())
+        }
+        (None, Some(s)) => Ok(s.clone()),
+        (None, None) => bail!(
+            "{} does not say which dataset it was trained on; pass --data DATA_DIR",
+            field.display()
+        ),
     }
 }
 

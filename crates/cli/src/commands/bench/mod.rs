@@ -6,17 +6,18 @@
 //! with `--library`, a mined library's container and category templates, with random
 //! layouts drawn from `--seed`.
 
+mod edit;
+
+use super::backend::{BackendArg, device};
+use super::util::median;
 use super::util::progress_bar;
 use anyhow::{Context, Result, anyhow, bail};
 use assetfield_core::Camera;
 use assetfield_gpu::bench_scene::{BenchScene, SplitMix};
-use assetfield_gpu::{
-    Backend, BackendChoice, GpuComposer, GpuContext, GpuError, Layout, fallback_note,
-    select_backend,
-};
+use assetfield_gpu::{GpuComposer, GpuContext, GpuError, Layout, fallback_note};
 use assetfield_scene::world::ComposedPlanes;
 use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, InstanceOf};
-use clap::{Args, Subcommand, ValueEnum};
+use clap::{Args, Subcommand};
 use indicatif::ProgressBar;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
@@ -45,15 +46,7 @@ pub enum BenchCommand {
     /// What the editor (`assetfield edit`) costs after a one-instance move on a library's
     /// layout padded to --instances instances: the composed planes brought up to date, then
     /// each --res view rendered (medians of --moves moves).
-    Edit(super::bench_edit::BenchEditArgs),
-}
-
-/// What renders: `gpu` (error without an adapter), `cpu`, or `auto`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum BackendArg {
-    Gpu,
-    Cpu,
-    Auto,
+    Edit(edit::BenchEditArgs),
 }
 
 #[derive(Debug, Args)]
@@ -119,7 +112,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     match a.what {
         BenchCommand::Render(r) => bench_render(r),
         BenchCommand::Reconfigure(r) => bench_reconfigure(r),
-        BenchCommand::Edit(e) => super::bench_edit::bench_edit(e),
+        BenchCommand::Edit(e) => edit::bench_edit(e),
     }
 }
 
@@ -159,43 +152,12 @@ fn library_scene(dir: &Path) -> Result<BenchScene> {
     Ok(BenchScene::new(composition, templates, lib.background, description))
 }
 
-/// Median (and minimum) of seconds.
-pub(super) fn median(t: &[f64]) -> (f64, f64) {
-    let mut v = t.to_vec();
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => (f64::NAN, f64::NAN),
-        n => (v[n / 2], v[0]),
-    }
-}
-
 fn secs(t0: Instant) -> f64 {
     t0.elapsed().as_secs_f64()
 }
 
 fn ms(s: f64) -> f64 {
     (s * 1e4).round() / 10.0
-}
-
-/// The device for `--backend`: the GPU context, or `None` for the CPU (after the one line
-/// saying why, when `auto` found no adapter).
-pub(crate) fn device(choice: BackendArg) -> Result<Option<GpuContext>> {
-    let choice = match choice {
-        BackendArg::Gpu => BackendChoice::Gpu,
-        BackendArg::Cpu => BackendChoice::Cpu,
-        BackendArg::Auto => BackendChoice::Auto,
-    };
-    let found = select_backend(choice)
-        .context("--backend gpu needs a wgpu adapter (--backend cpu or auto render on the CPU)")?;
-    match found {
-        Backend::Gpu(ctx) => Ok(Some(ctx)),
-        Backend::Cpu { fallback } => {
-            if let Some(note) = fallback {
-                eprintln!("assetfield: {note}");
-            }
-            Ok(None)
-        }
-    }
 }
 
 /// Run `gpu` on the device when there is one. When it fails with an error of the device

@@ -2,11 +2,11 @@
 //! per scene sharing its vertical axes, basis and decoders (see
 //! [`assetfield_field::joint`]); checkpoints per scene, resume, Ctrl-C as a single run.
 
-use super::train::{
-    AlignArg, DecoderArg, TrainArgs, bar, checkpoint_path, save_checkpoint, scene_bounds,
-    shared_hash, time_left, train_config, write_field,
+use super::{
+    AlignArg, DecoderArg, TrainArgs, checkpoint_path, save_checkpoint, scene_bounds, shared_hash,
+    time_left, train_config, write_field,
 };
-use super::util::{fmt_duration, fmt_vec, parse_color};
+use crate::commands::util::{fmt_duration, fmt_vec, parse_color, training_bar};
 use anyhow::{Context, Result, anyhow, bail};
 use assetfield_core::{Aabb3, TensorFile, interrupt};
 use assetfield_data::{Dataset, LoadOptions, Split};
@@ -240,7 +240,7 @@ pub fn train_joint(a: TrainArgs, res: usize) -> Result<()> {
             joint.iter()
         );
     }
-    let pb = bar(limit_iters);
+    let pb = training_bar(limit_iters);
     let start_iter = joint.iter();
     let session = Instant::now();
     let mut last_ckpt = Instant::now();

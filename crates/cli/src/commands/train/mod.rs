@@ -1,7 +1,9 @@
 //! `assetfield train`: fit a ground-feature-plane field to a dataset, with a progress bar,
 //! periodic checkpoints, resume and Ctrl-C handling.
 
-use super::util::{fmt_duration, fmt_vec, parse_aabb, parse_color};
+mod joint;
+
+use super::util::{fmt_duration, fmt_vec, parse_aabb, parse_color, training_bar};
 use anyhow::{Context, Result, anyhow, bail};
 use assetfield_core::{Aabb3, TensorFile, interrupt};
 use assetfield_data::{
@@ -15,7 +17,6 @@ use assetfield_field::{
 use assetfield_mining::library::{content_hash, open_library};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -223,20 +224,6 @@ pub(crate) fn scene_bounds(
     Ok((b, "the region the cameras look at".into()))
 }
 
-pub(crate) fn bar(total_iters: Option<u64>) -> ProgressBar {
-    let pb = ProgressBar::new(1000);
-    pb.set_style(
-        ProgressStyle::with_template("{spinner:.green} [{bar:30.cyan/blue}] {percent:>3}% {msg}")
-            .expect("valid progress template")
-            .progress_chars("=> "),
-    );
-    pb.enable_steady_tick(Duration::from_millis(200));
-    if let Some(n) = total_iters {
-        pb.set_message(format!("starting ({n} iterations)"));
-    }
-    pb
-}
-
 /// Per-run state the CLI keeps besides the trainer.
 struct Run {
     ckpt: PathBuf,
@@ -437,7 +424,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
                 "--share fits one new scene against frozen shared tensors; to train several scenes together, drop --share"
             );
         }
-        return super::train_joint::train_joint(a, res);
+        return joint::train_joint(a, res);
     }
     let data_path = a.data[0].clone();
     let shared = a.share.as_deref().map(SharedSource::load).transpose()?;
@@ -710,7 +697,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
             trainer.config.seconds.map(|s| format!(", {}", fmt_duration(s))).unwrap_or_default()
         );
     }
-    let pb = bar(limit_iters);
+    let pb = training_bar(limit_iters);
     let start_iter = trainer.iter;
     let session = Instant::now();
     let mut last_ckpt = Instant::now();

@@ -2,7 +2,8 @@
 //! planes brought up to date (resolve the edited layout, redraw the dirty rectangles,
 //! refresh the occupancy there), then the coarse preview and the full view rendered.
 
-use super::bench::{BackendArg, device, median};
+use crate::commands::backend::{BackendArg, device};
+use crate::commands::util::median;
 use anyhow::{Context, Result, bail};
 use assetfield_editor::{EditSession, SessionOptions, ViewRequest};
 use assetfield_gpu::bench_scene::SplitMix;
