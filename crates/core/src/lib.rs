@@ -14,6 +14,7 @@ pub mod fsx;
 pub mod ground;
 pub mod interrupt;
 pub mod metrics;
+pub mod orbit;
 pub mod plot;
 pub mod tensors;
 
@@ -21,4 +22,5 @@ pub use bbox::{Aabb3, Rect2};
 pub use camera::{Camera, Distortion, Intrinsics, Ray};
 pub use error::CoreError;
 pub use ground::GroundTransform;
+pub use orbit::{Orbit, fitting_radius};
 pub use tensors::{Tensor, TensorData, TensorFile, checked_numel, first_non_finite};

@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use assetfield_core::{Aabb3, Camera};
-use assetfield_field::eval::{Orbit, fitting_radius};
+use assetfield_core::{Orbit, fitting_radius};
 use assetfield_gpu::{FieldRenderer, GpuContext};
 use assetfield_layout::{
     AssetDef, Edit, LibraryRef, LoadedScript, ResolvedLayout, Script, resolve,

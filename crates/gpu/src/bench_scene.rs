@@ -14,7 +14,7 @@
 
 use crate::{Layout, PatchInstance};
 use assetfield_core::{Aabb3, Camera, GroundTransform, Rect2};
-use assetfield_field::eval::{Orbit, fitting_radius};
+use assetfield_core::{Orbit, fitting_radius};
 use assetfield_field::{Field, FieldConfig, ModelKind};
 use assetfield_scene::{Composition, FeaturePatch, InstanceDraw, SceneError, TexelRect};
 use glam::{Vec2, Vec3};

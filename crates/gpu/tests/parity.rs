@@ -141,7 +141,7 @@ fn trained_fields_400() {
         }
         let (field, occ): (Field, Option<Occupancy>) = Field::load(&path).unwrap();
         let aabb = field.config.aabb();
-        let cams = assetfield_field::eval::Orbit::around(&aabb, 3, 400).cameras();
+        let cams = assetfield_core::Orbit::around(&aabb, 3, 400).cameras();
         let gpu = FieldRenderer::new(ctx, &field, occ.as_ref()).unwrap();
         let t0 = Instant::now();
         let cpu = Backend::Cpu.render(&field, occ.as_ref(), &cams, Vec3::ONE);

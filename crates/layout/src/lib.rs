@@ -18,6 +18,7 @@
 pub mod error;
 pub mod gt;
 pub mod limits;
+pub mod picture;
 pub mod resolve;
 pub mod rng;
 pub mod script;
@@ -28,6 +29,7 @@ pub mod validate;
 pub use error::{InvalidValue, LayoutError, Location};
 pub use gt::{GtInstance, GtLayout, GtSource};
 pub use limits::{Limit, Limits};
+pub use picture::layout_picture;
 pub use resolve::{
     AssetCatalog, AssetInfo, PartsCatalog, ResolvedInstance, ResolvedLayout, resolve, resolve_with,
 };

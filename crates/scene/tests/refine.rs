@@ -17,7 +17,7 @@ fn library(name: &str) -> AssetLibrary {
 
 fn refiner(lib: &AssetLibrary) -> TemplateRefiner {
     // one view whose pixels do not matter here
-    let cam = assetfield_field::eval::Orbit::around(&lib.config.aabb(), 1, 8).cameras()[0];
+    let cam = assetfield_core::Orbit::around(&lib.config.aabb(), 1, 8).cameras()[0];
     TemplateRefiner::new(
         lib,
         &lib.patches(assetfield_scene::DEFAULT_HALO).unwrap(),

@@ -6,8 +6,9 @@ use anyhow::{Context, Result, bail};
 use assetfield_core::Camera;
 use assetfield_core::fsx::{StagingDir, write_atomic};
 use assetfield_core::metrics::error_image;
+use assetfield_core::{Orbit, fitting_radius};
 use assetfield_data::{Dataset, Frame, LoadOptions, Split};
-use assetfield_field::eval::{Orbit, evaluate_with, fitting_radius};
+use assetfield_field::eval::evaluate_with;
 use assetfield_field::pictures::{color_plane_name, density_picture, pca_picture};
 use assetfield_gpu::{FieldRenderer, fallback_note};
 use assetfield_layout::{ResolvedLayout, resolve};
@@ -286,7 +287,7 @@ pub fn compose(a: ComposeArgs) -> Result<()> {
             p.upscaled(2).save_png(&dir.join("color_pca.png"))?;
         }
     }
-    assetfield_synth::synth::layout_picture(&layout, &root.join("layout.png"))?;
+    assetfield_layout::layout_picture(&layout, &root.join("layout.png"))?;
     let canvas_desc = match &canvas {
         Canvas::Container(n) => format!("container {n}"),
         Canvas::Empty { extent } => format!(

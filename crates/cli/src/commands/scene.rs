@@ -263,7 +263,7 @@ pub fn layout(a: LayoutArgs) -> Result<()> {
         }
     };
     if let Some(p) = &a.picture {
-        assetfield_synth::synth::layout_picture(&layout, p)?;
+        assetfield_layout::layout_picture(&layout, p)?;
     }
     if a.json {
         let gt = assetfield_layout::GtLayout::from_resolved(&layout);
