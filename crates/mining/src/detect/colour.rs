@@ -107,6 +107,21 @@ pub(super) fn principal_components(plane: &PlaneImage, over: &Mask, k: usize) ->
 /// both sides splits in three rounds. (A bound of 3 rounds was a tuned value; without it
 /// `random_1003` at 6000 iterations mines 0.646 -> 0.636 and no other dev field changes.)
 pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Vec<Part> {
+    // depth first, in the pieces' order, with a stack of its own rather than recursion: a
+    // round takes at least one piece away, so the rounds end, but their number is not bounded
+    let (mut out, mut todo) = (Vec::new(), vec![part]);
+    while let Some(p) = todo.pop() {
+        match split_once(cx, pcs, p) {
+            Ok(pieces) => todo.extend(pieces.into_iter().rev()),
+            Err(whole) => out.push(whole),
+        }
+    }
+    out
+}
+
+/// One round of [`split_by_colour`]: the pieces (tightened), or the part back when it stays
+/// whole.
+fn split_once(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Result<Vec<Part>, Part> {
     let (vol, start, tau, min_texels) = (cx.vol, cx.start, cx.tau, cx.min_texels);
     let strip = cx.p.bridge_radius_texels.max(1);
     // a piece no thicker than its own blurred edges (`2 r + 1` texels everywhere, r the
@@ -122,19 +137,19 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Vec<Par
     // more
     let smallest_piece = 2 * min_texels;
     if n < 2 * smallest_piece {
-        return vec![part];
+        return Err(part);
     }
     let idx: Vec<usize> = (0..h * w).filter(|&i| f.data[i]).collect();
     let gi = |i: usize| (rect.r0 + i / w) * vol.cols + rect.c0 + i % w;
     let dim = pcs.first().map_or(0, Vec::len);
     if dim == 0 {
-        return vec![part];
+        return Err(part);
     }
     let pts: Vec<f32> = idx.iter().flat_map(|&i| pcs[gi(i)].iter().copied()).collect();
     // two clusters, as the paper's second round: a piece and what it is not (three, for a
     // shadow or trim besides, lost objects on the suite and the basis)
     let Ok(km) = kmeans(&pts, dim, None, &KMeansOptions { k: 2, ..Default::default() }) else {
-        return vec![part];
+        return Err(part);
     };
     let mut label = vec![u32::MAX; h * w];
     for (t, &i) in idx.iter().enumerate() {
@@ -169,7 +184,7 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Vec<Par
         }
     }
     if seeds.len() < 2 {
-        return vec![part];
+        return Err(part);
     }
     let owner = geodesic_assign(f, &seeds);
     let pieces: Vec<Mask> = (0..seeds.len())
@@ -261,7 +276,7 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Vec<Par
         accepted.push(p);
     }
     if accepted.is_empty() {
-        return vec![part];
+        return Err(part);
     }
     let mut rest = Mask { rows: h, cols: w, data: vec![false; h * w] };
     for (p, piece) in pieces.iter().enumerate() {
@@ -269,12 +284,11 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Vec<Par
             or_into(&mut rest, piece);
         }
     }
-    let mut out = Vec::new();
-    for m in accepted.iter().map(|&p| pieces[p].clone()).chain(std::iter::once(rest)) {
-        let sub = Part { rect, footprint: fill_holes(&m), kmin: part.kmin, kmax: part.kmax };
-        if let Some(t) = sub.tighten() {
-            out.extend(split_by_colour(cx, pcs, t));
-        }
-    }
-    out
+    let (kmin, kmax) = (part.kmin, part.kmax);
+    Ok(accepted
+        .iter()
+        .map(|&p| pieces[p].clone())
+        .chain(std::iter::once(rest))
+        .filter_map(|m| Part { rect, footprint: fill_holes(&m), kmin, kmax }.tighten())
+        .collect())
 }
