@@ -53,24 +53,20 @@ pub struct Tuned {
 /// The most tuned numbers mining may have (issue 31).
 pub const BUDGET: usize = 25; // fixed: the issue's bound
 
-fn option(
-    name: &'static str,
-    stage: Stage,
-    value: f64,
-    unit: &'static str,
-    why: &'static str,
-) -> Tuned {
-    Tuned { name, stage, option: true, value, unit, why }
-}
+/// Where an entry is defined: a field of [`MineOptions`], or a constant of the source (marked
+/// `// tuned: NAME` where it is defined).
+const OPTION: bool = true;
+const CONSTANT: bool = false;
 
-fn constant(
+fn entry(
+    option: bool,
     name: &'static str,
     stage: Stage,
     value: f64,
     unit: &'static str,
     why: &'static str,
 ) -> Tuned {
-    Tuned { name, stage, option: false, value, unit, why }
+    Tuned { name, stage, option, value, unit, why }
 }
 
 /// The tuned numbers of mining with the values `o` holds (the defaults:
@@ -80,7 +76,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
     let d: &DetectParams = &o.detect;
     let u = |v: usize| v as f64;
     vec![
-        option(
+        entry(
+            OPTION,
             "detect.blur_levels",
             Detection,
             u(d.blur_levels),
@@ -89,7 +86,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
              vertical and horizontal tolerance (eleven values were 2 or 3); 2 and 4 lost \
              objects on the basis",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.min_area_texels",
             Detection,
             u(d.min_area_texels),
@@ -97,7 +95,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "the smallest object footprint (a vase); 32 lost small objects of a room of 10 cm \
              texels (F1 0.759 -> 0.679), 16 and 36 mined the basis worse",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.floor_coverage",
             Detection,
             f64::from(d.floor_coverage),
@@ -105,14 +104,16 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "a floor shows 26-27% of the plane through the furniture of a crowded scene; 0.3 \
              lost random_2's floor (0.788 -> 0.971 at 2000 iterations with 0.25)",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.wall_half_thickness_texels",
             Detection,
             f64::from(d.wall_half_thickness_texels),
             "texels",
             "half the thickest wall (20 cm in the suite's rooms); furniture is thicker",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.bridge_radius_texels",
             Detection,
             u(d.bridge_radius_texels),
@@ -120,14 +121,16 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "the opening that cuts blurred bridges between neighbours; 1 and 3 both lost \
              objects on the basis",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.colour_contrast",
             Detection,
             f64::from(d.colour_contrast),
             "pooled standard deviations",
             "a colour piece must differ this much from its surroundings to be an object",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.low_support_levels",
             Detection,
             u(d.low_support_levels),
@@ -135,7 +138,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "a surface this low carries objects over most of it (a pallet's deck); 0 lost \
              the warehouse's crates (1.000 -> 0.900 on its three fields)",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.colour.max_part_solidity",
             Detection,
             f64::from(d.colour.max_part_solidity),
@@ -143,14 +147,16 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "a part this convex is one object; 1.0 lost objects on six fields (living_room at \
              2000 iterations 0.929 -> 0.632)",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.unpack.surface_opacity",
             Detection,
             f64::from(d.unpack.surface_opacity),
             "share of the voxel threshold",
             "table tops are faint in places",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.unpack.dense_window_share",
             Detection,
             f64::from(d.unpack.dense_window_share),
@@ -158,7 +164,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "ghost layers under a table top can be denser than the top; 0.5 lost the \
              warehouse's crates on pallets (1.000 -> 0.900)",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.unpack.free_share",
             Detection,
             f64::from(d.unpack.free_share),
@@ -166,7 +173,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "a chair's seat under its back is no table; 0.5 mined living_room at 2000 \
              (0.966 -> 0.929) and random_2 at 6000 (1.000 -> 0.970) worse",
         ),
-        option(
+        entry(
+            OPTION,
             "detect.unpack.rim_texels",
             Detection,
             u(d.unpack.rim_texels),
@@ -174,7 +182,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "a support's rim band and the fringe around what stands on it; 3 for the solid \
              top's edge (was 2) mined random_12 at 2000 iterations better (0.805 -> 0.833)",
         ),
-        constant(
+        entry(
+            CONSTANT,
             "detect.max_ground_tilt_deg",
             Detection,
             f64::from(crate::detect::MAX_GROUND_TILT_DEG),
@@ -182,7 +191,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "a levelled capture is within about one degree; a slab tilted by 3 rises by 5% of \
              the plane, more than the floor search tolerates (no dev field is tilted)",
         ),
-        constant(
+        entry(
+            CONSTANT,
             "detect.smooth_keep_share",
             Detection,
             crate::detect::SMOOTH_KEEP[0] as f64 / crate::detect::SMOOTH_KEEP[1] as f64,
@@ -190,14 +200,16 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "smoothing a part keeps its shape unless it takes more than a third away (thin \
              objects); a half lost objects of blender_random_1001 and random_1003 at 2000",
         ),
-        option(
+        entry(
+            OPTION,
             "group.labels",
             Grouping,
             u(o.group.labels),
             "K-means labels",
             "the codebook the label histograms are built on",
         ),
-        option(
+        entry(
+            OPTION,
             "group.length_tolerance",
             Grouping,
             o.group.length_tolerance,
@@ -205,7 +217,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "reconstruction noise between two instances of one object (16%); areas compare \
              within twice it",
         ),
-        option(
+        entry(
+            OPTION,
             "group.min_separation",
             Grouping,
             o.group.min_separation,
@@ -213,7 +226,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "where the suite's nearest distinct categories begin; instances of one object \
              differ by a few hundredths",
         ),
-        constant(
+        entry(
+            CONSTANT,
             "group.max_copies",
             Grouping,
             crate::copies::MAX_COPIES as f64,
@@ -221,7 +235,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "the most copies a touching region is cut into; unbounded, random_6 at 2000 \
              iterations cut four false objects (F1 0.814 -> 0.778)",
         ),
-        constant(
+        entry(
+            CONSTANT,
             "pose.decisive_residual_ratio",
             Poses,
             f64::from(crate::pose::DECISIVE_RESIDUAL_RATIO),
@@ -229,14 +244,16 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "round objects' basins differ by 1.0-1.1; a street lamp turned the wrong way by \
              tight crops differed by 5.7",
         ),
-        option(
+        entry(
+            OPTION,
             "pose.yaw.step_deg",
             Poses,
             f64::from(o.pose.yaw.step_deg),
             "degrees",
             "the coarse scan's step, fine enough for every basin of the suite's objects",
         ),
-        option(
+        entry(
+            OPTION,
             "pose.yaw.starts",
             Poses,
             u(o.pose.yaw.starts),
@@ -245,21 +262,24 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
              the basis's objects further off (median yaw error at 2000 iterations 0.78 -> \
              1.08 degrees), 2 mined about the same",
         ),
-        constant(
+        entry(
+            CONSTANT,
             "pivot.contact_band",
             Pivots,
             f64::from(crate::pivot::CONTACT_BAND),
             "share of the object's height",
             "a chair's legs, a lamp's foot, a car's wheels",
         ),
-        constant(
+        entry(
+            CONSTANT,
             "pivot.max_contact_share",
             Pivots,
             f64::from(crate::pivot::MAX_CONTACT_SHARE),
             "share of the object's texels",
             "a post, not a base: the pivot leaves the box centre only for a compact contact",
         ),
-        constant(
+        entry(
+            CONSTANT,
             "pivot.max_contact_aspect",
             Pivots,
             f64::from(crate::pivot::MAX_CONTACT_ASPECT),
@@ -267,7 +287,8 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "a post, not a panel: no basis field changes without it, but a chair touching down \
              along one thin panel turned about the panel in the unit tests",
         ),
-        constant(
+        entry(
+            CONSTANT,
             "pivot.min_column_share",
             Pivots,
             f64::from(crate::pivot::MIN_COLUMN_SHARE),
