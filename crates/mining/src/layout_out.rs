@@ -45,6 +45,8 @@ fn round_deg(v: f32) -> f32 {
 /// How lengths are rounded in a layout script (see [`TEXEL_PARTS_SHOWN`]).
 #[derive(Debug, Clone, Copy)]
 struct Lengths {
+    /// The finer side of the library's texels (world units).
+    texel: f32,
     /// `10^places`.
     scale: f32,
 }
@@ -58,7 +60,7 @@ impl Lengths {
         } else {
             3 // fixed: millimetres when the texel is unknown
         };
-        Lengths { scale: 10f32.powi(places) } // fixed: decimal
+        Lengths { texel, scale: 10f32.powi(places) } // fixed: decimal
     }
 
     fn round(self, v: f32) -> f32 {
@@ -107,7 +109,6 @@ pub fn layout_script(
 ) -> Result<Script> {
     let display = |entry: &str| names.get(entry).cloned().unwrap_or_else(|| entry.to_string());
     let len = Lengths::of(index);
-    let texel = index.texel_size.0.min(index.texel_size.1);
     let mut assets = BTreeMap::new();
     let mut heights = BTreeMap::new();
     for c in &index.categories {
@@ -200,7 +201,7 @@ pub fn layout_script(
                     scale: 1.0,
                     // within half a level of its host's top (the voxels are cubic: half a
                     // texel), it stands on it: the field resolves no finer
-                    base: if base.abs() < 0.5 * texel { 0.0 } else { base },
+                    base: if base.abs() < 0.5 * len.texel { 0.0 } else { base },
                     name: Some(
                         display(&e.name)
                             .strip_prefix(&format!("{}/", display(parent)))

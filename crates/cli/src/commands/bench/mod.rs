@@ -286,15 +286,9 @@ fn bench_render(a: BenchRenderArgs) -> Result<()> {
         "rays_per_s": rays / med,
         "batch": batch_json,
     });
-    if a.scene.json {
-        println!("{}", serde_json::to_string_pretty(&out)?);
+    if report_head(a.scene.json, &out, "render", adapter.as_deref(), &scene.description)? {
         return Ok(());
     }
-    println!(
-        "bench render: {}",
-        adapter.as_deref().map_or("cpu".to_string(), |d| format!("gpu, {d}"))
-    );
-    println!("scene: {}", scene.description);
     println!("{} instances, {} x {} pixels", a.instances, a.res, a.res);
     let row = |what: &str, v: String| println!("  {what:<34} {v}");
     row("setup (upload, first rasterisation)", format!("{:.1} ms", ms(t.setup)));
@@ -486,15 +480,9 @@ fn bench_reconfigure(a: BenchReconfigureArgs) -> Result<()> {
         "moves": a.moves,
         "rows": json_rows,
     });
-    if a.scene.json {
-        println!("{}", serde_json::to_string_pretty(&out)?);
+    if report_head(a.scene.json, &out, "reconfigure", adapter.as_deref(), &scene.description)? {
         return Ok(());
     }
-    println!(
-        "bench reconfigure: {}",
-        adapter.as_deref().map_or("cpu".to_string(), |d| format!("gpu, {d}"))
-    );
-    println!("scene: {}", scene.description);
     let (mover, full) = if backend == "gpu" {
         ("GpuComposer::rasterise_rects", "GpuComposer::rasterise(.., None)")
     } else {
@@ -648,4 +636,22 @@ fn reconfigure_cpu(
         rows.push(row);
     }
     Ok(rows)
+}
+
+/// The start of a bench's report: the whole of it as JSON when `json` is asked (true: the
+/// report is done), else its title line (the backend that ran) and the scene.
+fn report_head(
+    json: bool,
+    out: &Value,
+    name: &str,
+    adapter: Option<&str>,
+    scene: &str,
+) -> Result<bool> {
+    if json {
+        println!("{}", serde_json::to_string_pretty(out)?);
+        return Ok(true);
+    }
+    println!("bench {name}: {}", adapter.map_or("cpu".to_string(), |d| format!("gpu, {d}")));
+    println!("scene: {scene}");
+    Ok(false)
 }
