@@ -3,8 +3,10 @@
 //! 400 x 400) and on the real lego scene when ../shared/data is present.
 //!
 //! Each field is first trained for a short warm-up at the final plane resolution (300) so that
-//! the density has formed, then its occupancy grid is built: the most expensive stage of a
-//! real run.
+//! the density has formed; training is then measured with two occupancy grids in turn: the
+//! trainer's early grid (a young, hazy field that rays march nearly everywhere, the first
+//! few percent of a run) and the scheduled grids' threshold (most of a run). Rendering is
+//! measured with the second.
 //!
 //! Training is reported twice on the same schedule: per ray (4096 per iteration) and per sample
 //! (the samples the march evaluates after occupancy skipping, counted over a few iterations
@@ -68,7 +70,7 @@ fn bench_scene(c: &mut Criterion, name: &str, dir: PathBuf, aabb: Aabb3) {
     let models = std::env::var("BENCH_MODELS").unwrap_or_else(|_| "s,vm".into());
     let kinds = [ModelKind::Standard, ModelKind::Vm];
     for kind in kinds.into_iter().filter(|k| models.split(',').any(|m| m == k.name())) {
-        // the most expensive stage of a run: final plane resolution, occupancy grid in use
+        // final plane resolution, as at the end of a run
         let mut cfg = TrainConfig::new(kind);
         cfg.iters = 30_000;
         cfg.plane_res_start = 300;
@@ -77,20 +79,32 @@ fn bench_scene(c: &mut Criterion, name: &str, dir: PathBuf, aabb: Aabb3) {
             t.step();
         }
         t.rebuild_occupancy();
-        // samples per iteration at this stage (the march after occupancy skipping), over a
-        // few iterations: the second throughput of the same kernel
-        let probe: usize = (0..SAMPLE_PROBE_ITERS).map(|_| t.step().samples).sum();
-        let samples = (probe as u64 / SAMPLE_PROBE_ITERS).max(1);
+        // two occupancy grids in turn: the trainer's early grid, which keeps all but clearly
+        // emptied space (its first iteration here, a multiple of the early grids' period,
+        // builds one: a young, hazy field marched nearly everywhere), then the scheduled
+        // grids' TensoRF threshold with the early grids off (where a run spends most of
+        // its time)
+        for state in ["early grid", "scheduled grid"] {
+            if state == "scheduled grid" {
+                t.config.occupancy_every_early = 0;
+                t.rebuild_occupancy();
+            }
+            // samples per iteration in this state (the march after occupancy skipping),
+            // over a few iterations: the second throughput of the same kernel
+            let probe: usize = (0..SAMPLE_PROBE_ITERS).map(|_| t.step().samples).sum();
+            let samples = (probe as u64 / SAMPLE_PROBE_ITERS).max(1);
+            let mut g = c.benchmark_group(format!("{name} {}, {state}", kind.name()));
+            g.sample_size(10);
+            g.throughput(Throughput::Elements(4096));
+            g.bench_function("train iteration, 4096 rays (elements = rays)", |b| {
+                b.iter(|| black_box(t.step()))
+            });
+            g.throughput(Throughput::Elements(samples));
+            let id = format!("train iteration, {samples} samples (elements = samples)");
+            g.bench_function(id, |b| b.iter(|| black_box(t.step())));
+            g.finish();
+        }
         let mut g = c.benchmark_group(format!("{name} {}", kind.name()));
-        g.sample_size(10);
-        g.throughput(Throughput::Elements(4096));
-        g.bench_function("train iteration, 4096 rays (elements = rays)", |b| {
-            b.iter(|| black_box(t.step()))
-        });
-        g.throughput(Throughput::Elements(samples));
-        g.bench_function(format!("train iteration, {samples} samples (elements = samples)"), |b| {
-            b.iter(|| black_box(t.step()))
-        });
         let cam = test.frames[0].camera;
         let (w, h) = (cam.intrinsics.width as u64, cam.intrinsics.height as u64);
         g.throughput(Throughput::Elements(w * h));

@@ -25,6 +25,14 @@ pub struct MarchSettings {
     /// exact. The draw is a hash of the ray's jitter and the sample's place on its lattice:
     /// the same on any number of threads.
     pub color_grad_weight: f32,
+    /// Training only (0: off, every sample's density gets its gradient): a sample whose
+    /// opacity `alpha` is below this gets its density gradient (into the density grids)
+    /// with probability `alpha / density_grad_alpha`, scaled by its inverse: unbiased,
+    /// while the many nearly transparent samples of a hazy early field mostly skip the
+    /// grids' backward pass. The compositing's own gradient stays exact. The draw is a
+    /// hash of the ray's jitter and the sample's place on its lattice, independent of the
+    /// colour draw.
+    pub density_grad_alpha: f32,
 }
 
 impl Default for MarchSettings {
@@ -34,6 +42,7 @@ impl Default for MarchSettings {
             stop_transmittance: 1e-4,
             max_samples: 2048,
             color_grad_weight: 0.0,
+            density_grad_alpha: 0.0,
         }
     }
 }
@@ -46,6 +55,9 @@ pub struct MarchWork {
     s_alpha: Vec<f32>,
     s_trans: Vec<f32>,
     s_color: Vec<u32>,
+    /// Per sample: the factor its density gradient is taken with (1, 0 for a faint sample
+    /// the draw passed over, or `density_grad_alpha / alpha` for one it kept).
+    s_dscale: Vec<f32>,
     ray_first: Vec<u32>,
     ray_end_t: Vec<f32>,
     pub color: ColorWork,
@@ -71,6 +83,8 @@ pub struct MarchWork {
     pub semantic: Vec<f32>,
     d_rgb: Vec<f32>,
     d_sem: Vec<f32>,
+    /// One ray's density-feature gradients, by sample.
+    d_feat: Vec<f32>,
 }
 
 const NO_COLOR: u32 = u32::MAX;
@@ -80,6 +94,15 @@ const REST: u32 = 1 << 31;
 /// Lattice points within this many march steps of an empty cell's exit face are looked up
 /// one by one rather than leapt over: the exit's rounding error stays far below it.
 const JUMP_MARGIN: f32 = 0.05;
+
+/// Mixed into a ray's seed for the density draw, so that it is independent of the colour
+/// draw of the same sample (any odd constant does; this one is SplitMix's).
+const DENSITY_DRAW: u32 = 0x7F4A_7C15;
+
+/// Lattice points whose densities are read together (see [`forward`]): enough independent
+/// plane reads to keep several cache misses in flight, few enough that a ray stopping in
+/// the middle of a packet wastes little.
+const PACKET: usize = 16;
 
 /// Forward pass over `rays`. `jitter` (one value in [0, 1) per ray) offsets the first sample
 /// for stratified sampling; without it samples start at the entry point plus half a step.
@@ -102,6 +125,7 @@ pub fn forward(
     w.s_alpha.clear();
     w.s_trans.clear();
     w.s_color.clear();
+    w.s_dscale.clear();
     w.ray_first.clear();
     w.ray_end_t.clear();
     w.color.clear();
@@ -112,10 +136,14 @@ pub fn forward(
         Some(_) if !(w.want_semantic && field.has_semantic()) => s.color_grad_weight.max(0.0),
         _ => 0.0,
     };
+    let tau_alpha = if jitter.is_some() { s.density_grad_alpha.max(0.0) } else { 0.0 };
     // samples of a ray sit on its lattice `first + k * step` (k < max_samples) from where it
     // enters the box; with an occupancy grid a ray starts and ends in the occupied cells'
     // box and leaps over an empty cell's lattice points at once (same samples, fewer steps)
     let occupied_box = occ.map(Occupancy::occupied_box);
+    let mut packet_pos = [Vec3::ZERO; PACKET];
+    let mut packet_k = [0usize; PACKET];
+    let mut packet_feat = [0.0f32; PACKET];
     for (r, ray) in rays.iter().enumerate() {
         w.ray_first.push(w.s_pos.len() as u32);
         let mut trans = 1.0f32;
@@ -131,53 +159,86 @@ pub fn forward(
                 }
                 None => {}
             }
-            while k < s.max_samples {
-                let t = first + k as f32 * step;
-                if t >= t1 {
-                    break;
-                }
-                let p = ray.origin + ray.dir * t;
-                if let Some(o) = occ
-                    && !o.occupied(p)
-                {
-                    // the lattice points short of the cell's exit (less a margin for
-                    // rounding: points near the face are looked up one by one) are empty
-                    let exit = t + o.cell_exit(p, inv) - JUMP_MARGIN * step;
-                    let last = ((exit - first) / step).floor();
-                    k = if last.is_finite() && last > k as f32 { last as usize + 1 } else { k + 1 };
-                    continue;
-                }
-                k += 1;
-                let feat = field.density_feature(p);
-                let sigma = crate::mlp::softplus(feat + shift);
-                let alpha = -crate::mlp::fast_expm1(-sigma * delta);
-                if alpha <= 0.0 {
-                    continue;
-                }
-                let weight = trans * alpha;
-                let ci = if weight > s.weight_threshold {
-                    let seed = jitter.map_or(r as u32, |j| j[r].to_bits());
-                    if weight >= tau || unit_hash(seed, k) * tau < weight {
-                        w.color.pos.push(p);
-                        w.color.dir.push(ray.dir);
-                        w.color_grad_scale.push(weight.max(tau));
-                        (w.color.pos.len() - 1) as u32
-                    } else {
-                        w.color_rest.pos.push(p);
-                        w.color_rest.dir.push(ray.dir);
-                        (w.color_rest.pos.len() - 1) as u32 | REST
+            // a packet of lattice points in occupied cells at a time, their densities read
+            // one after another with no dependence between them (so the reads of the
+            // planes overlap in the memory system), then composited in order; what a ray
+            // that stops early leaves of its packet is dropped
+            'ray: while k < s.max_samples {
+                let mut n = 0;
+                while n < PACKET && k < s.max_samples {
+                    let t = first + k as f32 * step;
+                    if t >= t1 {
+                        break;
                     }
-                } else {
-                    NO_COLOR
-                };
-                w.s_pos.push(p);
-                w.s_feat.push(feat);
-                w.s_alpha.push(alpha);
-                w.s_trans.push(trans);
-                w.s_color.push(ci);
-                trans *= 1.0 - alpha;
-                if trans < s.stop_transmittance {
+                    let p = ray.origin + ray.dir * t;
+                    if let Some(o) = occ
+                        && !o.occupied(p)
+                    {
+                        // the lattice points short of the exit of the empty cell (or of its
+                        // brick, when all of that is empty), less a margin for rounding
+                        // (points near the face are looked up one by one), are empty
+                        let exit = t + o.empty_exit(p, inv) - JUMP_MARGIN * step;
+                        let last = ((exit - first) / step).floor();
+                        k = if last.is_finite() && last > k as f32 {
+                            last as usize + 1
+                        } else {
+                            k + 1
+                        };
+                        continue;
+                    }
+                    k += 1;
+                    packet_pos[n] = p;
+                    packet_k[n] = k;
+                    n += 1;
+                }
+                if n == 0 {
                     break;
+                }
+                for (f, p) in packet_feat[..n].iter_mut().zip(&packet_pos[..n]) {
+                    *f = field.density_feature(*p);
+                }
+                for i in 0..n {
+                    let (p, feat) = (packet_pos[i], packet_feat[i]);
+                    let sigma = crate::mlp::softplus(feat + shift);
+                    let alpha = -crate::mlp::fast_expm1(-sigma * delta);
+                    if alpha <= 0.0 {
+                        continue;
+                    }
+                    let weight = trans * alpha;
+                    let ci = if weight > s.weight_threshold {
+                        let seed = jitter.map_or(r as u32, |j| j[r].to_bits());
+                        if weight >= tau || unit_hash(seed, packet_k[i]) * tau < weight {
+                            w.color.pos.push(p);
+                            w.color.dir.push(ray.dir);
+                            w.color_grad_scale.push(weight.max(tau));
+                            (w.color.pos.len() - 1) as u32
+                        } else {
+                            w.color_rest.pos.push(p);
+                            w.color_rest.dir.push(ray.dir);
+                            (w.color_rest.pos.len() - 1) as u32 | REST
+                        }
+                    } else {
+                        NO_COLOR
+                    };
+                    w.s_pos.push(p);
+                    w.s_feat.push(feat);
+                    w.s_alpha.push(alpha);
+                    w.s_trans.push(trans);
+                    w.s_color.push(ci);
+                    w.s_dscale.push(if alpha >= tau_alpha {
+                        1.0
+                    } else {
+                        let seed = jitter.map_or(r as u32, |j| j[r].to_bits()) ^ DENSITY_DRAW;
+                        if unit_hash(seed, packet_k[i]) * tau_alpha < alpha {
+                            tau_alpha / alpha
+                        } else {
+                            0.0
+                        }
+                    });
+                    trans *= 1.0 - alpha;
+                    if trans < s.stop_transmittance {
+                        break 'ray;
+                    }
                 }
             }
         }
@@ -256,6 +317,8 @@ pub fn backward(
     for r in 0..rays {
         let (a, b) = (w.ray_first[r] as usize, w.ray_first[r + 1] as usize);
         let dc = d_rgb[r];
+        w.d_feat.clear();
+        w.d_feat.resize(b - a, 0.0);
         // everything behind sample i, dotted with dC: starts with the background
         let mut after = w.ray_end_t[r] * dc.dot(background);
         for i in (a..b).rev() {
@@ -286,11 +349,9 @@ pub fn backward(
             };
             let d_sigma = delta * (trans * (1.0 - alpha) * g - after);
             after += weight * g;
-            let d_feat = d_sigma * sigmoid(w.s_feat[i] + shift);
-            if d_feat != 0.0 {
-                field.density_backward(w.s_pos[i], d_feat, grad);
-            }
+            w.d_feat[i - a] = w.s_dscale[i] * d_sigma * sigmoid(w.s_feat[i] + shift);
         }
+        field.density_backward(&w.s_pos[a..b], &w.d_feat[..b - a], grad);
     }
     let d = std::mem::take(&mut w.d_rgb);
     let ds = std::mem::take(&mut w.d_sem);

@@ -299,7 +299,7 @@ impl Field {
 
     /// Density feature (before shift and softplus) at a world point.
     #[inline]
-    pub fn density_feature(&self, p: Vec3) -> f32 {
+    pub fn density_feature<'a>(&'a self, p: Vec3) -> f32 {
         let g = self.to_grid(p);
         let d = &self.params.data;
         let mut acc = [0.0f32; 8];
@@ -311,13 +311,14 @@ impl Field {
             let ([p0, p1, p2, p3], [l0, l1]) = c.taps(d, &b, &l);
             let [w0, w1, w2, w3] = b.w;
             let [v0, v1] = l.w;
-            // eight independent lanes so the channel loop vectorises
+            // eight independent lanes over fixed-width chunks so the channel loop vectorises
             let full = ch / 8 * 8;
-            for q in (0..full).step_by(8) {
+            let lanes = |s: &'a [f32]| s[..full].as_chunks::<8>().0;
+            let taps = lanes(p0).iter().zip(lanes(p1)).zip(lanes(p2)).zip(lanes(p3));
+            for ((((a, b), c), e), (f, h)) in taps.zip(lanes(l0).iter().zip(lanes(l1))) {
                 for k in 0..8 {
-                    let i = q + k;
-                    let m = w0 * p0[i] + w1 * p1[i] + w2 * p2[i] + w3 * p3[i];
-                    acc[k] += m * (v0 * l0[i] + v1 * l1[i]);
+                    let m = w0 * a[k] + w1 * b[k] + w2 * c[k] + w3 * e[k];
+                    acc[k] += m * (v0 * f[k] + v1 * h[k]);
                 }
             }
             for i in full..ch {
@@ -408,34 +409,81 @@ impl Field {
         }
     }
 
-    /// `d density_feature / d params * d_feat`, accumulated into `grad`: the plane taps get
-    /// `w_t * d_feat * line`, the line taps `v_t * d_feat * plane`, channel by channel in
-    /// blocks of [`BACKWARD_BLOCK`] (small stack buffers, whatever the channel count).
-    #[inline]
-    pub fn density_backward(&self, p: Vec3, d_feat: f32, grad: &mut [f32]) {
-        let g = self.to_grid(p);
+    /// `d density_feature / d params * d_feat`, accumulated into `grad`, for each point of
+    /// `points` with its `d_feats` (points with a zero gradient are passed over): the plane
+    /// taps get `w_t * d_feat * line`, the line taps `v_t * d_feat * plane`, channel by
+    /// channel in blocks of [`BACKWARD_BLOCK`]. Consecutive points that read the same four
+    /// texels (or the same two line samples), as the samples of one ray mostly do, add up
+    /// in a small buffer that reaches `grad` once: the gradient's memory is written once per
+    /// texel met, not once per sample.
+    pub fn density_backward(&self, points: &[Vec3], d_feats: &[f32], grad: &mut [f32]) {
+        const B: usize = BACKWARD_BLOCK;
         let d = &self.params.data;
         for c in &self.density {
-            let b = c.plane_at(g);
-            let l = c.line_at(g);
             let line = c.line.expect("density components have lines");
-            let ([p0, p1, p2, p3], [l0, l1]) = c.taps(d, &b, &l);
-            let [w0, w1, w2, w3] = b.w;
-            let [v0, v1] = l.w;
-            for q0 in (0..c.ch).step_by(BACKWARD_BLOCK) {
-                let n = (c.ch - q0).min(BACKWARD_BLOCK);
-                let mut dm = [0.0f32; BACKWARD_BLOCK];
-                let mut dh = [0.0f32; BACKWARD_BLOCK];
-                for k in 0..n {
-                    let i = q0 + k;
-                    let m = w0 * p0[i] + w1 * p1[i] + w2 * p2[i] + w3 * p3[i];
-                    let h = v0 * l0[i] + v1 * l1[i];
-                    dm[k] = d_feat * h;
-                    dh[k] = d_feat * m;
+            for q0 in (0..c.ch).step_by(B) {
+                let n = (c.ch - q0).min(B);
+                let (mut quad, mut pair) = (None::<[usize; 4]>, None::<[usize; 2]>);
+                let mut dp = [[0.0f32; B]; 4];
+                let mut dl = [[0.0f32; B]; 2];
+                let flush_plane = |idx: [usize; 4], dp: &mut [[f32; B]; 4], grad: &mut [f32]| {
+                    for (t, acc) in idx.iter().zip(dp.iter_mut()) {
+                        let dst = &mut grad[c.plane + t + q0..][..n];
+                        for (o, a) in dst.iter_mut().zip(acc.iter_mut()) {
+                            *o += *a;
+                            *a = 0.0;
+                        }
+                    }
+                };
+                let flush_line = |idx: [usize; 2], dl: &mut [[f32; B]; 2], grad: &mut [f32]| {
+                    for (t, acc) in idx.iter().zip(dl.iter_mut()) {
+                        let dst = &mut grad[line + t + q0..][..n];
+                        for (o, a) in dst.iter_mut().zip(acc.iter_mut()) {
+                            *o += *a;
+                            *a = 0.0;
+                        }
+                    }
+                };
+                for (&p, &d_feat) in points.iter().zip(d_feats) {
+                    if d_feat == 0.0 {
+                        continue;
+                    }
+                    let g = self.to_grid(p);
+                    let (b, l) = (c.plane_at(g), c.line_at(g));
+                    let ([p0, p1, p2, p3], [l0, l1]) = c.taps(d, &b, &l);
+                    if quad != Some(b.idx) {
+                        if let Some(q) = quad {
+                            flush_plane(q, &mut dp, grad);
+                        }
+                        quad = Some(b.idx);
+                    }
+                    if pair != Some(l.idx) {
+                        if let Some(q) = pair {
+                            flush_line(q, &mut dl, grad);
+                        }
+                        pair = Some(l.idx);
+                    }
+                    let [w0, w1, w2, w3] = b.w;
+                    let [v0, v1] = l.w;
+                    for k in 0..n {
+                        let i = q0 + k;
+                        let m = w0 * p0[i] + w1 * p1[i] + w2 * p2[i] + w3 * p3[i];
+                        let h = v0 * l0[i] + v1 * l1[i];
+                        let (dm, dh) = (d_feat * h, d_feat * m);
+                        dp[0][k] += w0 * dm;
+                        dp[1][k] += w1 * dm;
+                        dp[2][k] += w2 * dm;
+                        dp[3][k] += w3 * dm;
+                        dl[0][k] += v0 * dh;
+                        dl[1][k] += v1 * dh;
+                    }
                 }
-                // tap by tap: border taps may name the same texel twice
-                b.scatter(&mut grad[c.plane + q0..], &dm[..n]);
-                l.scatter(&mut grad[line + q0..], &dh[..n]);
+                if let Some(q) = quad {
+                    flush_plane(q, &mut dp, grad);
+                }
+                if let Some(q) = pair {
+                    flush_line(q, &mut dl, grad);
+                }
             }
         }
     }

@@ -67,6 +67,11 @@ pub struct TrainConfig {
     /// it existed resume with 0.
     #[serde(default)]
     pub color_grad_weight: f32,
+    /// Samples more transparent than this opacity get an unbiased stochastic density
+    /// gradient ([`MarchSettings::density_grad_alpha`]; 0: every one gets its own). Runs
+    /// from before it existed resume with 0.
+    #[serde(default)]
+    pub density_grad_alpha: f32,
     /// How plane resolutions become grid sizes, and whether the shared tensors train
     /// (scenes trained together or against a frozen shared set; see [`GridRule`]).
     #[serde(default)]
@@ -147,6 +152,7 @@ impl TrainConfig {
             seed: 20230,
             chunks: 4,
             color_grad_weight: DEFAULT_COLOR_GRAD_WEIGHT,
+            density_grad_alpha: DEFAULT_DENSITY_GRAD_ALPHA,
             grid: GridRule::default(),
         }
     }
@@ -156,6 +162,12 @@ impl TrainConfig {
 /// pixel takes part in the colour gradient in proportion to its weight (a fraction of the
 /// pixel, so the same for every scene and unit).
 pub const DEFAULT_COLOR_GRAD_WEIGHT: f32 = 0.01;
+
+/// The default [`TrainConfig::density_grad_alpha`]: TensoRF's opacity for empty space (its
+/// alpha mask's threshold, and this trainer's occupancy grids'), a dimensionless opacity of
+/// one march step, so the same for every scene and unit. Below it a sample's density
+/// gradient is a weighted coin toss.
+pub const DEFAULT_DENSITY_GRAD_ALPHA: f32 = 1e-4;
 
 fn default_early_samples() -> f32 {
     64.0
@@ -468,6 +480,7 @@ impl Trainer {
         let bg = Vec3::from(self.config.background);
         let settings = MarchSettings {
             color_grad_weight: self.config.color_grad_weight,
+            density_grad_alpha: self.config.density_grad_alpha,
             ..MarchSettings::default()
         };
         let scale = 2.0 / (batch as f32 * 3.0);

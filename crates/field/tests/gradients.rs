@@ -47,6 +47,7 @@ const SETTINGS: MarchSettings = MarchSettings {
     stop_transmittance: 0.0,
     max_samples: 10_000,
     color_grad_weight: 0.0,
+    density_grad_alpha: 0.0,
 };
 
 const SEM_TARGET: f32 = 0.3;
@@ -190,6 +191,49 @@ fn stochastic_colour_gradients_average_to_the_exact_gradient() {
     let (exact, rgb) = gradient(0.0, &base);
     // tau above every sample's weight: each sample's colour gradient is a coin toss
     let tau = 2.0;
+    let draws = 4000;
+    let mut mean = vec![0.0f64; exact.len()];
+    let mut skipped_all = 0;
+    for m in 0..draws {
+        let jitter: Vec<f32> =
+            base.iter().map(|j| f32::from_bits(j.to_bits() ^ (m as u32 & 0xff))).collect();
+        let (g, c) = gradient(tau, &jitter);
+        for (a, b) in rgb.iter().zip(&c) {
+            assert!((*a - *b).length() < 1e-5, "colours stay exact");
+        }
+        skipped_all += usize::from(g.iter().zip(&exact).all(|(a, b)| a == b));
+        for (s, v) in mean.iter_mut().zip(&g) {
+            *s += v / f64::from(draws);
+        }
+    }
+    assert_eq!(skipped_all, 0, "draws differ from the exact gradient");
+    let norm = exact.iter().map(|g| g * g).sum::<f64>().sqrt();
+    let err = mean.iter().zip(&exact).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+    assert!(err < 0.05 * norm, "mean of draws off by {err} (norm {norm})");
+}
+
+/// Stochastic density gradients (`MarchSettings::density_grad_alpha`) are unbiased: averaged
+/// over many draws they give the exact gradient; a single draw skips most samples' grid
+/// gradients, and the colours (the forward pass) are untouched.
+#[test]
+fn stochastic_density_gradients_average_to_the_exact_gradient() {
+    let field = tiny(ModelKind::Standard, DecoderKind::Mlp { hidden: vec![8], view_freqs: 1 }, 0);
+    let bg = Vec3::new(1.0, 0.9, 0.8);
+    let target = Vec3::new(0.2, 0.6, 0.4);
+    let rs = rays();
+    let gradient = |tau: f32, jitter: &[f32]| {
+        let s = MarchSettings { density_grad_alpha: tau, ..SETTINGS };
+        let mut w = MarchWork::default();
+        forward(&field, None, &rs, Some(jitter), bg, &s, &mut w);
+        let d_rgb: Vec<Vec3> = w.rgb.iter().map(|c| 2.0 * (*c - target)).collect();
+        let mut g32 = vec![0.0f32; field.params.len()];
+        backward(&field, bg, &d_rgb, None, &mut w, &mut g32);
+        (g32.iter().map(|g| f64::from(*g)).collect::<Vec<_>>(), w.rgb.clone())
+    };
+    let base = [0.1f32, 0.5, 0.9, 0.3];
+    let (exact, rgb) = gradient(0.0, &base);
+    // an opacity above every sample's: each sample's density gradient is a coin toss
+    let tau = 1.0;
     let draws = 4000;
     let mut mean = vec![0.0f64; exact.len()];
     let mut skipped_all = 0;

@@ -99,7 +99,7 @@ fn a_regional_update_equals_a_full_rebuild() {
     assert!(touched > 0);
 }
 
-/// The march leaps over empty cells and starts and ends in the occupied cells' box, yet
+/// The march leaps over empty cells (and empty bricks of cells) and starts and ends in the occupied cells' box, yet
 /// evaluates exactly the lattice points a point-by-point walk finds occupied: on a random
 /// grid (a sparse one and one with a single occupied cell), for rays in every direction,
 /// axis-parallel ones included, with a density that never stops a ray (no stopping
@@ -144,8 +144,12 @@ fn leaping_over_empty_cells_keeps_every_occupied_sample() {
             rays.push(Ray { origin: t - d * 5.0, dir: d });
         }
     }
-    for cells in [sparse, single] {
+    // and a few occupied cells: whole bricks of the bitfield are empty, partly empty or
+    // cut by the grid's border (13 x 9 x 7 is no multiple of the 4-cell brick)
+    let few: Vec<u8> = (0..sparse.len()).map(|_| u8::from(next() < 0.02)).collect();
+    for cells in [sparse, single, few] {
         let occ = Occupancy::from_cells(&f, res, &cells);
+        assert_eq!(occ.cells_u8(), cells, "the bitfield keeps every cell");
         let mut w = MarchWork::default();
         let jitter: Vec<f32> = rays.iter().map(|_| next()).collect();
         forward(&f, Some(&occ), &rays, Some(&jitter), Vec3::ONE, &settings, &mut w);

@@ -133,6 +133,12 @@ pub struct TrainArgs {
     /// own colour gradient.
     #[arg(long, default_value_t = assetfield_field::train::DEFAULT_COLOR_GRAD_WEIGHT)]
     pub color_grad_weight: f32,
+    /// Samples more transparent than this opacity (of one march step) get their density
+    /// gradient by a weighted coin toss, scaled back up (unbiased; most nearly empty
+    /// samples of a young, hazy field then skip the density grids' backward pass). 0 gives
+    /// every sample its own density gradient.
+    #[arg(long, default_value_t = assetfield_field::train::DEFAULT_DENSITY_GRAD_ALPHA)]
+    pub density_grad_alpha: f32,
     /// Colour decoder: mlp or sh (spherical harmonics, degree 2).
     /// [default: mlp; with --share, the shared decoder]
     #[arg(long, value_enum)]
@@ -304,6 +310,9 @@ pub(crate) fn check_options(a: &TrainArgs) -> Result<usize> {
     if !(a.color_grad_weight.is_finite() && (0.0..=1.0).contains(&a.color_grad_weight)) {
         bail!("--color-grad-weight {} must be between 0 and 1", a.color_grad_weight);
     }
+    if !(a.density_grad_alpha.is_finite() && (0.0..=1.0).contains(&a.density_grad_alpha)) {
+        bail!("--density-grad-alpha {} must be between 0 and 1", a.density_grad_alpha);
+    }
     if a.iters == Some(0) {
         bail!("--iters must be at least 1");
     }
@@ -339,6 +348,7 @@ pub(crate) fn train_config(
     let mut tc = TrainConfig::new(kind);
     tc.batch = a.batch;
     tc.color_grad_weight = a.color_grad_weight;
+    tc.density_grad_alpha = a.density_grad_alpha;
     tc.iters = match (a.iters, seconds) {
         (Some(n), _) => n,
         (None, Some(_)) => u64::MAX,
