@@ -426,24 +426,6 @@ impl Field {
                 let (mut quad, mut pair) = (None::<[usize; 4]>, None::<[usize; 2]>);
                 let mut dp = [[0.0f32; B]; 4];
                 let mut dl = [[0.0f32; B]; 2];
-                let flush_plane = |idx: [usize; 4], dp: &mut [[f32; B]; 4], grad: &mut [f32]| {
-                    for (t, acc) in idx.iter().zip(dp.iter_mut()) {
-                        let dst = &mut grad[c.plane + t + q0..][..n];
-                        for (o, a) in dst.iter_mut().zip(acc.iter_mut()) {
-                            *o += *a;
-                            *a = 0.0;
-                        }
-                    }
-                };
-                let flush_line = |idx: [usize; 2], dl: &mut [[f32; B]; 2], grad: &mut [f32]| {
-                    for (t, acc) in idx.iter().zip(dl.iter_mut()) {
-                        let dst = &mut grad[line + t + q0..][..n];
-                        for (o, a) in dst.iter_mut().zip(acc.iter_mut()) {
-                            *o += *a;
-                            *a = 0.0;
-                        }
-                    }
-                };
                 for (&p, &d_feat) in points.iter().zip(d_feats) {
                     if d_feat == 0.0 {
                         continue;
@@ -453,13 +435,13 @@ impl Field {
                     let ([p0, p1, p2, p3], [l0, l1]) = c.taps(d, &b, &l);
                     if quad != Some(b.idx) {
                         if let Some(q) = quad {
-                            flush_plane(q, &mut dp, grad);
+                            flush(grad, c.plane + q0, q, &mut dp, n);
                         }
                         quad = Some(b.idx);
                     }
                     if pair != Some(l.idx) {
                         if let Some(q) = pair {
-                            flush_line(q, &mut dl, grad);
+                            flush(grad, line + q0, q, &mut dl, n);
                         }
                         pair = Some(l.idx);
                     }
@@ -479,10 +461,10 @@ impl Field {
                     }
                 }
                 if let Some(q) = quad {
-                    flush_plane(q, &mut dp, grad);
+                    flush(grad, c.plane + q0, q, &mut dp, n);
                 }
                 if let Some(q) = pair {
-                    flush_line(q, &mut dl, grad);
+                    flush(grad, line + q0, q, &mut dl, n);
                 }
             }
         }
@@ -836,6 +818,23 @@ impl Field {
     /// Whether the field decodes a semantic feature (I-AssetField trained on feature maps).
     pub fn has_semantic(&self) -> bool {
         self.semantic.is_some()
+    }
+}
+
+/// `grad[base + idx[t] ..][..n] += acc[t][..n]` for every tap `t`, tap by tap (border taps
+/// may name the same texel twice), leaving `acc` zero.
+fn flush<const T: usize>(
+    grad: &mut [f32],
+    base: usize,
+    idx: [usize; T],
+    acc: &mut [[f32; BACKWARD_BLOCK]; T],
+    n: usize,
+) {
+    for (t, a) in idx.iter().zip(acc.iter_mut()) {
+        for (o, v) in grad[base + t..][..n].iter_mut().zip(a.iter_mut()) {
+            *o += *v;
+            *v = 0.0;
+        }
     }
 }
 
