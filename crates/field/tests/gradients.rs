@@ -164,33 +164,26 @@ fn integrated_with_semantic_head_and_sh_decoder() {
     check(ModelKind::Integrated, DecoderKind::Sh { degree: 1 }, 2);
 }
 
-/// Stochastic colour gradients (`MarchSettings::color_grad_weight`) are unbiased: averaged
-/// over many draws (jitters that differ in their last bits, so the samples stay put while
-/// the draw changes) they give the exact gradient; a single draw skips most faint samples,
-/// and the colours (the forward pass) are untouched.
-#[test]
-fn stochastic_colour_gradients_average_to_the_exact_gradient() {
+/// A stochastic gradient estimator (the settings `with` gives for a threshold `tau`, `tau`
+/// above every sample's weight or opacity, so each sample's share is a coin toss) is
+/// unbiased: averaged over many draws (jitters that differ in their last bits, so the
+/// samples stay put while the draw changes) it gives the exact gradient (`tau` 0); a single
+/// draw differs from it, and the colours (the forward pass) are untouched.
+fn draws_average_to_the_exact_gradient(with: impl Fn(f32) -> MarchSettings, tau: f32) {
     let field = tiny(ModelKind::Standard, DecoderKind::Mlp { hidden: vec![8], view_freqs: 1 }, 0);
     let bg = Vec3::new(1.0, 0.9, 0.8);
     let target = Vec3::new(0.2, 0.6, 0.4);
     let rs = rays();
     let gradient = |tau: f32, jitter: &[f32]| {
-        let s = MarchSettings { color_grad_weight: tau, ..SETTINGS };
         let mut w = MarchWork::default();
-        forward(&field, None, &rs, Some(jitter), bg, &s, &mut w);
+        forward(&field, None, &rs, Some(jitter), bg, &with(tau), &mut w);
         let d_rgb: Vec<Vec3> = w.rgb.iter().map(|c| 2.0 * (*c - target)).collect();
-        let mut grad = vec![0.0f64; field.params.len()];
         let mut g32 = vec![0.0f32; field.params.len()];
         backward(&field, bg, &d_rgb, None, &mut w, &mut g32);
-        for (a, b) in grad.iter_mut().zip(&g32) {
-            *a = f64::from(*b);
-        }
-        (grad, w.rgb.clone())
+        (g32.iter().map(|g| f64::from(*g)).collect::<Vec<_>>(), w.rgb.clone())
     };
     let base = [0.1f32, 0.5, 0.9, 0.3];
     let (exact, rgb) = gradient(0.0, &base);
-    // tau above every sample's weight: each sample's colour gradient is a coin toss
-    let tau = 2.0;
     let draws = 4000;
     let mut mean = vec![0.0f64; exact.len()];
     let mut skipped_all = 0;
@@ -212,45 +205,22 @@ fn stochastic_colour_gradients_average_to_the_exact_gradient() {
     assert!(err < 0.05 * norm, "mean of draws off by {err} (norm {norm})");
 }
 
-/// Stochastic density gradients (`MarchSettings::density_grad_alpha`) are unbiased: averaged
-/// over many draws they give the exact gradient; a single draw skips most samples' grid
-/// gradients, and the colours (the forward pass) are untouched.
+/// Stochastic colour gradients (`MarchSettings::color_grad_weight`) are unbiased; a single
+/// draw skips most faint samples' decoder gradient.
+#[test]
+fn stochastic_colour_gradients_average_to_the_exact_gradient() {
+    draws_average_to_the_exact_gradient(
+        |tau| MarchSettings { color_grad_weight: tau, ..SETTINGS },
+        2.0,
+    );
+}
+
+/// Stochastic density gradients (`MarchSettings::density_grad_alpha`) are unbiased; a single
+/// draw skips most samples' density-grid gradient.
 #[test]
 fn stochastic_density_gradients_average_to_the_exact_gradient() {
-    let field = tiny(ModelKind::Standard, DecoderKind::Mlp { hidden: vec![8], view_freqs: 1 }, 0);
-    let bg = Vec3::new(1.0, 0.9, 0.8);
-    let target = Vec3::new(0.2, 0.6, 0.4);
-    let rs = rays();
-    let gradient = |tau: f32, jitter: &[f32]| {
-        let s = MarchSettings { density_grad_alpha: tau, ..SETTINGS };
-        let mut w = MarchWork::default();
-        forward(&field, None, &rs, Some(jitter), bg, &s, &mut w);
-        let d_rgb: Vec<Vec3> = w.rgb.iter().map(|c| 2.0 * (*c - target)).collect();
-        let mut g32 = vec![0.0f32; field.params.len()];
-        backward(&field, bg, &d_rgb, None, &mut w, &mut g32);
-        (g32.iter().map(|g| f64::from(*g)).collect::<Vec<_>>(), w.rgb.clone())
-    };
-    let base = [0.1f32, 0.5, 0.9, 0.3];
-    let (exact, rgb) = gradient(0.0, &base);
-    // an opacity above every sample's: each sample's density gradient is a coin toss
-    let tau = 1.0;
-    let draws = 4000;
-    let mut mean = vec![0.0f64; exact.len()];
-    let mut skipped_all = 0;
-    for m in 0..draws {
-        let jitter: Vec<f32> =
-            base.iter().map(|j| f32::from_bits(j.to_bits() ^ (m as u32 & 0xff))).collect();
-        let (g, c) = gradient(tau, &jitter);
-        for (a, b) in rgb.iter().zip(&c) {
-            assert!((*a - *b).length() < 1e-5, "colours stay exact");
-        }
-        skipped_all += usize::from(g.iter().zip(&exact).all(|(a, b)| a == b));
-        for (s, v) in mean.iter_mut().zip(&g) {
-            *s += v / f64::from(draws);
-        }
-    }
-    assert_eq!(skipped_all, 0, "draws differ from the exact gradient");
-    let norm = exact.iter().map(|g| g * g).sum::<f64>().sqrt();
-    let err = mean.iter().zip(&exact).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
-    assert!(err < 0.05 * norm, "mean of draws off by {err} (norm {norm})");
+    draws_average_to_the_exact_gradient(
+        |tau| MarchSettings { density_grad_alpha: tau, ..SETTINGS },
+        1.0,
+    );
 }
