@@ -163,11 +163,17 @@ impl TrainConfig {
 /// pixel, so the same for every scene and unit).
 pub const DEFAULT_COLOR_GRAD_WEIGHT: f32 = 0.01;
 
-/// The default [`TrainConfig::density_grad_alpha`]: TensoRF's opacity for empty space (its
-/// alpha mask's threshold, and this trainer's occupancy grids'), a dimensionless opacity of
-/// one march step, so the same for every scene and unit. Below it a sample's density
-/// gradient is a weighted coin toss.
-pub const DEFAULT_DENSITY_GRAD_ALPHA: f32 = 1e-4;
+/// The default [`TrainConfig::density_grad_alpha`]: off. Every sample gets its own density
+/// gradient, because with the coin toss on ([`FAST_DENSITY_GRAD_ALPHA`]) the demo scene
+/// trained 2000 iterations mined 23 of its 25 objects with one false detection (24 of 25
+/// without), and mining's basis has not been measured with it.
+pub const DEFAULT_DENSITY_GRAD_ALPHA: f32 = 0.0;
+
+/// The threshold that makes training fast on hazy early fields (`train --density-grad-alpha
+/// 1e-4`): TensoRF's opacity for empty space (its alpha mask's threshold, and this trainer's
+/// occupancy grids'), a dimensionless opacity of one march step, so the same for every scene
+/// and unit. Below it a sample's density gradient is a weighted coin toss.
+pub const FAST_DENSITY_GRAD_ALPHA: f32 = 1e-4;
 
 fn default_early_samples() -> f32 {
     64.0

@@ -135,8 +135,9 @@ pub struct TrainArgs {
     pub color_grad_weight: f32,
     /// Samples more transparent than this opacity (of one march step) get their density
     /// gradient by a weighted coin toss, scaled back up (unbiased; most nearly empty
-    /// samples of a young, hazy field then skip the density grids' backward pass). 0 gives
-    /// every sample its own density gradient.
+    /// samples of a young, hazy field then skip the density grids' backward pass: 1e-4,
+    /// TensoRF's empty-space opacity, trains lego 1.3x as many iterations per minute). 0,
+    /// the default, gives every sample its own density gradient (fields mine as measured).
     #[arg(long, default_value_t = assetfield_field::train::DEFAULT_DENSITY_GRAD_ALPHA)]
     pub density_grad_alpha: f32,
     /// Colour decoder: mlp or sh (spherical harmonics, degree 2).
