@@ -148,6 +148,8 @@ pub fn forward(
         w.ray_first.push(w.s_pos.len() as u32);
         let mut trans = 1.0f32;
         let inv = ray.dir.recip();
+        // the ray's seed for the colour and density draws
+        let seed = jitter.map_or(r as u32, |j| j[r].to_bits());
         if let Some((t0, mut t1)) = aabb.intersect(ray.origin, inv, f32::INFINITY) {
             let first = t0 + step * jitter.map_or(0.5, |j| j[r]);
             let mut k = 0usize;
@@ -206,7 +208,6 @@ pub fn forward(
                     }
                     let weight = trans * alpha;
                     let ci = if weight > s.weight_threshold {
-                        let seed = jitter.map_or(r as u32, |j| j[r].to_bits());
                         if weight >= tau || unit_hash(seed, packet_k[i]) * tau < weight {
                             w.color.pos.push(p);
                             w.color.dir.push(ray.dir);
@@ -228,8 +229,7 @@ pub fn forward(
                     w.s_dscale.push(if alpha >= tau_alpha {
                         1.0
                     } else {
-                        let seed = jitter.map_or(r as u32, |j| j[r].to_bits()) ^ DENSITY_DRAW;
-                        if unit_hash(seed, packet_k[i]) * tau_alpha < alpha {
+                        if unit_hash(seed ^ DENSITY_DRAW, packet_k[i]) * tau_alpha < alpha {
                             tau_alpha / alpha
                         } else {
                             0.0

@@ -125,21 +125,24 @@ impl Occupancy {
                 }
             }
         });
+        // the region's cells [k][dj][di], then into their bits (only the region's words)
         let (corners, centres) = (&corners, &centres);
-        let mut cells = self.cells();
-        cells.par_chunks_mut(nx * ny).enumerate().for_each(|(k, slab)| {
+        let mut region = vec![false; nz * wj * wi];
+        region.par_chunks_mut(wj * wi).enumerate().for_each(|(k, slab)| {
             for dj in 0..wj {
                 for di in 0..wi {
                     let corner = |a: usize, b: usize, c: usize| {
                         corners[((dj + b) * (wi + 1) + di + a) * cz + k + c]
                     };
-                    let any = (0..8).any(|b| corner(b & 1, (b >> 1) & 1, b >> 2))
+                    slab[dj * wi + di] = (0..8).any(|b| corner(b & 1, (b >> 1) & 1, b >> 2))
                         || centres[(dj * wi + di) * nz + k];
-                    slab[(j0 + dj) * nx + i0 + di] = any;
                 }
             }
         });
-        self.bits = pack(self.res, self.bricks, &cells);
+        for (n, &on) in region.iter().enumerate() {
+            let (k, dj, di) = (n / (wj * wi), n / wi % wj, n % wi);
+            self.set([i0 + di, j0 + dj, k], on);
+        }
         let region = self.occupied_in([i0, i1], [j0, j1]);
         self.occupied =
             if (i0, i1, j0, j1) == (0, nx, 0, ny) { region } else { union(self.occupied, region) };
@@ -223,6 +226,11 @@ impl Occupancy {
     fn word(&self, [i, j, k]: [usize; 3]) -> usize {
         let [bx, by, _] = self.bricks;
         ((k / BRICK) * by + j / BRICK) * bx + i / BRICK
+    }
+
+    fn set(&mut self, c: [usize; 3], on: bool) {
+        let (w, b) = (self.word(c), brick_bit(c));
+        self.bits[w] = self.bits[w] & !(1 << b) | u64::from(on) << b;
     }
 
     #[inline]

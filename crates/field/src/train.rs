@@ -169,11 +169,15 @@ pub const DEFAULT_COLOR_GRAD_WEIGHT: f32 = 0.01;
 /// without), and mining's basis has not been measured with it.
 pub const DEFAULT_DENSITY_GRAD_ALPHA: f32 = 0.0;
 
+/// TensoRF's opacity for empty space (its alpha mask's threshold): the scheduled occupancy
+/// grids mark cells below it empty. A dimensionless opacity of one march step, so the same
+/// for every scene and unit.
+pub const EMPTY_SPACE_ALPHA: f32 = 1e-4;
+
 /// The threshold that makes training fast on hazy early fields (`train --density-grad-alpha
-/// 1e-4`): TensoRF's opacity for empty space (its alpha mask's threshold, and this trainer's
-/// occupancy grids'), a dimensionless opacity of one march step, so the same for every scene
-/// and unit. Below it a sample's density gradient is a weighted coin toss.
-pub const FAST_DENSITY_GRAD_ALPHA: f32 = 1e-4;
+/// 1e-4`): below the opacity of empty space a sample's density gradient is a weighted coin
+/// toss.
+pub const FAST_DENSITY_GRAD_ALPHA: f32 = EMPTY_SPACE_ALPHA;
 
 fn default_early_samples() -> f32 {
     64.0
@@ -399,7 +403,7 @@ impl Trainer {
     /// grid with almost nothing occupied means the density has not formed yet: it is not
     /// used (marching everything is slow but never loses the scene).
     pub fn rebuild_occupancy(&mut self) {
-        self.rebuild_occupancy_with(1e-4);
+        self.rebuild_occupancy_with(EMPTY_SPACE_ALPHA);
     }
 
     /// The opacity below which grids mark cells empty: TensoRF's 1e-4 once the scheduled
@@ -408,12 +412,12 @@ impl Trainer {
     /// not formed yet keep their samples).
     fn occupancy_threshold(&self) -> f32 {
         if self.occupancy_done > 0 {
-            return 1e-4;
+            return EMPTY_SPACE_ALPHA;
         }
         let cfg = &self.field.config;
         let delta = cfg.step_size() * cfg.distance_scale;
         let start = crate::mlp::softplus(cfg.density_shift);
-        (-crate::mlp::fast_expm1(-start * delta) * 0.5).min(1e-4)
+        (-crate::mlp::fast_expm1(-start * delta) * 0.5).min(EMPTY_SPACE_ALPHA)
     }
 
     /// [`Trainer::rebuild_occupancy`] with another opacity threshold.

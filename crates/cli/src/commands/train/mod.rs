@@ -308,11 +308,13 @@ pub(crate) fn check_options(a: &TrainArgs) -> Result<usize> {
     {
         bail!("--minutes {m} must be a positive number");
     }
-    if !(a.color_grad_weight.is_finite() && (0.0..=1.0).contains(&a.color_grad_weight)) {
-        bail!("--color-grad-weight {} must be between 0 and 1", a.color_grad_weight);
-    }
-    if !(a.density_grad_alpha.is_finite() && (0.0..=1.0).contains(&a.density_grad_alpha)) {
-        bail!("--density-grad-alpha {} must be between 0 and 1", a.density_grad_alpha);
+    for (flag, v) in [
+        ("--color-grad-weight", a.color_grad_weight),
+        ("--density-grad-alpha", a.density_grad_alpha),
+    ] {
+        if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+            bail!("{flag} {v} must be between 0 and 1");
+        }
     }
     if a.iters == Some(0) {
         bail!("--iters must be at least 1");
