@@ -57,18 +57,22 @@ pub fn dense_accumulate(
         }
         return;
     }
-    let mut wt = vec![0.0f32; inn * out];
+    // the transposed weights' rows are `lanes` wide: an awkward width is padded with zero
+    // weights to whole vectors of 8 (27 outputs: 3 full vectors and 3 lanes of scalar and
+    // half-width FMAs per input, against 4 full vectors)
+    let lanes = if out == 27 { 32 } else { out };
+    let mut wt = vec![0.0f32; inn * lanes];
     for o in 0..out {
         for i in 0..inn {
-            wt[i * out + o] = w[o * stride + i];
+            wt[i * lanes + o] = w[o * stride + i];
         }
     }
     match out {
-        64 => accumulate_fixed::<64>(&wt, x, y, batch, inn),
-        48 => accumulate_fixed::<48>(&wt, x, y, batch, inn),
-        32 => accumulate_fixed::<32>(&wt, x, y, batch, inn),
-        27 => accumulate_fixed::<27>(&wt, x, y, batch, inn),
-        16 => accumulate_fixed::<16>(&wt, x, y, batch, inn),
+        64 => accumulate_fixed::<64, 64>(&wt, x, y, batch, inn),
+        48 => accumulate_fixed::<48, 48>(&wt, x, y, batch, inn),
+        32 => accumulate_fixed::<32, 32>(&wt, x, y, batch, inn),
+        27 => accumulate_fixed::<27, 32>(&wt, x, y, batch, inn),
+        16 => accumulate_fixed::<16, 16>(&wt, x, y, batch, inn),
         _ => {
             for b in 0..batch {
                 let xb = &x[b * inn..(b + 1) * inn];
@@ -104,25 +108,51 @@ pub fn dot(a: &[f32], b: &[f32]) -> f32 {
     (acc[0] + acc[4]) + (acc[1] + acc[5]) + (acc[2] + acc[6]) + (acc[3] + acc[7]) + tail
 }
 
+/// Rows of at most this many floats are worked two at a time: one row's accumulators (4
+/// vectors of 8, or fewer) form too short a chain of dependent FMAs to keep both FMA units
+/// busy, two rows' do, and the weights loaded are shared by both (the 48 -> 27 basis layer
+/// and the 27-input decoder layer). A row's sums are formed in the same order either way.
+const PAIR_MAX: usize = 32;
+
+/// `y[b] += W x[b]` for `N` outputs over transposed weights `wt` whose rows are `P >= N`
+/// wide (zero past `N`), summed in `P` register lanes.
 #[inline]
-fn accumulate_fixed<const N: usize>(
+fn accumulate_fixed<const N: usize, const P: usize>(
     wt: &[f32],
     x: &[f32],
     y: &mut [f32],
     batch: usize,
     inn: usize,
 ) {
-    for b in 0..batch {
-        let yb: &mut [f32; N] = (&mut y[b * N..(b + 1) * N]).try_into().expect("row of N");
-        let mut acc = *yb;
+    let load = |y: &[f32]| {
+        let mut a = [0.0f32; P];
+        a[..N].copy_from_slice(&y[..N]);
+        a
+    };
+    let paired = if P <= PAIR_MAX { batch / 2 * 2 } else { 0 };
+    for b in (0..paired).step_by(2) {
+        let (mut a0, mut a1) = (load(&y[b * N..]), load(&y[(b + 1) * N..]));
+        let (x0, x1) = (&x[b * inn..(b + 1) * inn], &x[(b + 1) * inn..(b + 2) * inn]);
+        for (i, (&u, &v)) in x0.iter().zip(x1).enumerate() {
+            let row: &[f32; P] = wt[i * P..(i + 1) * P].try_into().expect("row of P");
+            for o in 0..P {
+                a0[o] = u.mul_add(row[o], a0[o]);
+                a1[o] = v.mul_add(row[o], a1[o]);
+            }
+        }
+        y[b * N..(b + 1) * N].copy_from_slice(&a0[..N]);
+        y[(b + 1) * N..(b + 2) * N].copy_from_slice(&a1[..N]);
+    }
+    for b in paired..batch {
+        let mut acc = load(&y[b * N..]);
         let xb = &x[b * inn..(b + 1) * inn];
         for (i, &xi) in xb.iter().enumerate() {
-            let row: &[f32; N] = wt[i * N..(i + 1) * N].try_into().expect("row of N");
-            for o in 0..N {
+            let row: &[f32; P] = wt[i * P..(i + 1) * P].try_into().expect("row of P");
+            for o in 0..P {
                 acc[o] = xi.mul_add(row[o], acc[o]);
             }
         }
-        *yb = acc;
+        y[b * N..(b + 1) * N].copy_from_slice(&acc[..N]);
     }
 }
 
@@ -194,9 +224,26 @@ fn backward_fixed<const N: usize>(
     // dW[o] += sum_b dy[b][o] x[b]: summed in registers over tiles of the batch small
     // enough for their inputs to stay in L1 while every output row visits them
     const TILE: usize = 96;
+    let paired = if N <= PAIR_MAX { out / 2 * 2 } else { 0 };
     for b0 in (0..batch).step_by(TILE) {
         let b1 = (b0 + TILE).min(batch);
-        for o in 0..out {
+        for o in (0..paired).step_by(2) {
+            let (mut a0, mut a1) = ([0.0f32; N], [0.0f32; N]);
+            for b in b0..b1 {
+                let (g0, g1) = (dy[b * out + o], dy[b * out + o + 1]);
+                let xb: &[f32; N] = x[b * N..(b + 1) * N].try_into().expect("row of N");
+                for i in 0..N {
+                    a0[i] = g0.mul_add(xb[i], a0[i]);
+                    a1[i] = g1.mul_add(xb[i], a1[i]);
+                }
+            }
+            for (row, acc) in dw[o * N..(o + 2) * N].chunks_exact_mut(N).zip([a0, a1]) {
+                for i in 0..N {
+                    row[i] += acc[i];
+                }
+            }
+        }
+        for o in paired..out {
             let mut acc = [0.0f32; N];
             for b in b0..b1 {
                 let g = dy[b * out + o];
@@ -212,7 +259,21 @@ fn backward_fixed<const N: usize>(
         }
     }
     if let Some(dx) = dx {
-        for b in 0..batch {
+        let paired = if N <= PAIR_MAX { batch / 2 * 2 } else { 0 };
+        for b in (0..paired).step_by(2) {
+            let (mut a0, mut a1) = ([0.0f32; N], [0.0f32; N]);
+            for o in 0..out {
+                let (g0, g1) = (dy[b * out + o], dy[(b + 1) * out + o]);
+                let row: &[f32; N] = w[o * N..(o + 1) * N].try_into().expect("row of N");
+                for i in 0..N {
+                    a0[i] = g0.mul_add(row[i], a0[i]);
+                    a1[i] = g1.mul_add(row[i], a1[i]);
+                }
+            }
+            dx[b * N..(b + 1) * N].copy_from_slice(&a0);
+            dx[(b + 1) * N..(b + 2) * N].copy_from_slice(&a1);
+        }
+        for b in paired..batch {
             let mut acc = [0.0f32; N];
             for o in 0..out {
                 let g = dy[b * out + o];
@@ -303,9 +364,18 @@ mod tests {
             seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
             (seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5
         };
-        for &(inn, out) in
-            &[(64, 3), (48, 27), (42, 64), (32, 48), (27, 32), (16, 16), (5, 7), (64, 64)]
-        {
+        for &(inn, out) in &[
+            (64, 3),
+            (48, 27),
+            (42, 64),
+            (32, 48),
+            (27, 32),
+            (27, 63),
+            (32, 27),
+            (16, 16),
+            (5, 7),
+            (64, 64),
+        ] {
             let batch = 203;
             let w: Vec<f32> = (0..inn * out).map(|_| rnd()).collect();
             let bias: Vec<f32> = (0..out).map(|_| rnd()).collect();
