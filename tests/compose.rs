@@ -10,7 +10,7 @@
 use assetfield_core::TensorFile;
 use assetfield_field::eval::load_field;
 use assetfield_layout::resolve;
-use assetfield_mining::library::{content_hash, index_to_ron};
+use assetfield_library::{content_hash, index_to_ron};
 use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, ScriptAssets};
 use assetfield_tests::{SCENE, fail, ok, run_cli, scratch};
 use std::path::Path;
@@ -357,7 +357,7 @@ fn mine_compose_round_trip_and_edit_fidelity() {
 /// to name no file).
 #[test]
 fn library_check_fails_wherever_compose_would() {
-    use assetfield_mining::library::{INDEX_FILE, index_from_ron, write_sample_library};
+    use assetfield_library::{INDEX_FILE, index_from_ron, write_sample_library};
     let dir = scratch("library-check");
     std::fs::write(
         dir.join("one.ron"),
@@ -379,7 +379,7 @@ fn library_check_fails_wherever_compose_would() {
     assert!(out.contains("2 entries") && out.contains("ok"), "{out}");
     ok(&dir, &args(&compose("good", "composed")));
 
-    let index_edit = |lib: &Path, edit: &dyn Fn(&mut assetfield_mining::library::LibraryIndex)| {
+    let index_edit = |lib: &Path, edit: &dyn Fn(&mut assetfield_library::LibraryIndex)| {
         let p = lib.join(INDEX_FILE);
         let mut ix = index_from_ron(&p, &std::fs::read_to_string(&p).unwrap()).unwrap();
         edit(&mut ix);

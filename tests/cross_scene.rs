@@ -7,7 +7,7 @@
 
 use assetfield_core::TensorFile;
 use assetfield_field::FieldConfig;
-use assetfield_mining::library::open_library;
+use assetfield_library::open_library;
 use assetfield_tests::{SCENE, fail, ok, scratch};
 use std::path::Path;
 

@@ -4,7 +4,7 @@
 //! written).
 
 use assetfield_layout::{GtLayout, PartsCatalog, resolve};
-use assetfield_mining::library::open_library;
+use assetfield_library::open_library;
 use assetfield_tests::{SCENE, fail, ok, run_cli, scratch};
 use assetfield_tests::{Similarity, moved_gt, repose_as_nerfstudio};
 use glam::{Mat3, Vec3};

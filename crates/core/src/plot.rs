@@ -173,19 +173,16 @@ const FRAME: Rgba = [90, 90, 90, 255];
 pub fn line_plot(series: &[Series], opts: &PlotOptions) -> Canvas {
     let (width, height) = (opts.width.max(32), opts.height.max(32));
     let mut canvas = Canvas::new(width, height, WHITE);
-    let s = if width.min(height) >= 400 { 2u32 } else { 1 };
-    let sf = s as f32;
-    let char_h = 7.0 * sf;
-    let pad = 8.0 * sf;
-    let tick_len = 4.0 * sf;
+    let st = Style::for_size(width, height);
+    let (s, char_h, pad, tick_len) = (st.scale, st.char_h, st.pad, st.tick_len);
 
-    let all_points = || series.iter().flat_map(|se| se.points.iter().copied());
     let finite = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite();
-    let has_data = all_points().any(|p| finite(&p));
-    let (x_lo, x_hi) = data_range(all_points().filter(finite).map(|p| p.0)).unwrap_or((0.0, 1.0));
+    let all_points = || series.iter().flat_map(|se| se.points.iter().copied()).filter(finite);
+    let has_data = all_points().next().is_some();
+    let (x_lo, x_hi) = data_range(all_points().map(|p| p.0)).unwrap_or((0.0, 1.0));
     let (y_lo, y_hi) = match opts.y_range {
         Some((a, b)) if a.is_finite() && b.is_finite() => widen(a.min(b), a.max(b)),
-        _ => match data_range(all_points().filter(finite).map(|p| p.1)) {
+        _ => match data_range(all_points().map(|p| p.1)) {
             Some((a, b)) => {
                 let m = (b - a) * 0.05;
                 (a - m, b + m)
@@ -229,26 +226,24 @@ pub fn line_plot(series: &[Series], opts: &PlotOptions) -> Canvas {
             break;
         }
     }
-
-    let (px0, py0) = (left.round(), top.round());
-    let (px1, py1) = ((left + plot_w).round(), (top + plot_h).round());
-    let to_px = |x: f64, y: f64| {
-        Vec2::new(
-            px0 + ((x - x_lo) / (x_hi - x_lo)) as f32 * (px1 - px0),
-            py1 - ((y - y_lo) / (y_hi - y_lo)) as f32 * (py1 - py0),
-        )
+    let area = PlotArea {
+        lo: Vec2::new(left.round(), top.round()),
+        hi: Vec2::new((left + plot_w).round(), (top + plot_h).round()),
+        x: (x_lo, x_hi),
+        y: (y_lo, y_hi),
     };
+    let (px0, py0, px1, py1) = (area.lo.x, area.lo.y, area.hi.x, area.hi.y);
 
     // grid, ticks and tick labels (lines at pixel centres so 1-pixel lines stay crisp)
     for (&v, label) in y_ticks.iter().zip(&y_labels) {
-        let y = to_px(x_lo, v).y.round() + 0.5;
+        let y = area.to_px(x_lo, v).y.round() + 0.5;
         canvas.line(Vec2::new(px0, y), Vec2::new(px1, y), 1.0, GRID);
         canvas.line(Vec2::new(px0 - tick_len, y), Vec2::new(px0, y), 1.0, FRAME);
         let w = Canvas::text_width(label, s) as f32;
         canvas.text(Vec2::new(px0 - tick_len - pad * 0.5 - w, y - char_h * 0.5), label, s, BLACK);
     }
     for &v in &x_ticks {
-        let x = to_px(v, y_lo).x.round() + 0.5;
+        let x = area.to_px(v, y_lo).x.round() + 0.5;
         canvas.line(Vec2::new(x, py0), Vec2::new(x, py1), 1.0, GRID);
         canvas.line(Vec2::new(x, py1), Vec2::new(x, py1 + tick_len), 1.0, FRAME);
         let label = tick_label(v, x_step);
@@ -257,85 +252,14 @@ pub fn line_plot(series: &[Series], opts: &PlotOptions) -> Canvas {
     }
     canvas.rect(Vec2::new(px0 + 0.5, py0 + 0.5), Vec2::new(px1 + 0.5, py1 + 0.5), 1.0, FRAME);
 
-    // curves, clipped to the plot area
-    let (clip_lo, clip_hi) = (Vec2::new(px0, py0), Vec2::new(px1 + 1.0, py1 + 1.0));
-    for se in series {
-        let pts: Vec<Vec2> =
-            se.points.iter().filter(|p| finite(p)).map(|&(x, y)| to_px(x, y)).collect();
-        if pts.len() == 1 {
-            if clip_segment(pts[0], pts[0], clip_lo, clip_hi).is_some() {
-                canvas.disc(pts[0], 2.0 * sf, se.color);
-            }
-            continue;
-        }
-        for w in pts.windows(2) {
-            if let Some((a, b)) = clip_segment(w[0], w[1], clip_lo, clip_hi) {
-                canvas.line(a, b, 1.5 * sf, se.color);
-            }
-        }
-    }
+    draw_curves(&mut canvas, series, &area, &st);
     if !has_data {
         let msg = "NO DATA";
         let w = Canvas::text_width(msg, s) as f32;
         canvas.text(Vec2::new((px0 + px1 - w) * 0.5, (py0 + py1 - char_h) * 0.5), msg, s, FRAME);
     }
-
-    // legend
-    let entries: Vec<&Series> = series.iter().filter(|se| !se.label.is_empty()).collect();
-    if !entries.is_empty() {
-        let sample = 16.0 * sf;
-        let row_h = char_h + 4.0 * sf;
-        let text_w = entries.iter().map(|e| Canvas::text_width(&e.label, s)).max().unwrap_or(0);
-        let box_w = pad + sample + pad * 0.75 + text_w as f32 + pad;
-        let box_h = pad + row_h * entries.len() as f32 - 4.0 * sf + pad;
-        let inset = pad;
-        let corners = [
-            Vec2::new(px1 - inset - box_w, py0 + inset),
-            Vec2::new(px1 - inset - box_w, py1 - inset - box_h),
-            Vec2::new(px0 + inset, py0 + inset),
-            Vec2::new(px0 + inset, py1 - inset - box_h),
-        ];
-        let covered = |c: Vec2| {
-            all_points()
-                .filter(finite)
-                .map(|(x, y)| to_px(x, y))
-                .filter(|p| {
-                    p.x >= c.x - pad
-                        && p.x <= c.x + box_w + pad
-                        && p.y >= c.y - pad
-                        && p.y <= c.y + box_h + pad
-                })
-                .count()
-        };
-        let mut at = corners[0];
-        let mut best = usize::MAX;
-        for c in corners {
-            let n = covered(c);
-            if n < best {
-                best = n;
-                at = c;
-            }
-        }
-        let at = at.round();
-        canvas.fill_rect(at, at + Vec2::new(box_w, box_h), WHITE);
-        canvas.rect(
-            at + Vec2::splat(0.5),
-            at + Vec2::new(box_w, box_h) + Vec2::splat(0.5),
-            1.0,
-            FRAME,
-        );
-        for (i, e) in entries.iter().enumerate() {
-            let y = at.y + pad + row_h * i as f32;
-            let mid = y + char_h * 0.5;
-            canvas.line(
-                Vec2::new(at.x + pad, mid),
-                Vec2::new(at.x + pad + sample, mid),
-                1.5 * sf,
-                e.color,
-            );
-            canvas.text(Vec2::new(at.x + pad + sample + pad * 0.75, y), &e.label, s, BLACK);
-        }
-    }
+    let points: Vec<Vec2> = all_points().map(|(x, y)| area.to_px(x, y)).collect();
+    draw_legend(&mut canvas, series, &area, &points, &st);
 
     // axis labels and title
     if !opts.y_label.is_empty() {
@@ -355,6 +279,128 @@ pub fn line_plot(series: &[Series], opts: &PlotOptions) -> Canvas {
         canvas.text(Vec2::new((width as f32 - w) * 0.5, pad), &opts.title, title_scale, BLACK);
     }
     canvas
+}
+
+/// Sizes of a plot's text and spacing, pixels.
+struct Style {
+    /// The font's scale: 2 on plots of 400 pixels a side or more, else 1.
+    scale: u32,
+    /// The scale as a float.
+    sf: f32,
+    char_h: f32,
+    pad: f32,
+    tick_len: f32,
+}
+
+impl Style {
+    fn for_size(width: u32, height: u32) -> Self {
+        let scale = if width.min(height) >= 400 { 2u32 } else { 1 };
+        let sf = scale as f32;
+        Style { scale, sf, char_h: 7.0 * sf, pad: 8.0 * sf, tick_len: 4.0 * sf }
+    }
+}
+
+/// The plot area in pixels (`lo` top left, `hi` bottom right) and the data ranges it shows.
+struct PlotArea {
+    lo: Vec2,
+    hi: Vec2,
+    x: (f64, f64),
+    y: (f64, f64),
+}
+
+impl PlotArea {
+    /// The pixel of data point `(x, y)`.
+    fn to_px(&self, x: f64, y: f64) -> Vec2 {
+        let ((x_lo, x_hi), (y_lo, y_hi)) = (self.x, self.y);
+        Vec2::new(
+            self.lo.x + ((x - x_lo) / (x_hi - x_lo)) as f32 * (self.hi.x - self.lo.x),
+            self.hi.y - ((y - y_lo) / (y_hi - y_lo)) as f32 * (self.hi.y - self.lo.y),
+        )
+    }
+}
+
+/// Every series' curve (a dot for a single point), clipped to the plot area.
+fn draw_curves(canvas: &mut Canvas, series: &[Series], area: &PlotArea, st: &Style) {
+    let finite = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite();
+    let (clip_lo, clip_hi) = (area.lo, area.hi + Vec2::ONE);
+    for se in series {
+        let pts: Vec<Vec2> =
+            se.points.iter().filter(|p| finite(p)).map(|&(x, y)| area.to_px(x, y)).collect();
+        if pts.len() == 1 {
+            if clip_segment(pts[0], pts[0], clip_lo, clip_hi).is_some() {
+                canvas.disc(pts[0], 2.0 * st.sf, se.color);
+            }
+            continue;
+        }
+        for w in pts.windows(2) {
+            if let Some((a, b)) = clip_segment(w[0], w[1], clip_lo, clip_hi) {
+                canvas.line(a, b, 1.5 * st.sf, se.color);
+            }
+        }
+    }
+}
+
+/// The legend of the labelled series, in the corner of the plot area that covers the fewest
+/// of the data's pixels `points`.
+fn draw_legend(
+    canvas: &mut Canvas,
+    series: &[Series],
+    area: &PlotArea,
+    points: &[Vec2],
+    st: &Style,
+) {
+    let entries: Vec<&Series> = series.iter().filter(|se| !se.label.is_empty()).collect();
+    if entries.is_empty() {
+        return;
+    }
+    let (s, sf, char_h, pad) = (st.scale, st.sf, st.char_h, st.pad);
+    let (px0, py0, px1, py1) = (area.lo.x, area.lo.y, area.hi.x, area.hi.y);
+    let sample = 16.0 * sf;
+    let row_h = char_h + 4.0 * sf;
+    let text_w = entries.iter().map(|e| Canvas::text_width(&e.label, s)).max().unwrap_or(0);
+    let box_w = pad + sample + pad * 0.75 + text_w as f32 + pad;
+    let box_h = pad + row_h * entries.len() as f32 - 4.0 * sf + pad;
+    let inset = pad;
+    let corners = [
+        Vec2::new(px1 - inset - box_w, py0 + inset),
+        Vec2::new(px1 - inset - box_w, py1 - inset - box_h),
+        Vec2::new(px0 + inset, py0 + inset),
+        Vec2::new(px0 + inset, py1 - inset - box_h),
+    ];
+    let covered = |c: Vec2| {
+        points
+            .iter()
+            .filter(|p| {
+                p.x >= c.x - pad
+                    && p.x <= c.x + box_w + pad
+                    && p.y >= c.y - pad
+                    && p.y <= c.y + box_h + pad
+            })
+            .count()
+    };
+    let mut at = corners[0];
+    let mut best = usize::MAX;
+    for c in corners {
+        let n = covered(c);
+        if n < best {
+            best = n;
+            at = c;
+        }
+    }
+    let at = at.round();
+    canvas.fill_rect(at, at + Vec2::new(box_w, box_h), WHITE);
+    canvas.rect(at + Vec2::splat(0.5), at + Vec2::new(box_w, box_h) + Vec2::splat(0.5), 1.0, FRAME);
+    for (i, e) in entries.iter().enumerate() {
+        let y = at.y + pad + row_h * i as f32;
+        let mid = y + char_h * 0.5;
+        canvas.line(
+            Vec2::new(at.x + pad, mid),
+            Vec2::new(at.x + pad + sample, mid),
+            1.5 * sf,
+            e.color,
+        );
+        canvas.text(Vec2::new(at.x + pad + sample + pad * 0.75, y), &e.label, s, BLACK);
+    }
 }
 
 /// Draw a [`line_plot`] and save it as PNG, atomically.

@@ -366,6 +366,116 @@ struct Pending {
     distortion: Option<Distortion>,
 }
 
+/// The frames of `split` in the transforms files `files` (each checked whole, all frames),
+/// with their poses and intrinsics, not yet their images; and the first `aabb_scale` given.
+/// A nerfstudio file without splits holds out every `holdout_every`-th frame as a test view.
+fn pending_frames(
+    files: &[Source],
+    split: Split,
+    opts: &LoadOptions,
+) -> Result<(Vec<Pending>, Option<f32>), DataError> {
+    let mut pending = Vec::new();
+    let mut aabb_scale = None;
+    for (json, file_split) in files {
+        let file = TransformsFile::read(json)?;
+        // every value of the file, all frames (not only the selected ones)
+        file.validate(json)?;
+        aabb_scale = aabb_scale.or(file.aabb_scale);
+        let distortion = distortion_of(&file);
+        for (index, e) in file.frames.iter().enumerate() {
+            let label = match file_split {
+                Some(s) => *s,
+                None if opts.holdout_every > 0 && index % opts.holdout_every as usize == 0 => {
+                    Split::Test
+                }
+                None => Split::Train,
+            };
+            let wanted = match (split, file_split) {
+                (Split::All, _) | (_, Some(_)) => true,
+                (Split::Val, None) => label == Split::Test,
+                (s, None) => label == s,
+            };
+            if !wanted {
+                continue;
+            }
+            let frame = FrameRef::new(json, index, &e.file_path);
+            let matrix = e.matrix();
+            let spec = intrinsics_spec(&file, e, json, index)?;
+            pending.push(Pending { frame, split: label, matrix, spec, distortion });
+        }
+    }
+    Ok((pending, aabb_scale))
+}
+
+/// The views of `pending`: every image's header read (in parallel: hundreds of small
+/// reads), its size checked against the first's and `downscale`, its camera built. The
+/// views and the images' size.
+fn posed_views(
+    root: &Path,
+    pending: Vec<Pending>,
+    downscale: u32,
+) -> Result<(Vec<View>, (u32, u32)), DataError> {
+    type Found = (PathBuf, (u32, u32));
+    let sizes: Vec<Result<Found, DataError>> = pending
+        .par_iter()
+        .map(|p| {
+            let path = find_image(root, &p.frame)?;
+            let size = image::image_dimensions(&path).map_err(|source| DataError::Image {
+                frame: Box::new(p.frame.clone()),
+                path: path.clone(),
+                source,
+            })?;
+            crate::validate::check_image_size(&p.frame, &path, size)?;
+            Ok((path, size))
+        })
+        .collect();
+
+    let mut views = Vec::with_capacity(pending.len());
+    let mut reference: Option<(FrameRef, (u32, u32))> = None;
+    for (p, found) in pending.into_iter().zip(sizes) {
+        let (image_path, size) = found?;
+        match &reference {
+            None => reference = Some((p.frame.clone(), size)),
+            Some((r, expected)) if *expected != size => {
+                return Err(DataError::SizeMismatch {
+                    frame: Box::new(p.frame),
+                    path: image_path,
+                    expected: *expected,
+                    actual: size,
+                    reference: Box::new(r.clone()),
+                });
+            }
+            Some(_) => {}
+        }
+        if size.0 / downscale == 0 || size.1 / downscale == 0 {
+            return Err(DataError::InvalidOption(format!(
+                "downscale {} leaves nothing of the {}x{} images",
+                downscale, size.0, size.1
+            )));
+        }
+        let k = resolve_intrinsics(p.spec, p.distortion, size, downscale, &p.frame, &image_path)?;
+        let camera = Camera::from_c2w(k, p.matrix).map_err(|err| match err {
+            CoreError::NotRigid(reason) => {
+                DataError::NotRigid { frame: Box::new(p.frame.clone()), reason }
+            }
+            other => DataError::InvalidIntrinsics {
+                frame: Box::new(p.frame.clone()),
+                reason: core_reason(other),
+            },
+        })?;
+        views.push(View {
+            split: p.split,
+            index: p.frame.index,
+            file_path: p.frame.file_path,
+            json: p.frame.json,
+            image_path,
+            camera,
+        });
+    }
+    let source_size = reference.map_or((0, 0), |(_, s)| s);
+    Ok((views, source_size))
+}
+
 impl Dataset {
     /// Load a dataset folder: cameras and images of the requested split.
     ///
@@ -469,37 +579,7 @@ impl Dataset {
             }
         }
         let scene_box = crate::validate::read_scene_box(&root)?;
-
-        let mut pending = Vec::new();
-        let mut aabb_scale = None;
-        for (json, file_split) in &files {
-            let file = TransformsFile::read(json)?;
-            // every value of the file, all frames (not only the selected ones)
-            file.validate(json)?;
-            aabb_scale = aabb_scale.or(file.aabb_scale);
-            let distortion = distortion_of(&file);
-            for (index, e) in file.frames.iter().enumerate() {
-                let label = match file_split {
-                    Some(s) => *s,
-                    None if opts.holdout_every > 0 && index % opts.holdout_every as usize == 0 => {
-                        Split::Test
-                    }
-                    None => Split::Train,
-                };
-                let wanted = match (split, file_split) {
-                    (Split::All, _) | (_, Some(_)) => true,
-                    (Split::Val, None) => label == Split::Test,
-                    (s, None) => label == s,
-                };
-                if !wanted {
-                    continue;
-                }
-                let frame = FrameRef::new(json, index, &e.file_path);
-                let matrix = e.matrix();
-                let spec = intrinsics_spec(&file, e, json, index)?;
-                pending.push(Pending { frame, split: label, matrix, spec, distortion });
-            }
-        }
+        let (mut pending, aabb_scale) = pending_frames(&files, split, opts)?;
         if let Some(n) = opts.max_frames {
             pending.truncate(n);
         }
@@ -519,73 +599,7 @@ impl Dataset {
             };
             return Err(DataError::NoFrames { path, why });
         }
-
-        // Image headers, in parallel (hundreds of small reads).
-        type Found = (PathBuf, (u32, u32));
-        let sizes: Vec<Result<Found, DataError>> = pending
-            .par_iter()
-            .map(|p| {
-                let path = find_image(&root, &p.frame)?;
-                let size = image::image_dimensions(&path).map_err(|source| DataError::Image {
-                    frame: Box::new(p.frame.clone()),
-                    path: path.clone(),
-                    source,
-                })?;
-                crate::validate::check_image_size(&p.frame, &path, size)?;
-                Ok((path, size))
-            })
-            .collect();
-
-        let mut views = Vec::with_capacity(pending.len());
-        let mut reference: Option<(FrameRef, (u32, u32))> = None;
-        for (p, found) in pending.into_iter().zip(sizes) {
-            let (image_path, size) = found?;
-            match &reference {
-                None => reference = Some((p.frame.clone(), size)),
-                Some((r, expected)) if *expected != size => {
-                    return Err(DataError::SizeMismatch {
-                        frame: Box::new(p.frame),
-                        path: image_path,
-                        expected: *expected,
-                        actual: size,
-                        reference: Box::new(r.clone()),
-                    });
-                }
-                Some(_) => {}
-            }
-            if size.0 / opts.downscale == 0 || size.1 / opts.downscale == 0 {
-                return Err(DataError::InvalidOption(format!(
-                    "downscale {} leaves nothing of the {}x{} images",
-                    opts.downscale, size.0, size.1
-                )));
-            }
-            let k = resolve_intrinsics(
-                p.spec,
-                p.distortion,
-                size,
-                opts.downscale,
-                &p.frame,
-                &image_path,
-            )?;
-            let camera = Camera::from_c2w(k, p.matrix).map_err(|err| match err {
-                CoreError::NotRigid(reason) => {
-                    DataError::NotRigid { frame: Box::new(p.frame.clone()), reason }
-                }
-                other => DataError::InvalidIntrinsics {
-                    frame: Box::new(p.frame.clone()),
-                    reason: core_reason(other),
-                },
-            })?;
-            views.push(View {
-                split: p.split,
-                index: p.frame.index,
-                file_path: p.frame.file_path,
-                json: p.frame.json,
-                image_path,
-                camera,
-            });
-        }
-        let source_size = reference.map_or((0, 0), |(_, s)| s);
+        let (views, source_size) = posed_views(&root, pending, opts.downscale)?;
         Ok(DatasetCameras { root, format, views, aabb_scale, source_size, scene_box })
     }
 

@@ -7,7 +7,7 @@
 use crate::render::{bytes_of, map, rays_of, scoped, split_views, storage_entry};
 use crate::{FieldRenderer, GpuContext, GpuError, RASTER_WGSL};
 use assetfield_core::{Camera, GroundTransform};
-use assetfield_field::Occupancy;
+use assetfield_field::{Field, Occupancy};
 use assetfield_scene::{
     Composition, DensityRule, FeaturePatch, InstanceDraw, PlaneGrid, TexelRect,
 };
@@ -390,6 +390,227 @@ fn grow(
     Ok(true)
 }
 
+/// The offsets of the density and colour planes in `field`'s parameters, checked against
+/// the grid's texels and the channels.
+fn plane_offsets(
+    field: &Field,
+    grid: &PlaneGrid,
+    nd: usize,
+    nc: usize,
+) -> Result<(u32, u32), GpuError> {
+    let n = grid.rows * grid.cols;
+    let plane = |name: &str, ch: usize| {
+        let s = field
+            .params
+            .spec(name)
+            .ok_or_else(|| input(format!("the composed field has no tensor {name}")))?;
+        if s.len != n * ch || ch == 0 {
+            return Err(input(format!(
+                "{name} holds {} values, not {} x {} texels x {ch} channels",
+                s.len, grid.rows, grid.cols
+            )));
+        }
+        u32::try_from(s.offset).map_err(|_| input("plane offset beyond 32 bits"))
+    };
+    Ok((plane("density.plane", nd)?, plane("color.plane", nc)?))
+}
+
+impl OccGrid {
+    /// The occupancy grid of `occ_res` cells over `field`'s box, and the layers one
+    /// `occupancy_points` dispatch takes with `nd` density channels: its loop runs the
+    /// plane's channels once, then per layer the channel blocks, the tail and the layer
+    /// loop; the corners take one more layer.
+    fn new(field: &Field, occ_res: [usize; 3], nd: usize) -> Self {
+        let aabb = field.config.aabb();
+        let extent = aabb.extent().max(Vec3::splat(1e-9));
+        let ch = nd as u64;
+        let per_layer = ch / 8 + ch % 8 + 2;
+        let fixed = ch / 4 + 4 + per_layer;
+        let layers =
+            (OCC_LOOP_BUDGET.saturating_sub(fixed) / per_layer).clamp(1, occ_res[2] as u64) as u32;
+        OccGrid {
+            res: occ_res,
+            min: aabb.min.truncate(),
+            scale: Vec2::new(occ_res[0] as f32 / extent.x, occ_res[1] as f32 / extent.y),
+            layers,
+        }
+    }
+}
+
+impl RasterHeader {
+    /// The uniform of a grid with `(nd, nc)` channels whose planes start at `(density_at,
+    /// color_at)` in the field's parameters; no rectangle yet.
+    fn new(
+        grid: &PlaneGrid,
+        (nd, nc): (usize, usize),
+        (density_at, color_at): (u32, u32),
+        rule: DensityRule,
+    ) -> Self {
+        let n = grid.rows * grid.cols;
+        let (dv, cv) = (nd.div_ceil(4), nc.div_ceil(4));
+        let gd = dv.div_ceil(GROUP_VEC4);
+        let n_groups = gd + cv.div_ceil(GROUP_VEC4);
+        let (tiles_x, tiles_y) = (grid.cols.div_ceil(RASTER_TILE), grid.rows.div_ceil(RASTER_TILE));
+        RasterHeader {
+            min: grid.min.to_array(),
+            step: grid.step.to_array(),
+            rows: grid.rows as u32,
+            cols: grid.cols as u32,
+            nd: nd as u32,
+            nc: nc as u32,
+            dv: dv as u32,
+            cv: cv as u32,
+            gd: gd as u32,
+            n_groups: n_groups as u32,
+            density_at,
+            color_at,
+            canvas_color: (n * dv) as u32,
+            tiles_x: tiles_x as u32,
+            n_tiles: (tiles_x * tiles_y) as u32,
+            rect: [0; 4],
+            base: [0; 2],
+            density_add: u32::from(rule == DensityRule::Add),
+            canary: CANARY,
+        }
+    }
+}
+
+/// The canvas planes as the shader reads them: density then colour, each texel's channels
+/// padded to whole vec4.
+fn canvas_planes(field: &Field, h: &RasterHeader) -> Vec<f32> {
+    let n = (h.rows * h.cols) as usize;
+    let (nd, nc, dv, cv) = (h.nd as usize, h.nc as usize, h.dv as usize, h.cv as usize);
+    let mut canvas = vec![0.0f32; n * (dv + cv) * 4];
+    let data = &field.params.data;
+    let (d_at, c_at) = (h.density_at as usize, h.color_at as usize);
+    for k in 0..n {
+        canvas[k * dv * 4..][..nd].copy_from_slice(&data[d_at + k * nd..][..nd]);
+        canvas[(n * dv + k * cv) * 4..][..nc].copy_from_slice(&data[c_at + k * nc..][..nc]);
+    }
+    canvas
+}
+
+/// The sizes of the buffers that depend on the planes and the occupancy grid, checked
+/// against the device's limit and 32-bit indices.
+struct BufferSizes {
+    /// The canvas planes' floats.
+    canvas: usize,
+    /// The weight and core weight sums of every texel.
+    scratch_bytes: u64,
+    /// One bit per corner of the occupancy grid's cells.
+    corner_bytes: u64,
+}
+
+impl BufferSizes {
+    fn checked(
+        canvas: usize,
+        texels: usize,
+        occ_res: [usize; 3],
+        limit: u64,
+    ) -> Result<Self, GpuError> {
+        let scratch_bytes = (texels * 2 * 4) as u64;
+        for (what, bytes) in
+            [("the canvas planes", canvas as u64 * 4), ("the raster scratch sums", scratch_bytes)]
+        {
+            if bytes > limit {
+                return Err(GpuError::BufferTooLarge { what, bytes, limit });
+            }
+        }
+        if canvas / 4 >= u32::MAX as usize {
+            return Err(input("the planes are too large for 32-bit indices"));
+        }
+        let corners = (occ_res[0] + 1) * (occ_res[1] + 1) * (occ_res[2] + 1);
+        if corners >= u32::MAX as usize {
+            return Err(GpuError::Unsupported(format!(
+                "an occupancy grid of {occ_res:?} cells is too large for 32-bit indices"
+            )));
+        }
+        let corner_bytes = corners.div_ceil(32) as u64 * 4;
+        if corner_bytes > limit {
+            let what = "the occupancy grid's corners";
+            return Err(GpuError::BufferTooLarge { what, bytes: corner_bytes, limit });
+        }
+        Ok(BufferSizes { canvas, scratch_bytes, corner_bytes })
+    }
+}
+
+/// The composer's pipelines, bind group layouts and buffers (the canvas uploaded; the
+/// others sized for a start and grown on demand).
+struct RasterObjects {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    occ_pipelines: [wgpu::ComputePipeline; 2],
+    occ_layout: wgpu::BindGroupLayout,
+    /// canvas, templates, raster header, chunk, chunks, instances, tiles, raster scratch,
+    /// raster status, raster readback, occupancy pass, occupancy passes, occupancy corners
+    bufs: [wgpu::Buffer; 13],
+}
+
+impl RasterObjects {
+    fn create(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        renderer: &FieldRenderer,
+        canvas: &[f32],
+        sizes: &BufferSizes,
+    ) -> Self {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("raster.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(RASTER_WGSL.into()),
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("raster"),
+            entries: &[
+                uniform_entry(0),
+                uniform_entry(1),
+                storage_entry(2, true),
+                storage_entry(3, true),
+                storage_entry(4, true),
+                storage_entry(5, true),
+                storage_entry(6, false),
+                storage_entry(7, false),
+                storage_entry(8, false),
+            ],
+        });
+        let pipeline =
+            crate::context::compute_pipeline(device, "raster", &layout, &module, "raster");
+        let occ_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("occupancy"),
+            entries: &[
+                storage_entry(0, true),
+                storage_entry(1, true),
+                storage_entry(7, false),
+                storage_entry(8, false),
+                uniform_entry(9),
+                storage_entry(10, false),
+            ],
+        });
+        let occ_pipelines = ["occupancy_points", "occupancy_cells"].map(|entry| {
+            crate::context::compute_pipeline(device, entry, &occ_layout, renderer.module(), entry)
+        });
+        debug_assert_eq!(canvas.len(), sizes.canvas);
+        let canvas_buf = buffer(device, "canvas", canvas.len() as u64 * 4, STORAGE_IN);
+        queue.write_buffer(&canvas_buf, 0, bytemuck::cast_slice(canvas));
+        let b = |label, size, usage| buffer(device, label, size, usage);
+        let bufs = [
+            canvas_buf,
+            b("templates", 16, STORAGE_IN),
+            b("raster header", 4 * 25, U::UNIFORM | U::COPY_DST),
+            b("chunk", CHUNK_BYTES, U::UNIFORM | U::COPY_DST),
+            b("chunks", CHUNK_BYTES, U::COPY_SRC | U::COPY_DST),
+            b("instances", 1 << 12, STORAGE_IN),
+            b("tiles", 1 << 12, STORAGE_IN),
+            b("raster scratch", sizes.scratch_bytes, U::STORAGE),
+            b("raster status", STATUS_BYTES, U::STORAGE | U::COPY_DST | U::COPY_SRC),
+            b("raster readback", STATUS_BYTES, U::MAP_READ | U::COPY_DST),
+            b("occupancy pass", OCC_PASS_BYTES, U::UNIFORM | U::COPY_DST),
+            b("occupancy passes", OCC_PASS_BYTES * 4, U::COPY_SRC | U::COPY_DST),
+            b("occupancy corners", sizes.corner_bytes, U::STORAGE),
+        ];
+        RasterObjects { pipeline, layout, occ_pipelines, occ_layout, bufs }
+    }
+}
+
 impl GpuComposer {
     /// Upload `composition`'s field and canvas, and `templates` (instances name them by
     /// index). The composition's canvas is what it draws under the patches; the planes it
@@ -406,21 +627,7 @@ impl GpuComposer {
         let grid = blank.grid;
         let (nd, nc) = (blank.nd, blank.nc);
         let n = grid.rows * grid.cols;
-        let plane = |name: &str, ch: usize| {
-            let s = field
-                .params
-                .spec(name)
-                .ok_or_else(|| input(format!("the composed field has no tensor {name}")))?;
-            if s.len != n * ch || ch == 0 {
-                return Err(input(format!(
-                    "{name} holds {} values, not {} x {} texels x {ch} channels",
-                    s.len, grid.rows, grid.cols
-                )));
-            }
-            u32::try_from(s.offset).map_err(|_| input("plane offset beyond 32 bits"))
-        };
-        let density_at = plane("density.plane", nd)?;
-        let color_at = plane("color.plane", nc)?;
+        let (density_at, color_at) = plane_offsets(field, &grid, nd, nc)?;
         let res = field.config.res;
         let occ_res = composition
             .occupancy
@@ -439,148 +646,22 @@ impl GpuComposer {
                     .into(),
             ));
         }
-        let aabb = field.config.aabb();
-        let extent = aabb.extent().max(Vec3::splat(1e-9));
-        // loop iterations of `occupancy_points`: the plane's channels once, then per layer
-        // the channel blocks, the tail and the layer loop; the corners take one more layer
-        let ch = nd as u64;
-        let per_layer = ch / 8 + ch % 8 + 2;
-        let fixed = ch / 4 + 4 + per_layer;
-        let layers =
-            (OCC_LOOP_BUDGET.saturating_sub(fixed) / per_layer).clamp(1, occ_res[2] as u64) as u32;
-        let occ = OccGrid {
-            res: occ_res,
-            min: aabb.min.truncate(),
-            scale: Vec2::new(occ_res[0] as f32 / extent.x, occ_res[1] as f32 / extent.y),
-            layers,
-        };
-        let device = ctx.device().clone();
-        let queue = ctx.queue().clone();
+        let occ = OccGrid::new(field, occ_res, nd);
         let limits = ctx.limits();
         let limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-        let (dv, cv) = (nd.div_ceil(4), nc.div_ceil(4));
-        let gd = dv.div_ceil(GROUP_VEC4);
-        let n_groups = gd + cv.div_ceil(GROUP_VEC4);
-        let (tiles_x, tiles_y) = (grid.cols.div_ceil(RASTER_TILE), grid.rows.div_ceil(RASTER_TILE));
-        let header = RasterHeader {
-            min: grid.min.to_array(),
-            step: grid.step.to_array(),
-            rows: grid.rows as u32,
-            cols: grid.cols as u32,
-            nd: nd as u32,
-            nc: nc as u32,
-            dv: dv as u32,
-            cv: cv as u32,
-            gd: gd as u32,
-            n_groups: n_groups as u32,
-            density_at,
-            color_at,
-            canvas_color: (n * dv) as u32,
-            tiles_x: tiles_x as u32,
-            n_tiles: (tiles_x * tiles_y) as u32,
-            rect: [0; 4],
-            base: [0; 2],
-            density_add: u32::from(composition.density_rule == DensityRule::Add),
-            canary: CANARY,
-        };
-        // the canvas, each texel's channels padded to whole vec4
-        let mut canvas = vec![0.0f32; n * (dv + cv) * 4];
-        let data = &field.params.data;
-        let (d_at, c_at) = (density_at as usize, color_at as usize);
-        for k in 0..n {
-            canvas[k * dv * 4..][..nd].copy_from_slice(&data[d_at + k * nd..][..nd]);
-            canvas[(n * dv + k * cv) * 4..][..nc].copy_from_slice(&data[c_at + k * nc..][..nc]);
-        }
-        if n_groups as u32 > LOOP_BUDGET / 4 {
+        let header = RasterHeader::new(&grid, (nd, nc), (density_at, color_at), blank.density_rule);
+        let n_groups = header.n_groups as usize;
+        if header.n_groups > LOOP_BUDGET / 4 {
             return Err(GpuError::Unsupported(format!("{nd} + {nc} channels are too many")));
         }
-        // the weight and core weight sums of every texel
-        let scratch_bytes = (n * 2 * 4) as u64;
-        for (what, bytes) in [
-            ("the canvas planes", canvas.len() as u64 * 4),
-            ("the raster scratch sums", scratch_bytes),
-        ] {
-            if bytes > limit {
-                return Err(GpuError::BufferTooLarge { what, bytes, limit });
-            }
-        }
-        if canvas.len() / 4 >= u32::MAX as usize {
-            return Err(input("the planes are too large for 32-bit indices"));
-        }
-        let corners = (occ_res[0] + 1) * (occ_res[1] + 1) * (occ_res[2] + 1);
-        if corners >= u32::MAX as usize {
-            return Err(GpuError::Unsupported(format!(
-                "an occupancy grid of {occ_res:?} cells is too large for 32-bit indices"
-            )));
-        }
-        let corner_bytes = corners.div_ceil(32) as u64 * 4;
-        if corner_bytes > limit {
-            let what = "the occupancy grid's corners";
-            return Err(GpuError::BufferTooLarge { what, bytes: corner_bytes, limit });
-        }
-        let (pipeline, layout, occ_pipelines, occ_layout, bufs) =
-            pollster::block_on(scoped(&device, "raster pipeline and upload", || {
-                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("raster.wgsl"),
-                    source: wgpu::ShaderSource::Wgsl(RASTER_WGSL.into()),
-                });
-                let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("raster"),
-                    entries: &[
-                        uniform_entry(0),
-                        uniform_entry(1),
-                        storage_entry(2, true),
-                        storage_entry(3, true),
-                        storage_entry(4, true),
-                        storage_entry(5, true),
-                        storage_entry(6, false),
-                        storage_entry(7, false),
-                        storage_entry(8, false),
-                    ],
-                });
-                let pipeline =
-                    crate::context::compute_pipeline(&device, "raster", &layout, &module, "raster");
-                let occ_layout =
-                    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                        label: Some("occupancy"),
-                        entries: &[
-                            storage_entry(0, true),
-                            storage_entry(1, true),
-                            storage_entry(7, false),
-                            storage_entry(8, false),
-                            uniform_entry(9),
-                            storage_entry(10, false),
-                        ],
-                    });
-                let occ_pipelines = ["occupancy_points", "occupancy_cells"].map(|entry| {
-                    crate::context::compute_pipeline(
-                        &device,
-                        entry,
-                        &occ_layout,
-                        renderer.module(),
-                        entry,
-                    )
-                });
-                let canvas_buf = buffer(&device, "canvas", canvas.len() as u64 * 4, STORAGE_IN);
-                queue.write_buffer(&canvas_buf, 0, bytemuck::cast_slice(&canvas));
-                let b = |label, size, usage| buffer(&device, label, size, usage);
-                let bufs = [
-                    canvas_buf,
-                    b("templates", 16, STORAGE_IN),
-                    b("raster header", 4 * 25, U::UNIFORM | U::COPY_DST),
-                    b("chunk", CHUNK_BYTES, U::UNIFORM | U::COPY_DST),
-                    b("chunks", CHUNK_BYTES, U::COPY_SRC | U::COPY_DST),
-                    b("instances", 1 << 12, STORAGE_IN),
-                    b("tiles", 1 << 12, STORAGE_IN),
-                    b("raster scratch", scratch_bytes, U::STORAGE),
-                    b("raster status", STATUS_BYTES, U::STORAGE | U::COPY_DST | U::COPY_SRC),
-                    b("raster readback", STATUS_BYTES, U::MAP_READ | U::COPY_DST),
-                    b("occupancy pass", OCC_PASS_BYTES, U::UNIFORM | U::COPY_DST),
-                    b("occupancy passes", OCC_PASS_BYTES * 4, U::COPY_SRC | U::COPY_DST),
-                    b("occupancy corners", corner_bytes, U::STORAGE),
-                ];
-                (pipeline, layout, occ_pipelines, occ_layout, bufs)
-            }))?;
+        let canvas = canvas_planes(field, &header);
+        let sizes = BufferSizes::checked(canvas.len(), n, occ_res, limit)?;
+        let device = ctx.device().clone();
+        let queue = ctx.queue().clone();
+        let gpu = pollster::block_on(scoped(&device, "raster pipeline and upload", || {
+            RasterObjects::create(&device, &queue, &renderer, &canvas, &sizes)
+        }))?;
+        let RasterObjects { pipeline, layout, occ_pipelines, occ_layout, bufs } = gpu;
         let [
             canvas,
             pfeat,

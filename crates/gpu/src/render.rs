@@ -158,35 +158,7 @@ pub fn plan_upload(
     h.u("kind", kind);
     h.u("n_density", density.len() as u32);
     h.u("n_color", color.len() as u32);
-    let (decoder, sh_degree, view_freqs, layers) = match &cfg.decoder {
-        DecoderKind::Mlp { hidden, view_freqs } => {
-            let mut layers = Vec::new();
-            for k in 0..=hidden.len() {
-                layers.push(dense(field, &format!("decoder.{k}"), true)?);
-            }
-            if layers.len() > MAX_LAYERS {
-                return Err(unsupported(format!(
-                    "{} decoder layers (at most {MAX_LAYERS})",
-                    layers.len()
-                )));
-            }
-            let input = fdim + cfg.view_encoding_dim();
-            if layers[0][2] != input || layers.last().is_some_and(|l| l[3] != 3) {
-                return Err(unsupported("decoder shapes do not match the configuration"));
-            }
-            for (k, l) in layers.iter().enumerate() {
-                max_width(&format!("decoder layer {k} input"), l[2])?;
-                max_width(&format!("decoder layer {k} output"), l[3])?;
-            }
-            (0, 0, *view_freqs, layers)
-        }
-        DecoderKind::Sh { degree } => {
-            if *degree > 2 {
-                return Err(unsupported(format!("SH degree {degree} (at most 2)")));
-            }
-            (1, *degree, 0, Vec::new())
-        }
-    };
+    let (decoder, sh_degree, view_freqs, layers) = decoder_layers(field)?;
     h.u("decoder", decoder);
     h.u("sh_degree", sh_degree as u32);
     h.u("view_freqs", to_u32(view_freqs, "view_freqs")?);
@@ -197,105 +169,18 @@ pub fn plan_upload(
     if basis[2] != app_dim || basis[3] != fdim {
         return Err(unsupported("colour basis shape does not match the configuration"));
     }
-    let guide = if cfg.kind == ModelKind::Integrated {
-        let g0 = dense(field, "guide.0", true)?;
-        let g1 = dense(field, "guide.1", true)?;
-        max_width("the guidance input (density channels)", g0[2])?;
-        max_width("the guidance hidden layer", g0[3])?;
-        if g0[2] != density[0].ch || g1[2] != g0[3] || g1[3] != app_dim {
-            return Err(unsupported("guidance MLP shapes do not match the configuration"));
-        }
-        Some((g0, g1))
-    } else {
-        None
-    };
+    let guide = guidance_layers(field, density[0].ch)?;
     h.u("guide_in", guide.map_or(0, |(g0, _)| g0[2] as u32));
-    let aabb = cfg.aabb();
-    let extent = aabb.extent().max(Vec3::splat(1e-9));
-    let occupancy_bytes = match occ {
-        Some(o) => {
-            let cells = o.res.iter().product::<usize>();
-            if o.res.contains(&0) || o.cells_u8().len() != cells {
-                return Err(unsupported(format!("occupancy grid {:?} is malformed", o.res)));
-            }
-            h.u("has_occ", 1);
-            for (name, v) in ["occ_nx", "occ_ny", "occ_nz"].into_iter().zip(o.res) {
-                h.u(name, to_u32(v, name)?);
-            }
-            (cells.div_ceil(32) * 4) as u64
-        }
-        None => {
-            for name in ["has_occ", "occ_nx", "occ_ny", "occ_nz"] {
-                h.u(name, 0);
-            }
-            4
-        }
-    };
+    let occupancy_bytes = occupancy_words(&mut h, occ)?;
     h.u("max_samples", to_u32(settings.max_samples, "max_samples")?);
     let (max_steps, max_colors) =
         budgets(settings.max_samples, density, color, cfg, basis, guide, &layers);
     h.u("max_steps", max_steps as u32);
     h.u("max_colors", max_colors as u32);
     h.u("canary", CANARY);
-    let vec3 = |h: &mut HeaderBuilder, name: &str, v: Vec3| {
-        for (axis, x) in ["x", "y", "z"].into_iter().zip(v.to_array()) {
-            h.f(format!("{name}_{axis}"), x);
-        }
-    };
-    vec3(&mut h, "aabb_min", aabb.min);
-    vec3(&mut h, "aabb_max", aabb.max);
-    // as `Field::to_grid` and `Occupancy::occupied` compute them (both private)
-    let r = cfg.res;
-    vec3(
-        &mut h,
-        "grid_scale",
-        Vec3::new((r[0] - 1) as f32, (r[1] - 1) as f32, (r[2] - 1) as f32) / extent,
-    );
-    let occ_scale = occ.map_or(Vec3::ZERO, |o| {
-        Vec3::new(o.res[0] as f32, o.res[1] as f32, o.res[2] as f32) / extent
-    });
-    vec3(&mut h, "occ_scale", occ_scale);
-    let step = cfg.step_size();
-    h.f("step", step);
-    h.f("delta", step * cfg.distance_scale);
-    h.f("shift", cfg.density_shift);
-    h.f("weight_threshold", settings.weight_threshold);
-    h.f("stop_transmittance", settings.stop_transmittance);
+    geometry_words(&mut h, cfg, occ, &settings);
     for (prefix, comps) in [("density", density), ("color", color)] {
-        for i in 0..MAX_COMPS {
-            let v = match comps.get(i) {
-                Some(c) => {
-                    if c.cols < 2 || c.rows < 2 || (c.line.is_some() && c.len < 2) {
-                        return Err(unsupported(format!(
-                            "{prefix} component {i} has fewer than 2 samples along an axis"
-                        )));
-                    }
-                    if prefix == "density" && c.line.is_none() {
-                        return Err(unsupported("a density component without a line"));
-                    }
-                    let line = match c.line {
-                        Some(l) => to_u32(l, "line offset")?,
-                        None => NO_LINE,
-                    };
-                    [
-                        to_u32(c.plane, "plane offset")?,
-                        line,
-                        c.axes[0] as u32,
-                        c.axes[1] as u32,
-                        c.axes[2] as u32,
-                        to_u32(c.cols, "cols")?,
-                        to_u32(c.rows, "rows")?,
-                        to_u32(c.len, "len")?,
-                        to_u32(c.ch, "channels")?,
-                    ]
-                }
-                None => [0; 9],
-            };
-            let names = ["plane", "line", "a0", "a1", "a2", "cols", "rows", "len", "ch"];
-            for (name, v) in names.into_iter().zip(v) {
-                h.u(format!("{prefix}[{i}].{name}"), v);
-            }
-        }
+        component_words(&mut h, prefix, comps)?;
     }
     let data = &field.params.data;
     let basis = net.add(data, basis);
@@ -346,6 +231,163 @@ pub fn plan_upload(
         max_steps,
         max_colors,
     })
+}
+
+/// The colour decoder as the shader reads it: its kind (0 MLP, 1 SH), SH degree, view
+/// frequencies and MLP layers (`[weight, bias, inn, out]` each).
+type DecoderPlan = (u32, usize, usize, Vec<[usize; 4]>);
+
+/// The colour decoder ([`DecoderPlan`]), checked against the shader's bounds and the
+/// configuration.
+fn decoder_layers(field: &Field) -> Result<DecoderPlan, GpuError> {
+    let cfg = &field.config;
+    match &cfg.decoder {
+        DecoderKind::Mlp { hidden, view_freqs } => {
+            let mut layers = Vec::new();
+            for k in 0..=hidden.len() {
+                layers.push(dense(field, &format!("decoder.{k}"), true)?);
+            }
+            if layers.len() > MAX_LAYERS {
+                return Err(unsupported(format!(
+                    "{} decoder layers (at most {MAX_LAYERS})",
+                    layers.len()
+                )));
+            }
+            let input = cfg.features_dim() + cfg.view_encoding_dim();
+            if layers[0][2] != input || layers.last().is_some_and(|l| l[3] != 3) {
+                return Err(unsupported("decoder shapes do not match the configuration"));
+            }
+            for (k, l) in layers.iter().enumerate() {
+                max_width(&format!("decoder layer {k} input"), l[2])?;
+                max_width(&format!("decoder layer {k} output"), l[3])?;
+            }
+            Ok((0, 0, *view_freqs, layers))
+        }
+        DecoderKind::Sh { degree } => {
+            if *degree > 2 {
+                return Err(unsupported(format!("SH degree {degree} (at most 2)")));
+            }
+            Ok((1, *degree, 0, Vec::new()))
+        }
+    }
+}
+
+/// I-AssetField's guidance MLP (its two layers), checked against the density channels
+/// (`density_ch`) and the colour features; `None` for the other models.
+fn guidance_layers(field: &Field, density_ch: usize) -> Result<Option<GuideLayers>, GpuError> {
+    if field.config.kind != ModelKind::Integrated {
+        return Ok(None);
+    }
+    let g0 = dense(field, "guide.0", true)?;
+    let g1 = dense(field, "guide.1", true)?;
+    max_width("the guidance input (density channels)", g0[2])?;
+    max_width("the guidance hidden layer", g0[3])?;
+    if g0[2] != density_ch || g1[2] != g0[3] || g1[3] != field.config.app_dim() {
+        return Err(unsupported("guidance MLP shapes do not match the configuration"));
+    }
+    Ok(Some((g0, g1)))
+}
+
+/// The two layers of I-AssetField's guidance MLP (`[weight, bias, inn, out]` each).
+type GuideLayers = ([usize; 4], [usize; 4]);
+
+/// The occupancy grid's header words (its cells, or none); the bytes of its bitfield.
+fn occupancy_words(h: &mut HeaderBuilder, occ: Option<&Occupancy>) -> Result<u64, GpuError> {
+    match occ {
+        Some(o) => {
+            let cells = o.res.iter().product::<usize>();
+            if o.res.contains(&0) || o.cells_u8().len() != cells {
+                return Err(unsupported(format!("occupancy grid {:?} is malformed", o.res)));
+            }
+            h.u("has_occ", 1);
+            for (name, v) in ["occ_nx", "occ_ny", "occ_nz"].into_iter().zip(o.res) {
+                h.u(name, to_u32(v, name)?);
+            }
+            Ok((cells.div_ceil(32) * 4) as u64)
+        }
+        None => {
+            for name in ["has_occ", "occ_nx", "occ_ny", "occ_nz"] {
+                h.u(name, 0);
+            }
+            Ok(4)
+        }
+    }
+}
+
+/// The box, the lattice's and the occupancy grid's scales, and the march's step, shift and
+/// thresholds.
+fn geometry_words(
+    h: &mut HeaderBuilder,
+    cfg: &FieldConfig,
+    occ: Option<&Occupancy>,
+    settings: &MarchSettings,
+) {
+    let aabb = cfg.aabb();
+    let extent = aabb.extent().max(Vec3::splat(1e-9));
+    let vec3 = |h: &mut HeaderBuilder, name: &str, v: Vec3| {
+        for (axis, x) in ["x", "y", "z"].into_iter().zip(v.to_array()) {
+            h.f(format!("{name}_{axis}"), x);
+        }
+    };
+    vec3(h, "aabb_min", aabb.min);
+    vec3(h, "aabb_max", aabb.max);
+    // as `Field::to_grid` and `Occupancy::occupied` compute them (both private)
+    let r = cfg.res;
+    vec3(
+        h,
+        "grid_scale",
+        Vec3::new((r[0] - 1) as f32, (r[1] - 1) as f32, (r[2] - 1) as f32) / extent,
+    );
+    let occ_scale = occ.map_or(Vec3::ZERO, |o| {
+        Vec3::new(o.res[0] as f32, o.res[1] as f32, o.res[2] as f32) / extent
+    });
+    vec3(h, "occ_scale", occ_scale);
+    let step = cfg.step_size();
+    h.f("step", step);
+    h.f("delta", step * cfg.distance_scale);
+    h.f("shift", cfg.density_shift);
+    h.f("weight_threshold", settings.weight_threshold);
+    h.f("stop_transmittance", settings.stop_transmittance);
+}
+
+/// The header words of the density or colour components (`prefix`), [`MAX_COMPS`] of them
+/// (zeros past the field's).
+fn component_words(h: &mut HeaderBuilder, prefix: &str, comps: &[Comp]) -> Result<(), GpuError> {
+    for i in 0..MAX_COMPS {
+        let v = match comps.get(i) {
+            Some(c) => {
+                if c.cols < 2 || c.rows < 2 || (c.line.is_some() && c.len < 2) {
+                    return Err(unsupported(format!(
+                        "{prefix} component {i} has fewer than 2 samples along an axis"
+                    )));
+                }
+                if prefix == "density" && c.line.is_none() {
+                    return Err(unsupported("a density component without a line"));
+                }
+                let line = match c.line {
+                    Some(l) => to_u32(l, "line offset")?,
+                    None => NO_LINE,
+                };
+                [
+                    to_u32(c.plane, "plane offset")?,
+                    line,
+                    c.axes[0] as u32,
+                    c.axes[1] as u32,
+                    c.axes[2] as u32,
+                    to_u32(c.cols, "cols")?,
+                    to_u32(c.rows, "rows")?,
+                    to_u32(c.len, "len")?,
+                    to_u32(c.ch, "channels")?,
+                ]
+            }
+            None => [0; 9],
+        };
+        let names = ["plane", "line", "a0", "a1", "a2", "cols", "rows", "len", "ch"];
+        for (name, v) in names.into_iter().zip(v) {
+            h.u(format!("{prefix}[{i}].{name}"), v);
+        }
+    }
+    Ok(())
 }
 
 /// Loop iterations one dispatch may spend per group of invocations (llvmpipe ends all loops

@@ -56,38 +56,21 @@ pub enum MiningError {
     /// A file exists but is not what it should be (a library index, a field, a layout).
     #[error("{path}: {message}")]
     Format { path: String, message: String },
-    /// A library index and its tensors disagree.
-    #[error("{path}: tensor \"{tensor}\" has shape {actual:?}, but the index says {expected:?}")]
-    LibraryMismatch { path: String, tensor: String, expected: Vec<usize>, actual: Vec<usize> },
-    /// A value of a library's index (or of its shared field configuration) is out of range.
-    /// `place` is the entry, container or category it belongs to (empty for a top-level key).
-    #[error("{path}: {}\"{key}\" is {actual}, expected {expected}", place_prefix(place))]
-    LibraryValue { path: String, place: String, key: String, expected: String, actual: String },
-    /// A tensor of a library holds NaN or an infinity (`index`: the first, row-major).
-    #[error("{path}: tensor \"{tensor}\" has a non-finite value ({value}) at index {index}")]
-    NonFinite { path: String, tensor: String, index: usize, value: f32 },
-    /// Libraries that do not share their vertical axes, basis and decoders cannot be merged.
-    #[error(
-        "cannot merge {a} and {b}: shared tensor \"{tensor}\" differs ({detail}); libraries can only be merged when they were mined from fields that share their vertical axes, basis and decoders"
-    )]
-    SharedTensorDiffers { a: String, b: String, tensor: String, detail: String },
     /// The field's ground is a slab tilted against its XY plane: the ground planes cannot hold
     /// its objects level (a capture whose up axis is not +Z).
     #[error(
         "the ground in this field is tilted by {degrees:.1} degrees against its XY plane (a slab under {coverage_pct:.0}% of the plane rises across it), so no floor level and no ground level can be found: the capture's up axis is not +Z. Train the field on a levelled capture: `assetfield train DATA --align-ground pca ...`"
     )]
     TiltedGround { degrees: f32, coverage_pct: f32 },
+    /// Reading, checking, writing or merging a library failed.
+    #[error(transparent)]
+    Library(assetfield_library::LibraryError),
     /// The output exists and replacing it was not allowed.
     #[error("{0} already exists (pass --force to replace it)")]
     OutputExists(String),
     /// The user pressed Ctrl-C; nothing was written.
     #[error("interrupted by the user (Ctrl-C); nothing was written")]
     Interrupted,
-}
-
-/// `"entry \"x\": "` for a place, `""` for none.
-fn place_prefix(place: &str) -> String {
-    if place.is_empty() { String::new() } else { format!("{place}: ") }
 }
 
 impl MiningError {
@@ -97,28 +80,22 @@ impl MiningError {
     }
 }
 
+impl From<assetfield_library::LibraryError> for MiningError {
+    fn from(e: assetfield_library::LibraryError) -> Self {
+        use assetfield_library::LibraryError;
+        match e {
+            LibraryError::Interrupted => MiningError::Interrupted,
+            LibraryError::OutputExists(path) => MiningError::OutputExists(path),
+            other => MiningError::Library(other),
+        }
+    }
+}
+
+/// Tensor files' errors read as the library's (a shape or a value that is wrong names the
+/// file and the tensor), Ctrl-C as [`MiningError::Interrupted`].
 impl From<assetfield_core::CoreError> for MiningError {
     fn from(e: assetfield_core::CoreError) -> Self {
-        match e {
-            assetfield_core::CoreError::Interrupted => MiningError::Interrupted,
-            assetfield_core::CoreError::TensorShape { path, name, actual, expected } => {
-                MiningError::LibraryMismatch {
-                    path: path.display().to_string(),
-                    tensor: name,
-                    expected: expected.into_vec(),
-                    actual: actual.into_vec(),
-                }
-            }
-            assetfield_core::CoreError::TensorNonFinite { path, name, index, value } => {
-                MiningError::NonFinite {
-                    path: path.display().to_string(),
-                    tensor: name,
-                    index,
-                    value,
-                }
-            }
-            other => MiningError::Io(other.to_string()),
-        }
+        MiningError::from(assetfield_library::LibraryError::from(e))
     }
 }
 

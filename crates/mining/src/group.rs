@@ -489,6 +489,52 @@ pub fn group_samples_with(
     profiles: &[Vec<f64>],
     opts: &GroupOptions,
 ) -> Result<Grouping> {
+    check_inputs(samples, n, shapes, profiles, opts)?;
+    if n == 0 {
+        return Ok(Grouping {
+            histograms: Vec::new(),
+            jsd: DistanceMatrix::new(0, Vec::new())?,
+            distance: DistanceMatrix::new(0, Vec::new())?,
+            merges: Vec::new(),
+            category: Vec::new(),
+            n_categories: 0,
+            cut: "no detections".into(),
+        });
+    }
+    let histograms = label_histograms(samples, n, opts)?;
+    let jsd = jsd_matrix(&histograms)?;
+    let distance = DistanceMatrix::from_fn(n, |i, j| {
+        jsd.get(i, j).unwrap_or(0.0)
+            + opts.shape_weight * shape_distance(shapes[i], shapes[j], opts.length_tolerance)
+            + if profiles.is_empty() {
+                0.0
+            } else {
+                opts.profile_weight * crate::copies::profile_jsd(&profiles[i], &profiles[j])
+            }
+    })?;
+    let dendro = linkage(&distance, opts.linkage);
+    let (cut, desc) = choose_cut(&dendro, &distance, n, opts);
+    let category = dendro.cut(cut)?;
+    let n_categories = category.iter().max().map_or(0, |&m| m + 1);
+    Ok(Grouping {
+        histograms,
+        jsd,
+        distance,
+        merges: dendro.merges,
+        category,
+        n_categories,
+        cut: desc,
+    })
+}
+
+/// The inputs of [`group_samples_with`] agree with each other and with `n` detections.
+fn check_inputs(
+    samples: &Samples,
+    n: usize,
+    shapes: &[Shape],
+    profiles: &[Vec<f64>],
+    opts: &GroupOptions,
+) -> Result<()> {
     if !profiles.is_empty() && profiles.len() != n {
         return Err(MiningError::SizeMismatch {
             what: "profiles vs detections",
@@ -507,15 +553,7 @@ pub fn group_samples_with(
         return Err(MiningError::ZeroDimension { what: "number of labels" });
     }
     if n == 0 {
-        return Ok(Grouping {
-            histograms: Vec::new(),
-            jsd: DistanceMatrix::new(0, Vec::new())?,
-            distance: DistanceMatrix::new(0, Vec::new())?,
-            merges: Vec::new(),
-            category: Vec::new(),
-            n_categories: 0,
-            cut: "no detections".into(),
-        });
+        return Ok(());
     }
     let ch = samples.dim;
     if samples.points.len() != samples.len() * ch {
@@ -548,6 +586,14 @@ pub fn group_samples_with(
             ),
         });
     }
+    Ok(())
+}
+
+/// Every detection's normalised label histogram: K-means labels fitted on at most
+/// [`GroupOptions::max_samples`] of the samples, then every sample's label (or soft
+/// memberships) added to its owner's histogram with the sample's weight.
+fn label_histograms(samples: &Samples, n: usize, opts: &GroupOptions) -> Result<Vec<Vec<f64>>> {
+    let ch = samples.dim;
     let stride = samples.len().div_ceil(opts.max_samples.max(opts.labels)).max(1);
     let fit: Vec<usize> = (0..samples.len()).step_by(stride).collect();
     let pts: Vec<f32> =
@@ -610,32 +656,31 @@ pub fn group_samples_with(
         }
         hist.iter_mut().for_each(|h| *h /= total);
     }
-    let jsd = jsd_matrix(&histograms)?;
-    let distance = DistanceMatrix::from_fn(n, |i, j| {
-        jsd.get(i, j).unwrap_or(0.0)
-            + opts.shape_weight * shape_distance(shapes[i], shapes[j], opts.length_tolerance)
-            + if profiles.is_empty() {
-                0.0
-            } else {
-                opts.profile_weight * crate::copies::profile_jsd(&profiles[i], &profiles[j])
-            }
-    })?;
-    let dendro = linkage(&distance, opts.linkage);
-    let (cut, desc) = match opts.cut {
+    Ok(histograms)
+}
+
+/// Where to cut the dendrogram of `n` detections, and a description of the cut.
+fn choose_cut(
+    dendro: &Dendrogram,
+    distance: &DistanceMatrix,
+    n: usize,
+    opts: &GroupOptions,
+) -> (Cut, String) {
+    match opts.cut {
         GroupCut::Categories(c) => (Cut::Clusters(c), format!("{c} categories (given)")),
         GroupCut::Distance(t) => (Cut::Distance(t), format!("distance {t} (given)")),
         GroupCut::Separation => {
             let t = opts.min_separation;
-            let k = n - separation_cut(&dendro, t);
+            let k = n - separation_cut(dendro, t);
             let desc = format!(
                 "automatic: groups of objects at least {t} apart are categories, {k} categories"
             );
             (Cut::Clusters(k), desc)
         }
         GroupCut::Silhouette => {
-            let m = silhouette_cut(&dendro, &distance, opts.min_separation);
+            let m = silhouette_cut(dendro, distance, opts.min_separation);
             let k = n - m;
-            let desc = match mean_silhouette(&distance, &dendro.labels_after(m)) {
+            let desc = match mean_silhouette(distance, &dendro.labels_after(m)) {
                 Some(s) => format!(
                     "automatic: highest mean silhouette ({s:.3}) among cuts separated by at least {}, {k} categories",
                     opts.min_separation
@@ -656,18 +701,7 @@ pub fn group_samples_with(
             };
             (Cut::Clusters(k), desc)
         }
-    };
-    let category = dendro.cut(cut)?;
-    let n_categories = category.iter().max().map_or(0, |&m| m + 1);
-    Ok(Grouping {
-        histograms,
-        jsd,
-        distance,
-        merges: dendro.merges,
-        category,
-        n_categories,
-        cut: desc,
-    })
+    }
 }
 
 #[cfg(test)]

@@ -16,7 +16,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use crate::error::{MiningError, Result};
-use crate::library::{Entry, EntryKind, LibraryIndex};
+use assetfield_library::{Entry, EntryKind, LibraryIndex};
 
 /// Default of `mine --own-patch-residual`: 0, every instance keeps its own patch, so the
 /// mined layout reproduces the trained scene exactly and edits of it stay faithful (the
@@ -244,7 +244,7 @@ pub fn script_text_checked(script: &Script, path: &Path) -> Result<(String, usiz
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::library::{Category, Entry, LibraryIndex, SharedRef};
+    use assetfield_library::{Category, Entry, LibraryIndex, SharedRef};
 
     fn entry(name: &str, cat: &str, kind: EntryKind, pos: (f32, f32), yaw: f32) -> Entry {
         Entry {
@@ -260,7 +260,7 @@ mod tests {
     /// A library index of `entries` in `categories` at `texel` metres (no tensors).
     fn index_of(texel: f32, categories: Vec<Category>, entries: Vec<Entry>) -> LibraryIndex {
         LibraryIndex {
-            format: crate::library::FORMAT.into(),
+            format: assetfield_library::FORMAT.into(),
             sources: vec![],
             model: "s".into(),
             texel_size: (texel, texel),

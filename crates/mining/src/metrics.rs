@@ -345,7 +345,7 @@ pub struct CrossSceneMetrics {
 /// against that scene's ground truth (BEV IoU at least `iou_threshold`), and the ARI over
 /// all matched entries together.
 pub fn cross_scene_metrics(
-    index: &crate::library::LibraryIndex,
+    index: &assetfield_library::LibraryIndex,
     scene_of: &[usize],
     names: &[String],
     gts: &[GtLayout],

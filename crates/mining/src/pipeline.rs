@@ -9,24 +9,21 @@ use assetfield_core::TensorFile;
 use assetfield_core::canvas::Canvas;
 use assetfield_core::fsx::{StagingDir, write_atomic};
 use assetfield_core::plot::{colormap, pca_colors};
-use assetfield_field::eval::load_field;
+use assetfield_field::eval::{LoadedField, load_field};
 use assetfield_field::{Field, ModelKind};
 use assetfield_layout::GtLayout;
 use glam::Vec2;
 use serde::{Deserialize, Serialize};
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 use std::path::{Path, PathBuf};
 
-use crate::copies::{blurred, profile_jsd, split_copies, vertical_profile};
+use crate::agglomerative::DistanceMatrix;
+use crate::copies::{CopySplit, blurred, profile_jsd, split_copies, vertical_profile};
 use crate::detect::{DetectParams, Detections, FloorBand, detect};
 use crate::error::{MiningError, Result, check_interrupt};
 use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples_with};
 use crate::image::{Mask, PlaneImage};
 use crate::layout_out::{layout_script, script_text_checked};
-use crate::library::{
-    Category, Container, Entry, EntryKind, FORMAT, LibraryIndex, PATCHES_FILE, SHARED_FILE,
-    SHARED_FORMAT, SharedRef, content_hash, write_library_files,
-};
 use crate::metrics::{Metrics, Predicted, evaluate};
 use crate::morphology::dilate;
 use crate::picture::{BoxMark, TemplateTile, boxes_picture, categories_picture, picture_scale};
@@ -34,6 +31,10 @@ use crate::pivot::contact_pivots;
 use crate::planes::{FieldPlanes, OpacityVolume, PlaneChoice, field_planes, semantic_plane};
 use crate::pose::{
     PatchRect, PatchSource, PoseOptions, Poses, estimate_poses, mask_in_patch, padded_crop,
+};
+use assetfield_library::{
+    Category, Container, Entry, EntryKind, FORMAT, LibraryIndex, PATCHES_FILE, SHARED_FILE,
+    SharedRef, content_hash, shared_tensors, write_library_files,
 };
 
 /// Everything [`mine`] can be told.
@@ -375,23 +376,9 @@ fn feature_plane<'a>(
     }
 }
 
-/// Every tensor of the field that is not a ground plane, with the configuration.
-pub fn shared_tensors(field: &Field, source: &str) -> Result<TensorFile> {
-    let mut f = TensorFile::new();
-    for s in &field.params.specs {
-        if s.name == "density.plane" || s.name == "color.plane" {
-            continue;
-        }
-        f.insert_f32(&s.name, &s.shape, field.params.data[s.offset..s.offset + s.len].to_vec());
-    }
-    f.set_meta("format", SHARED_FORMAT);
-    f.set_meta("model", field.config.kind.name());
-    f.set_meta("source", source);
-    f.set_meta_json("config", &field.config)?;
-    Ok(f)
-}
-
-/// Mine `field_path` into the library folder `out` (see the module docs).
+/// Mine `field_path` into the library folder `out` (see the module docs): load the field,
+/// detect, group, pose, then write the library, the layout, the pictures and the reports
+/// into a staging folder that replaces `out` at the end (or never, on an error or Ctrl-C).
 pub fn mine(
     field_path: &Path,
     out: &Path,
@@ -418,7 +405,6 @@ pub fn mine(
     })?;
     let field = &loaded.field;
     let planes = field_planes(field)?;
-    let grid = planes.grid;
     progress.step(1, STEPS, "evaluating the density volume");
     let vol = OpacityVolume::from_field(field)?;
     check_interrupt()?;
@@ -426,160 +412,36 @@ pub fn mine(
         .contains(&Some(PlaneChoice::Semantic))
         || opts.group_on == GroupOn::Semantic;
     let semantic = if needs_semantic { Some(semantic_plane(field, &vol)?) } else { None };
+    let cx = Context { opts, field, planes: &planes, vol: &vol, semantic: &semantic };
 
     progress.step(2, STEPS, "detecting objects");
-    let det_feature = if opts.detect.needs_feature_plane() {
-        Some(feature_plane(opts.detect.on, &planes, &semantic)?)
-    } else {
-        None
-    };
-    let mut dets = detect(&grid, &vol, &planes.color, det_feature, &opts.detect)?;
-    if dets.detections.is_empty() {
-        // what each filter took, so that the user knows which one to question
-        let mut by_filter: Vec<(&str, usize)> = Vec::new();
-        for r in &dets.removed {
-            match by_filter.iter_mut().find(|(f, _)| *f == r.reason.filter()) {
-                Some((_, n)) => *n += 1,
-                None => by_filter.push((r.reason.filter(), 1)),
-            }
-        }
-        let dropped = if by_filter.is_empty() {
-            "no region was left after the first K-means and the minimum area (--min-area, \
-             texels)"
-                .to_string()
-        } else {
-            let list: Vec<String> = by_filter.iter().map(|(f, n)| format!("{n} by {f}")).collect();
-            format!(
-                "{} region(s) dropped: {}; `--no-filter FILTER` keeps what a filter drops",
-                dets.removed.len(),
-                list.join(", ")
-            )
-        };
-        return Err(MiningError::InvalidParameter {
-            name: "detection",
-            reason: format!(
-                "no object found in {} (evidence threshold {:.3}; {dropped})",
-                field_path.display(),
-                dets.threshold,
-            ),
-        });
-    }
+    let mut dets = cx.detect(field_path)?;
     check_interrupt()?;
-
     progress.step(3, STEPS, "grouping into categories"); // fixed: progress step
-    // the grouping of a set of detections, with their sharp vertical profiles; objects on
-    // different supports are compared with their profiles blurred by the field's vertical
-    // blur (`blur_levels`: a base is estimated within it), copies standing on one ground
-    // sharp
-    let blur = opts.detect.blur_levels;
-    let group_all = |dets: &Detections| -> Result<(Grouping, Vec<Vec<f64>>)> {
-        let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, grid.texel)).collect();
-        let samples = match opts.group_on.plane() {
-            Some(p) => Samples::from_plane(dets, feature_plane(p, &planes, &semantic)?)?,
-            None => Samples::from_voxels(field, &vol, dets)?,
-        };
-        let sharp: Vec<Vec<f64>> = dets
-            .detections
-            .iter()
-            .map(|d| vertical_profile(&vol, d, dets.voxel_threshold))
-            .collect();
-        let soft: Vec<Vec<f64>> = sharp.iter().map(|p| blurred(p, blur)).collect();
-        let grouping =
-            group_samples_with(&samples, dets.detections.len(), &shapes, &soft, &opts.group)?;
-        Ok((grouping, sharp))
-    };
-    let (mut grouping, sharp) = group_all(&dets)?;
-    // identical objects in contact: a detection that is k copies of another is k objects,
-    // alike in colours and in the sharp vertical profile
-    let copies = if opts.group.split_copies {
-        let g = &opts.group;
-        split_copies(
-            &mut dets,
-            |i, j| {
-                grouping
-                    .jsd
-                    .get(i, j)
-                    .unwrap_or(f64::INFINITY)
-                    .max(profile_jsd(&sharp[i], &sharp[j]))
-            },
-            g.min_separation,
-            g.length_tolerance,
-        )
-    } else {
-        Vec::new()
-    };
-    if !copies.is_empty() {
-        grouping = group_all(&dets)?.0;
-    }
+    let (grouping, copies) = cx.group(&mut dets)?;
     check_interrupt()?;
-
     progress.step(4, STEPS, "matching templates (yaw)"); // fixed: progress step
-    let mut pose_opts = opts.pose.clone();
-    for (c, d) in &opts.templates {
-        pose_opts.templates.push((parse_category(c, grouping.n_categories)?, *d));
-    }
-    let mut poses = estimate_poses(
-        &grid,
-        &dets,
-        &yaw_sources(opts.yaw_on, &dets, &grouping.category, &planes, &semantic, &vol)?,
-        &grouping.category,
-        &grouping.distance,
-        &pose_opts,
-    )?;
-    // every object turns about the centre of its ground contact (a lamp about its pole)
-    let pivots = contact_pivots(&vol, &dets, opts.pose.yaw.max_offset);
-    poses.to_pivots(&dets, &grouping.category, &pivots);
+    let (poses, pivots, margin) = cx.pose(&dets, &grouping)?;
     check_interrupt()?;
 
     progress.step(5, STEPS, "writing the library"); // fixed: progress step
     let source = field_path.display().to_string();
     let found = Found { dets: &dets, grouping: &grouping, poses: &poses, pivots: &pivots };
-    let (index, patches) = build_library(&source, field, &planes, &vol, &found, pose_opts.margin)?;
-    let mut shared = shared_tensors(field, &source)?;
-    // what rendering the library needs besides the tensors: the background the field was
-    // trained on and the ground alignment of its dataset's cameras
-    assetfield_field::eval::FieldInfo {
-        background: loaded.info.background,
-        ground_transform: loaded.info.ground_transform,
-        dataset: loaded.info.dataset.clone(),
-        ..Default::default()
-    }
-    .write(&mut shared)
-    .map_err(|e| MiningError::io("cannot describe the shared tensors", e))?;
-    let mut index = index;
-    index.shared.hash = content_hash(&shared);
-    index.shared.tensors = shared.names().map(str::to_string).collect();
-
+    let (index, patches) = build_library(&source, field, &planes, &vol, &found, margin)?;
+    let (index, shared) = with_shared_tensors(index, &loaded, &source)?;
     let staging = StagingDir::new(out, opts.force)?;
     let dir = staging.path();
     write_library_files(dir, &index, &patches, &shared)?;
+    let metrics = gt.as_ref().map(|gt| score(&found, gt, opts.iou));
+    let names = match (opts.gt_names, &metrics, &gt) {
+        (true, Some(m), Some(gt)) => gt_keys(m, gt),
+        _ => BTreeMap::new(),
+    };
     let scene = field_path
         .file_stem()
         .map(|s| s.to_string_lossy().trim_end_matches(".ckpt").to_string())
         .unwrap_or_else(|| "mined".into());
-    let metrics = gt.as_ref().map(|gt| {
-        let preds: Vec<Predicted> = dets
-            .detections
-            .iter()
-            .map(|d| Predicted {
-                world: d.world,
-                category: grouping.category[d.id],
-                template: poses.templates[grouping.category[d.id]],
-                yaw_rel: poses.poses[d.id].yaw_deg,
-                position: poses.poses[d.id].position,
-            })
-            .collect();
-        evaluate(&preds, gt, opts.iou)
-    });
-    let mut names = std::collections::BTreeMap::new();
-    if let (true, Some(m), Some(gt)) = (opts.gt_names, &metrics, &gt) {
-        for inst in &m.per_instance {
-            if let Some(g) = inst.gt_id.and_then(|id| gt.instances.iter().find(|g| g.id == id)) {
-                names.insert(entry_name(inst.detection), g.key.clone());
-            }
-        }
-    }
-    let world = grid.world_rect();
+    let world = planes.grid.world_rect();
     let script =
         layout_script(&index, &scene, world.to_array(), ".", &names, opts.own_patch_residual)?;
     let (text, layout_instances) = script_text_checked(&script, &out.join("layout.ron"))?;
@@ -587,107 +449,12 @@ pub fn mine(
     check_interrupt()?;
 
     progress.step(6, STEPS, "pictures and metrics"); // fixed: progress step
-    let scale = picture_scale(grid.rows, grid.cols, 900); // fixed: picture size in pixels
-    let boxes: Vec<BoxMark> = dets
-        .detections
-        .iter()
-        .map(|d| BoxMark {
-            world: d.world,
-            category: grouping.category[d.id],
-            label: d.id.to_string(),
-            supported: d.parent.is_some(),
-        })
-        .collect();
-    let legend: Vec<String> = (0..grouping.n_categories)
-        .map(|k| {
-            let n = grouping.category.iter().filter(|&&c| c == k).count();
-            format!("{}: {n} (template {})", category_name(k), entry_name(poses.templates[k]))
-        })
-        .collect();
-    boxes_picture(&grid, &evidence_colors(&dets), scale, &boxes, &legend)
-        .save_png(&dir.join("boxes.png"))?;
-    let colors = pca_colors(&planes.color.data, grid.rows * grid.cols, planes.color.ch);
-    let tiles: Vec<TemplateTile> = poses
-        .templates
-        .iter()
-        .enumerate()
-        .map(|(k, &t)| {
-            let d = &dets.detections[t];
-            let patch = PatchRect::around(d.rect, pose_opts.margin);
-            TemplateTile { name: category_name(k), patch, mask: mask_in_patch(d, &d.own, patch) }
-        })
-        .collect();
-    let cat_pic: Canvas = categories_picture(&grid, &colors, &tiles);
-    cat_pic.save_png(&dir.join("categories.png"))?;
-
+    cx.write_pictures(dir, &found, margin)?;
     if let Some(m) = &metrics {
-        let mut v = serde_json::to_value(m).map_err(|e| MiningError::io("metrics", e))?;
-        if let Some(o) = v.as_object_mut() {
-            o.insert("summary".into(), serde_json::Value::String(m.summary()));
-            o.insert(
-                "ground_truth_file".into(),
-                serde_json::Value::String(
-                    opts.gt.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
-                ),
-            );
-        }
-        let text = serde_json::to_string_pretty(&v).map_err(|e| MiningError::io("metrics", e))?;
-        write_atomic(&dir.join("metrics.json"), text.as_bytes())?;
+        write_metrics(dir, m, opts)?;
     }
-    let removed: Vec<String> = dets
-        .removed
-        .iter()
-        .map(|r| {
-            let b = r.world.to_array();
-            format!(
-                "[{:.2}, {:.2}, {:.2}, {:.2}]: {} (filter {})",
-                b[0],
-                b[1],
-                b[2],
-                b[3],
-                r.reason,
-                r.reason.filter()
-            )
-        })
-        .collect();
-    let report = serde_json::json!({
-        "field": source,
-        "model": field.config.kind.name(),
-        "plane_resolution": [grid.cols, grid.rows],
-        "texel_size": grid.texel,
-        "floor": dets.floor,
-        "evidence_threshold": dets.threshold,
-        "voxel_threshold": dets.voxel_threshold,
-        "detections": dets.detections.len(),
-        "removed_as_background": removed,
-        "removed": dets.removed,
-        "copies_split": copies,
-        "detect_preset": opts.detect.preset.name(),
-        "categories": grouping.n_categories,
-        "cut": grouping.cut,
-        "merge_heights": grouping.merges.iter().map(|m| m.distance).collect::<Vec<_>>(),
-        "dendrogram": grouping.merges.iter().map(|m| (m.a, m.b, m.distance)).collect::<Vec<_>>(),
-        "distance_matrix": (0..grouping.distance.n())
-            .map(|i| (0..grouping.distance.n()).map(|j| grouping.distance.get(i, j).unwrap_or(0.0)).collect::<Vec<_>>())
-            .collect::<Vec<_>>(),
-        "jsd_matrix": (0..grouping.jsd.n())
-            .map(|i| (0..grouping.jsd.n()).map(|j| grouping.jsd.get(i, j).unwrap_or(0.0)).collect::<Vec<_>>())
-            .collect::<Vec<_>>(),
-        "options": opts,
-        "files": [
-            "index.ron: the library index (assetfield-library/1)",
-            "patches.safetensors: ENTRY.density / ENTRY.color / ENTRY.mask per entry, container.* (planes with the objects removed)",
-            "shared.safetensors: vertical axes, basis, guidance MLPs and decoders, config in the metadata",
-            "layout.ron: the mined layout (layout language, library assets)",
-            "boxes.png: detections over the evidence map, coloured by category, numbered",
-            "categories.png: template patches (colour plane PCA)",
-            "metrics.json: with --gt only",
-        ],
-    });
-    write_atomic(
-        &dir.join("mining.json"),
-        serde_json::to_string_pretty(&report).map_err(|e| MiningError::io("report", e))?.as_bytes(),
-    )?;
+    let removed = removed_lines(&dets);
+    cx.write_report(dir, &source, &found, &copies, &removed)?;
     check_interrupt()?;
     let out = staging.commit()?;
     Ok(MineReport {
@@ -706,6 +473,331 @@ pub fn mine(
         metrics,
         seconds: t0.elapsed().as_secs_f64(),
     })
+}
+
+/// What every stage of [`mine`] reads: the options, the field, and the planes and opacity
+/// volume made from it.
+struct Context<'a> {
+    opts: &'a MineOptions,
+    field: &'a Field,
+    planes: &'a FieldPlanes,
+    vol: &'a OpacityVolume,
+    /// The semantic plane, where a stage works on it.
+    semantic: &'a Option<PlaneImage>,
+}
+
+impl Context<'_> {
+    /// The objects on the ground planes; an error that says what each filter dropped when
+    /// none is left.
+    fn detect(&self, field_path: &Path) -> Result<Detections> {
+        let opts = self.opts;
+        let det_feature = if opts.detect.needs_feature_plane() {
+            Some(feature_plane(opts.detect.on, self.planes, self.semantic)?)
+        } else {
+            None
+        };
+        let dets =
+            detect(&self.planes.grid, self.vol, &self.planes.color, det_feature, &opts.detect)?;
+        if dets.detections.is_empty() {
+            return Err(nothing_found(&dets, field_path));
+        }
+        Ok(dets)
+    }
+
+    /// The grouping of `dets` into categories, with their sharp vertical profiles; objects
+    /// on different supports are compared with their profiles blurred by the field's
+    /// vertical blur (`blur_levels`: a base is estimated within it), copies standing on one
+    /// ground sharp.
+    fn group_all(&self, dets: &Detections) -> Result<(Grouping, Vec<Vec<f64>>)> {
+        let opts = self.opts;
+        let texel = self.planes.grid.texel;
+        let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, texel)).collect();
+        let samples = match opts.group_on.plane() {
+            Some(p) => Samples::from_plane(dets, feature_plane(p, self.planes, self.semantic)?)?,
+            None => Samples::from_voxels(self.field, self.vol, dets)?,
+        };
+        let sharp: Vec<Vec<f64>> = dets
+            .detections
+            .iter()
+            .map(|d| vertical_profile(self.vol, d, dets.voxel_threshold))
+            .collect();
+        let soft: Vec<Vec<f64>> =
+            sharp.iter().map(|p| blurred(p, opts.detect.blur_levels)).collect();
+        let grouping =
+            group_samples_with(&samples, dets.detections.len(), &shapes, &soft, &opts.group)?;
+        Ok((grouping, sharp))
+    }
+
+    /// Group the detections; identical objects in contact (a detection that is k copies of
+    /// another, alike in colours and in the sharp vertical profile) are split into k objects
+    /// first, and the grouping redone.
+    fn group(&self, dets: &mut Detections) -> Result<(Grouping, Vec<CopySplit>)> {
+        let (mut grouping, sharp) = self.group_all(dets)?;
+        let copies = if self.opts.group.split_copies {
+            let g = &self.opts.group;
+            split_copies(
+                dets,
+                |i, j| {
+                    grouping
+                        .jsd
+                        .get(i, j)
+                        .unwrap_or(f64::INFINITY)
+                        .max(profile_jsd(&sharp[i], &sharp[j]))
+                },
+                g.min_separation,
+                g.length_tolerance,
+            )
+        } else {
+            Vec::new()
+        };
+        if !copies.is_empty() {
+            grouping = self.group_all(dets)?.0;
+        }
+        Ok((grouping, copies))
+    }
+
+    /// Templates, every object's yaw and position against its template, turned about the
+    /// centre of its ground contact (a lamp about its pole); and the patches' margin.
+    fn pose(&self, dets: &Detections, grouping: &Grouping) -> Result<(Poses, Vec<Vec2>, usize)> {
+        let opts = self.opts;
+        let mut pose_opts = opts.pose.clone();
+        for (c, d) in &opts.templates {
+            pose_opts.templates.push((parse_category(c, grouping.n_categories)?, *d));
+        }
+        let sources = yaw_sources(
+            opts.yaw_on,
+            dets,
+            &grouping.category,
+            self.planes,
+            self.semantic,
+            self.vol,
+        )?;
+        let mut poses = estimate_poses(
+            &self.planes.grid,
+            dets,
+            &sources,
+            &grouping.category,
+            &grouping.distance,
+            &pose_opts,
+        )?;
+        let pivots = contact_pivots(self.vol, dets, opts.pose.yaw.max_offset);
+        poses.to_pivots(dets, &grouping.category, &pivots);
+        Ok((poses, pivots, pose_opts.margin))
+    }
+
+    /// `boxes.png` (the detections over the evidence map, by category) and
+    /// `categories.png` (the template patches over the colour plane's PCA).
+    fn write_pictures(&self, dir: &Path, found: &Found<'_>, margin: usize) -> Result<()> {
+        let Found { dets, grouping, poses, .. } = *found;
+        let grid = self.planes.grid;
+        let scale = picture_scale(grid.rows, grid.cols, 900); // fixed: picture size in pixels
+        let boxes: Vec<BoxMark> = dets
+            .detections
+            .iter()
+            .map(|d| BoxMark {
+                world: d.world,
+                category: grouping.category[d.id],
+                label: d.id.to_string(),
+                supported: d.parent.is_some(),
+            })
+            .collect();
+        let legend: Vec<String> = (0..grouping.n_categories)
+            .map(|k| {
+                let n = grouping.category.iter().filter(|&&c| c == k).count();
+                format!("{}: {n} (template {})", category_name(k), entry_name(poses.templates[k]))
+            })
+            .collect();
+        boxes_picture(&grid, &evidence_colors(dets), scale, &boxes, &legend)
+            .save_png(&dir.join("boxes.png"))?;
+        let color = &self.planes.color;
+        let colors = pca_colors(&color.data, grid.rows * grid.cols, color.ch);
+        let tiles: Vec<TemplateTile> = poses
+            .templates
+            .iter()
+            .enumerate()
+            .map(|(k, &t)| {
+                let d = &dets.detections[t];
+                let patch = PatchRect::around(d.rect, margin);
+                TemplateTile {
+                    name: category_name(k),
+                    patch,
+                    mask: mask_in_patch(d, &d.own, patch),
+                }
+            })
+            .collect();
+        let cat_pic: Canvas = categories_picture(&grid, &colors, &tiles);
+        cat_pic.save_png(&dir.join("categories.png"))?;
+        Ok(())
+    }
+
+    /// `mining.json`: what was found and dropped, the grouping's distances and cut, the
+    /// options, and what every file of the folder holds.
+    fn write_report(
+        &self,
+        dir: &Path,
+        source: &str,
+        found: &Found<'_>,
+        copies: &[CopySplit],
+        removed: &[String],
+    ) -> Result<()> {
+        let Found { dets, grouping, .. } = *found;
+        let grid = self.planes.grid;
+        let matrix = |m: &DistanceMatrix| -> Vec<Vec<f64>> {
+            (0..m.n()).map(|i| (0..m.n()).map(|j| m.get(i, j).unwrap_or(0.0)).collect()).collect()
+        };
+        let report = serde_json::json!({
+            "field": source,
+            "model": self.field.config.kind.name(),
+            "plane_resolution": [grid.cols, grid.rows],
+            "texel_size": grid.texel,
+            "floor": dets.floor,
+            "evidence_threshold": dets.threshold,
+            "voxel_threshold": dets.voxel_threshold,
+            "detections": dets.detections.len(),
+            "removed_as_background": removed,
+            "removed": dets.removed,
+            "copies_split": copies,
+            "detect_preset": self.opts.detect.preset.name(),
+            "categories": grouping.n_categories,
+            "cut": grouping.cut,
+            "merge_heights": grouping.merges.iter().map(|m| m.distance).collect::<Vec<_>>(),
+            "dendrogram": grouping.merges.iter().map(|m| (m.a, m.b, m.distance)).collect::<Vec<_>>(),
+            "distance_matrix": matrix(&grouping.distance),
+            "jsd_matrix": matrix(&grouping.jsd),
+            "options": self.opts,
+            "files": [
+                "index.ron: the library index (assetfield-library/1)",
+                "patches.safetensors: ENTRY.density / ENTRY.color / ENTRY.mask per entry, container.* (planes with the objects removed)",
+                "shared.safetensors: vertical axes, basis, guidance MLPs and decoders, config in the metadata",
+                "layout.ron: the mined layout (layout language, library assets)",
+                "boxes.png: detections over the evidence map, coloured by category, numbered",
+                "categories.png: template patches (colour plane PCA)",
+                "metrics.json: with --gt only",
+            ],
+        });
+        let text =
+            serde_json::to_string_pretty(&report).map_err(|e| MiningError::io("report", e))?;
+        write_atomic(&dir.join("mining.json"), text.as_bytes())?;
+        Ok(())
+    }
+}
+
+/// The error of a detection that found nothing: what each filter took, so that the user
+/// knows which one to question.
+fn nothing_found(dets: &Detections, field_path: &Path) -> MiningError {
+    let mut by_filter: Vec<(&str, usize)> = Vec::new();
+    for r in &dets.removed {
+        match by_filter.iter_mut().find(|(f, _)| *f == r.reason.filter()) {
+            Some((_, n)) => *n += 1,
+            None => by_filter.push((r.reason.filter(), 1)),
+        }
+    }
+    let dropped = if by_filter.is_empty() {
+        "no region was left after the first K-means and the minimum area (--min-area, \
+         texels)"
+            .to_string()
+    } else {
+        let list: Vec<String> = by_filter.iter().map(|(f, n)| format!("{n} by {f}")).collect();
+        format!(
+            "{} region(s) dropped: {}; `--no-filter FILTER` keeps what a filter drops",
+            dets.removed.len(),
+            list.join(", ")
+        )
+    };
+    MiningError::InvalidParameter {
+        name: "detection",
+        reason: format!(
+            "no object found in {} (evidence threshold {:.3}; {dropped})",
+            field_path.display(),
+            dets.threshold,
+        ),
+    }
+}
+
+/// The shared file of the library mined from `loaded` (its non-plane tensors, and what
+/// rendering the library needs besides: the background the field was trained on and the
+/// ground alignment of its dataset's cameras), and the index recording its hash and names.
+fn with_shared_tensors(
+    mut index: LibraryIndex,
+    loaded: &LoadedField,
+    source: &str,
+) -> Result<(LibraryIndex, TensorFile)> {
+    let mut shared = shared_tensors(&loaded.field, source)?;
+    assetfield_field::eval::FieldInfo {
+        background: loaded.info.background,
+        ground_transform: loaded.info.ground_transform,
+        dataset: loaded.info.dataset.clone(),
+        ..Default::default()
+    }
+    .write(&mut shared)
+    .map_err(|e| MiningError::io("cannot describe the shared tensors", e))?;
+    index.shared.hash = content_hash(&shared);
+    index.shared.tensors = shared.names().map(str::to_string).collect();
+    Ok((index, shared))
+}
+
+/// The mining result scored against a ground truth.
+fn score(found: &Found<'_>, gt: &GtLayout, iou: f32) -> Metrics {
+    let Found { dets, grouping, poses, .. } = *found;
+    let preds: Vec<Predicted> = dets
+        .detections
+        .iter()
+        .map(|d| Predicted {
+            world: d.world,
+            category: grouping.category[d.id],
+            template: poses.templates[grouping.category[d.id]],
+            yaw_rel: poses.poses[d.id].yaw_deg,
+            position: poses.poses[d.id].position,
+        })
+        .collect();
+    evaluate(&preds, gt, iou)
+}
+
+/// Entry names to the keys of the ground-truth objects they matched (`--gt-names`).
+fn gt_keys(m: &Metrics, gt: &GtLayout) -> BTreeMap<String, String> {
+    let mut names = BTreeMap::new();
+    for inst in &m.per_instance {
+        if let Some(g) = inst.gt_id.and_then(|id| gt.instances.iter().find(|g| g.id == id)) {
+            names.insert(entry_name(inst.detection), g.key.clone());
+        }
+    }
+    names
+}
+
+/// `metrics.json`: the scores, their summary and the ground truth's file.
+fn write_metrics(dir: &Path, m: &Metrics, opts: &MineOptions) -> Result<()> {
+    let mut v = serde_json::to_value(m).map_err(|e| MiningError::io("metrics", e))?;
+    if let Some(o) = v.as_object_mut() {
+        o.insert("summary".into(), serde_json::Value::String(m.summary()));
+        o.insert(
+            "ground_truth_file".into(),
+            serde_json::Value::String(
+                opts.gt.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
+            ),
+        );
+    }
+    let text = serde_json::to_string_pretty(&v).map_err(|e| MiningError::io("metrics", e))?;
+    write_atomic(&dir.join("metrics.json"), text.as_bytes())?;
+    Ok(())
+}
+
+/// One line per region detection dropped: its box and why.
+fn removed_lines(dets: &Detections) -> Vec<String> {
+    dets.removed
+        .iter()
+        .map(|r| {
+            let b = r.world.to_array();
+            format!(
+                "[{:.2}, {:.2}, {:.2}, {:.2}]: {} (filter {})",
+                b[0],
+                b[1],
+                b[2],
+                b[3],
+                r.reason,
+                r.reason.filter()
+            )
+        })
+        .collect()
 }
 
 /// What mining found in a field: the detections, their grouping, poses and pivots.

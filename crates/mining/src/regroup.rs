@@ -22,11 +22,11 @@ use crate::copies::blurred;
 use crate::error::{MiningError, Result, check_interrupt};
 use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples_with, hull_area};
 use crate::image::{Mask, PlaneImage};
-use crate::library::{Category, Entry, EntryKind, Library, field_with_shared};
 use crate::medoid::medoid;
 use crate::planes::OpacityVolume;
 use crate::yaw::{YawOptions, estimate_yaw_weighted};
 use assetfield_field::Field;
+use assetfield_library::{Category, Entry, EntryKind, Library, field_with_shared};
 use glam::Vec2;
 use rayon::prelude::*;
 

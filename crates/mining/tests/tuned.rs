@@ -29,7 +29,7 @@ const NOT_TUNED_OPTIONS: [(&str, &str); 12] = [
 const NOT_MINING: [&str; 8] = [
     "metrics.rs",      // the evaluation against a ground truth
     "picture.rs",      // drawing the pictures
-    "library.rs",      // the library's file format
+    "merge.rs",        // merging libraries
     "error.rs",        // messages
     "image.rs",        // containers
     "rng.rs",          // the generator's mixing constants

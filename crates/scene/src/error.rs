@@ -41,7 +41,7 @@ pub enum SceneError {
     LibraryCheck {
         dir: PathBuf,
         #[source]
-        source: Box<assetfield_mining::MiningError>,
+        source: Box<assetfield_library::LibraryError>,
     },
 
     /// A library file problem.
@@ -57,6 +57,6 @@ pub enum SceneError {
     WriteLibrary {
         dir: PathBuf,
         #[source]
-        source: Box<assetfield_mining::MiningError>,
+        source: Box<assetfield_library::LibraryError>,
     },
 }

@@ -1,5 +1,5 @@
 //! From an asset library on disk (written by `assetfield mine`, see
-//! [`assetfield_mining::library`]) to a composed scene: the shared axes and decoders become the
+//! [`assetfield_library`]) to a composed scene: the shared axes and decoders become the
 //! composition's field, a container (or an empty canvas) its canvas, and entries become
 //! feature patches that the [`Composer`] places.
 //!
@@ -20,9 +20,9 @@ use crate::raster::{Composition, DensityRule};
 use crate::world::Composer;
 use assetfield_core::{Rect2, TensorFile};
 use assetfield_field::{Field, FieldConfig};
+use assetfield_layout::script::LibraryRef;
 use assetfield_layout::{AssetCatalog, AssetInfo, LoadedScript, PartsCatalog};
-use assetfield_mining::library::{Entry, LibraryIndex, field_with_shared, open_library};
-use assetfield_mining::{Mask, dilate};
+use assetfield_library::{Entry, LibraryIndex, field_with_shared, open_library};
 use glam::{Vec2, Vec3};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -72,7 +72,7 @@ fn lib_err(path: &Path, reason: impl Into<String>) -> SceneError {
 
 impl AssetLibrary {
     /// Read and check a library folder, with the one library check there is
-    /// ([`assetfield_mining::library::open_library`], which `assetfield library check` runs
+    /// ([`assetfield_library::open_library`], which `assetfield library check` runs
     /// too): a library that opens here composes.
     pub fn open(dir: &Path) -> Result<Self, SceneError> {
         let lib = open_library(dir).map_err(|e| SceneError::LibraryCheck {
@@ -267,13 +267,9 @@ impl AssetLibrary {
         let mut d = self.patches.get_f32(&e.density, &[h, w, nd]).map_err(err)?.to_vec();
         let c = self.patches.get_f32(&e.color, &[h, w, nc]).map_err(err)?.to_vec();
         let m = self.patches.get_u8(&e.mask, &[h, w]).map_err(err)?;
-        let mask = Mask { rows: h, cols: w, data: m.iter().map(|&b| b != 0).collect() };
-        let grown = if halo > 0 {
-            dilate(&mask, halo).map_err(|e| lib_err(&ppath, e.to_string()))?
-        } else {
-            mask.clone()
-        };
-        let mut weight: Vec<f32> = grown.data.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
+        let mask: Vec<bool> = m.iter().map(|&b| b != 0).collect();
+        let grown = grow_mask(m, h, w, halo);
+        let mut weight: Vec<f32> = grown.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
         if let Some((c, r0, c0)) = self.source_frame(e) {
             let (rows, cols) = c.size;
             let fill = self
@@ -291,13 +287,13 @@ impl AssetLibrary {
                     let t = rr as usize * cols + cc as usize;
                     // the ring holds the object minus its background; the core keeps the
                     // whole column
-                    if !mask.data[k] {
+                    if !mask[k] {
                         for (v, f) in d[k * nd..][..nd].iter_mut().zip(&fill[t * nd..][..nd]) {
                             *v -= f;
                         }
                     }
                     if let Some(o) = owner
-                        && !mask.data[k]
+                        && !mask[k]
                         && o.owner[t] != me
                     {
                         weight[k] = 0.0;
@@ -305,7 +301,7 @@ impl AssetLibrary {
                 }
             }
         }
-        let core = mask.data.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
+        let core = mask.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
         Ok(FeaturePatch::new(e.name.clone(), h, w, self.texel(), d, c, weight)?
             .with_core(core)?
             .with_origin(-e.pivot_offset()))
@@ -313,10 +309,7 @@ impl AssetLibrary {
 
     /// The container of an entry's source scene and the texel of it where the entry's patch
     /// starts (row, column; may be negative for patches padded at the plane's border).
-    fn source_frame(
-        &self,
-        e: &Entry,
-    ) -> Option<(&assetfield_mining::library::Container, i64, i64)> {
+    fn source_frame(&self, e: &Entry) -> Option<(&assetfield_library::Container, i64, i64)> {
         let c = self.index.containers.iter().find(|c| c.source == e.source)?;
         let texel = self.texel();
         let min = Vec2::new(c.world[0], c.world[1]) + texel * 0.5;
@@ -455,6 +448,59 @@ impl ScriptAssets {
         main: &AssetLibrary,
         halo: usize,
     ) -> Result<Self, SceneError> {
+        let mut out = Self::library_names(main, halo)?;
+        // the script's own definitions win over the library's names
+        let parts = PartsCatalog::from_script(script);
+        let mut opened: BTreeMap<PathBuf, AssetLibrary> = BTreeMap::new();
+        let main_dir = canonical(&main.dir);
+        for (name, entry) in &script.assets {
+            let f = &script.files[entry.file].path;
+            let here = format!("{}:{}:{}", f.display(), entry.location.line, entry.location.col);
+            let Some(lref) = &entry.def.library else {
+                if entry.def.container {
+                    // containers are the canvas; they are not drawn
+                    let b = entry.def.parts_bounds();
+                    let b = if b.is_empty() {
+                        assetfield_core::Aabb3::new(Vec3::ZERO, Vec3::ZERO)
+                    } else {
+                        b
+                    };
+                    out.containers.insert(
+                        name.clone(),
+                        assetfield_layout::resolve::asset_info_from_bounds(name, &entry.def, b),
+                    );
+                    continue;
+                }
+                return Err(SceneError::Script {
+                    location: here,
+                    message: format!(
+                        "asset \"{name}\" is made of primitives or a mesh; composing needs library assets (`library: Library(path, entry, size)`, or a category or entry name of the library)"
+                    ),
+                });
+            };
+            let dir = entry.base_dir(script).join(&lref.path);
+            let key = canonical(&dir);
+            let lib: &AssetLibrary = if key == main_dir {
+                main
+            } else {
+                if !opened.contains_key(&key) {
+                    let lib = AssetLibrary::open(&dir).map_err(|e| SceneError::Script {
+                        location: here.clone(),
+                        message: format!("asset \"{name}\": {e}"),
+                    })?;
+                    opened.insert(key.clone(), lib);
+                }
+                &opened[&key]
+            };
+            let asset = LibraryAsset { name, lref, dir: &dir, here: &here };
+            out.assets.insert(name.clone(), asset.resolve(lib, main, &parts, halo)?);
+        }
+        Ok(out)
+    }
+
+    /// The names `main` offers: its categories (drawn with their templates), then its
+    /// entries (each with its own patch).
+    fn library_names(main: &AssetLibrary, halo: usize) -> Result<Self, SceneError> {
         let mut out = ScriptAssets::default();
         let main_patches = main.patches(halo)?;
         let take = |name: &str| -> Result<Arc<FeaturePatch>, SceneError> {
@@ -462,7 +508,6 @@ impl ScriptAssets {
                 lib_err(&main.dir, format!("no entry {name:?} in the library index"))
             })
         };
-        // names the main library offers: categories (their templates), then entries
         for c in &main.index.categories {
             if let Some(t) = main.entry(&c.template) {
                 let patch = take(&t.name)?;
@@ -493,130 +538,95 @@ impl ScriptAssets {
                 },
             );
         }
-        // the script's own definitions win over the library's names
-        let parts = PartsCatalog::from_script(script);
-        let mut opened: BTreeMap<PathBuf, AssetLibrary> = BTreeMap::new();
-        let main_dir = canonical(&main.dir);
-        for (name, entry) in &script.assets {
-            let here = || {
-                let f = &script.files[entry.file].path;
-                format!("{}:{}:{}", f.display(), entry.location.line, entry.location.col)
-            };
-            let Some(lref) = &entry.def.library else {
-                if entry.def.container {
-                    // containers are the canvas; they are not drawn
-                    let b = entry.def.parts_bounds();
-                    let b = if b.is_empty() {
-                        assetfield_core::Aabb3::new(Vec3::ZERO, Vec3::ZERO)
-                    } else {
-                        b
-                    };
-                    out.containers.insert(
-                        name.clone(),
-                        assetfield_layout::resolve::asset_info_from_bounds(name, &entry.def, b),
-                    );
-                    continue;
-                }
-                return Err(SceneError::Script {
-                    location: here(),
-                    message: format!(
-                        "asset \"{name}\" is made of primitives or a mesh; composing needs library assets (`library: Library(path, entry, size)`, or a category or entry name of the library)"
-                    ),
-                });
-            };
-            let dir = entry.base_dir(script).join(&lref.path);
-            let key = canonical(&dir);
-            let lib: &AssetLibrary = if key == main_dir {
-                main
-            } else {
-                if !opened.contains_key(&key) {
-                    let lib = AssetLibrary::open(&dir).map_err(|e| SceneError::Script {
-                        location: here(),
-                        message: format!("asset \"{name}\": {e}"),
-                    })?;
-                    opened.insert(key.clone(), lib);
-                }
-                &opened[&key]
-            };
-            if lib.shared_hash() != main.shared_hash() {
-                return Err(SceneError::Script {
-                    location: here(),
-                    message: format!(
-                        "asset \"{name}\" comes from {}, whose axes and decoders ({}) are not those of {} ({}): merge libraries that were trained together (`assetfield library merge`)",
-                        dir.display(),
-                        lib.shared_hash(),
-                        main.dir.display(),
-                        main.shared_hash()
-                    ),
-                });
-            }
-            let e = lib.entry(&lref.entry).ok_or_else(|| SceneError::Script {
-                location: here(),
-                message: format!(
-                    "asset \"{name}\": the library {} has no entry \"{}\"",
-                    dir.display(),
-                    lref.entry
-                ),
-            })?;
-            // the footprint from the script's `size` (around the script's pivot, or around
-            // the patch centre without one), else the entry's (around its own pivot)
-            let from_parts = parts.asset_info(name);
-            let shift_footprint = from_parts.is_some();
-            let mut info = from_parts.unwrap_or_else(|| lib.entry_info(e));
-            let mut patch = lib.patch(&e.name, halo)?;
-            // the pivot: the script's, else the entry's
-            match lref.pivot {
-                Some((x, y)) if !(x.is_finite() && y.is_finite()) => {
-                    return Err(SceneError::Script {
-                        location: here(),
-                        message: format!(
-                            "asset \"{name}\": pivot ({x}, {y}) must be finite (metres from the patch centre)"
-                        ),
-                    });
-                }
-                Some((x, y)) => patch = patch.with_origin(-Vec2::new(x, y)),
-                None if shift_footprint => {
-                    let shift = -e.pivot_offset();
-                    info.footprint =
-                        Rect2::new(info.footprint.min + shift, info.footprint.max + shift);
-                }
-                None => {}
-            }
-            let mut source = format!("{} entry {}", dir.display(), e.name);
-            for (other, what) in
-                [(&lref.density_from, "density_from"), (&lref.color_from, "color_from")]
-            {
-                let Some(other) = other else { continue };
-                if lib.entry(other).is_none() {
-                    return Err(SceneError::Script {
-                        location: here(),
-                        message: format!(
-                            "asset \"{name}\": {what} names \"{other}\", which is not an entry of {}",
-                            dir.display()
-                        ),
-                    });
-                }
-                let src = lib.patch(other, halo)?;
-                patch = if what == "density_from" {
-                    patch.with_density_of(&src)?
-                } else {
-                    patch.with_color_of(&src)?
-                };
-                source += &format!(", {what} {other}");
-            }
-            out.assets.insert(
-                name.clone(),
-                ResolvedAsset {
-                    category: info.category.clone(),
-                    patch: Arc::new(patch),
-                    info,
-                    source,
-                },
-            );
-        }
         Ok(out)
     }
+}
 
+/// A script's asset defined as `library: Library(...)`: its name, the reference, the
+/// library's folder and the definition's place in the script (`file:line:col`).
+struct LibraryAsset<'a> {
+    name: &'a str,
+    lref: &'a LibraryRef,
+    dir: &'a Path,
+    here: &'a str,
+}
+
+impl LibraryAsset<'_> {
+    fn error(&self, message: String) -> SceneError {
+        SceneError::Script { location: self.here.to_string(), message }
+    }
+
+    /// The asset drawn from `lib` (which must share `main`'s axes and decoders): the entry's
+    /// patch with the script's pivot and `density_from` / `color_from`, and its footprint
+    /// from the script's `size` (`parts`) or the entry's.
+    fn resolve(
+        &self,
+        lib: &AssetLibrary,
+        main: &AssetLibrary,
+        parts: &PartsCatalog,
+        halo: usize,
+    ) -> Result<ResolvedAsset, SceneError> {
+        let (name, lref, dir) = (self.name, self.lref, self.dir);
+        if lib.shared_hash() != main.shared_hash() {
+            return Err(self.error(format!(
+                "asset \"{name}\" comes from {}, whose axes and decoders ({}) are not those of {} ({}): merge libraries that were trained together (`assetfield library merge`)",
+                dir.display(),
+                lib.shared_hash(),
+                main.dir.display(),
+                main.shared_hash()
+            )));
+        }
+        let e = lib.entry(&lref.entry).ok_or_else(|| {
+            self.error(format!(
+                "asset \"{name}\": the library {} has no entry \"{}\"",
+                dir.display(),
+                lref.entry
+            ))
+        })?;
+        // the footprint from the script's `size` (around the script's pivot, or around
+        // the patch centre without one), else the entry's (around its own pivot)
+        let from_parts = parts.asset_info(name);
+        let shift_footprint = from_parts.is_some();
+        let mut info = from_parts.unwrap_or_else(|| lib.entry_info(e));
+        let mut patch = lib.patch(&e.name, halo)?;
+        // the pivot: the script's, else the entry's
+        match lref.pivot {
+            Some((x, y)) if !(x.is_finite() && y.is_finite()) => {
+                return Err(self.error(format!(
+                    "asset \"{name}\": pivot ({x}, {y}) must be finite (metres from the patch centre)"
+                )));
+            }
+            Some((x, y)) => patch = patch.with_origin(-Vec2::new(x, y)),
+            None if shift_footprint => {
+                let shift = -e.pivot_offset();
+                info.footprint = Rect2::new(info.footprint.min + shift, info.footprint.max + shift);
+            }
+            None => {}
+        }
+        let mut source = format!("{} entry {}", dir.display(), e.name);
+        for (other, what) in
+            [(&lref.density_from, "density_from"), (&lref.color_from, "color_from")]
+        {
+            let Some(other) = other else { continue };
+            if lib.entry(other).is_none() {
+                return Err(self.error(format!(
+                    "asset \"{name}\": {what} names \"{other}\", which is not an entry of {}",
+                    dir.display()
+                )));
+            }
+            let src = lib.patch(other, halo)?;
+            patch = if what == "density_from" {
+                patch.with_density_of(&src)?
+            } else {
+                patch.with_color_of(&src)?
+            };
+            source += &format!(", {what} {other}");
+        }
+        Ok(ResolvedAsset { category: info.category.clone(), patch: Arc::new(patch), info, source })
+    }
+}
+
+impl ScriptAssets {
     /// Register every asset's patch as a template of the composer.
     pub fn install(&self, composer: &mut Composer) -> Result<(), SceneError> {
         for (name, a) in &self.assets {
@@ -637,4 +647,53 @@ impl AssetCatalog for ScriptAssets {
 
 fn canonical(p: &Path) -> PathBuf {
     std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf())
+}
+
+/// A `rows x cols` mask (non-zero: set) grown by `radius` texels in Chebyshev distance (a
+/// square of side `2 radius + 1`, clipped to the patch): the ring mining filled with the
+/// background around every object it removed (its square dilation, the same radius).
+fn grow_mask(mask: &[u8], rows: usize, cols: usize, radius: usize) -> Vec<bool> {
+    let set: Vec<bool> = mask.iter().map(|&b| b != 0).collect();
+    if radius == 0 || rows == 0 || cols == 0 {
+        return set;
+    }
+    // separable: any set texel within `radius` along the row, then along the column
+    let window = |n: usize, i: usize| i.saturating_sub(radius)..(i + radius + 1).min(n);
+    let mut along_rows = vec![false; rows * cols];
+    for r in 0..rows {
+        for c in 0..cols {
+            along_rows[r * cols + c] = window(cols, c).any(|k| set[r * cols + k]);
+        }
+    }
+    let mut out = vec![false; rows * cols];
+    for r in 0..rows {
+        for c in 0..cols {
+            out[r * cols + c] = window(rows, r).any(|k| along_rows[k * cols + c]);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::grow_mask;
+
+    #[test]
+    fn a_grown_mask_is_a_clipped_square_around_each_set_texel() {
+        let (rows, cols) = (5, 7);
+        let mut mask = vec![0u8; rows * cols];
+        mask[cols + 1] = 1; // (row 1, col 1): its square reaches the top and left borders
+        mask[3 * cols + 6] = 1; // (row 3, col 6): the right border
+        for radius in 0..4 {
+            let grown = grow_mask(&mask, rows, cols, radius);
+            for r in 0..rows {
+                for c in 0..cols {
+                    let near =
+                        |(sr, sc): (usize, usize)| r.abs_diff(sr).max(c.abs_diff(sc)) <= radius;
+                    let want = near((1, 1)) || near((3, 6));
+                    assert_eq!(grown[r * cols + c], want, "radius {radius}, texel ({r}, {c})");
+                }
+            }
+        }
+    }
 }

@@ -23,7 +23,7 @@ use assetfield_field::adam::Adam;
 use assetfield_field::march::{self, MarchSettings, MarchWork};
 use assetfield_field::params::{Group, ParamSet};
 use assetfield_field::train::{colour_error, random_pixels};
-use assetfield_mining::library::{EntryKind, LibraryIndex};
+use assetfield_library::{EntryKind, LibraryIndex};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};

@@ -4,7 +4,7 @@
 //! file and the entry, container or tensor.
 
 use assetfield_core::{Camera, Intrinsics, Rect2, TensorFile};
-use assetfield_mining::library::{
+use assetfield_library::{
     INDEX_FILE, LibraryIndex, content_hash, index_from_ron, index_to_ron, open_library,
     write_sample_library,
 };

@@ -3,7 +3,7 @@
 //! the exact transpose of that composition (checked against finite differences of a linear
 //! functional).
 
-use assetfield_mining::library::write_sample_library;
+use assetfield_library::write_sample_library;
 use assetfield_scene::AssetLibrary;
 use assetfield_scene::refine::{RefineOptions, TemplateRefiner, compose_draws, template_poses};
 use glam::Vec3;

@@ -392,261 +392,45 @@ impl RandomScene {
     }
 }
 
+/// Draw random scene `seed` from `pool`, its room grown by `grow` (in area, squared): the
+/// categories, the room and its container, touching pairs, scatters, objects on tables and
+/// spare categories, in that order. Every step draws from one generator in a fixed order,
+/// so a seed gives the same scene on every machine.
 fn draw(seed: u64, pool: &[Candidate], grow: f32) -> Result<RandomScene, SynthError> {
     let mut rng = Rng::stream(seed, "random-scene");
     let u = round3(rng.range(UNITS_PER_METRE.0, UNITS_PER_METRE.1));
-    let k = int_in(&mut rng, CATEGORIES.0, CATEGORIES.1);
-    let of = |p: Placement| pool.iter().filter(|c| c.placement == p).cloned().collect::<Vec<_>>();
-    let (floors, tables, tops) =
-        (of(Placement::Floor), of(Placement::Table), of(Placement::TableTop));
-    // tables in 7 of 10 scenes; table-top categories only with tables
-    let n_tables = if rng.f32() < 0.7 { 1 + rng.below(2) } else { 0 };
-    let n_tops = if n_tables > 0 { rng.below(3).min(k.saturating_sub(n_tables + 1)) } else { 0 };
-    let n_floor = k - n_tables - n_tops;
-    let mut chosen: Vec<Candidate> = pick(&mut rng, &tables, n_tables);
-    chosen.extend(pick(&mut rng, &floors, n_floor));
-    let top_cats = pick(&mut rng, &tops, n_tops);
-
-    // instances per ground category, room size from the padded footprints
+    let picked = Picked::draw(&mut rng, pool);
     let counts: Vec<usize> =
-        chosen.iter().map(|_| int_in(&mut rng, INSTANCES.0, INSTANCES.1)).collect();
-    let area: f32 = chosen
-        .iter()
-        .zip(&counts)
-        .map(|(c, &n)| {
-            let s = c.info.footprint.size() + Vec2::splat(CLEARANCE);
-            n as f32 * s.x * s.y
-        })
-        .sum();
-    let room_area = area * rng.range(ROOM_FACTOR.0, ROOM_FACTOR.1) * grow * grow;
-    let aspect = rng.range(0.7, 1.4);
-    let sx = (room_area * aspect).sqrt().max(MIN_SIDE);
-    let sy = (room_area / aspect).sqrt().max(MIN_SIDE);
-    let (hx, hy) = (round3(0.5 * sx * u), round3(0.5 * sy * u));
-
-    let mut assets: BTreeMap<String, AssetDef> = BTreeMap::new();
-    let mut layout: Vec<Item> = Vec::new();
-    let floor = FloorKind::ALL[rng.below(FloorKind::ALL.len())];
-    let mut container_parts = floor_parts(&mut rng, floor, hx, hy, u);
-    let walls = wall_parts(&mut rng, hx, hy, u);
-    let has_walls = !walls.is_empty();
-    if !container_parts.is_empty() || has_walls {
-        let name = if container_parts.is_empty() { "walls" } else { floor.name() };
-        container_parts.extend(walls);
-        assets.insert(
-            name.to_string(),
-            AssetDef {
-                parts: container_parts,
-                obj: None,
-                category: None,
-                yaw_symmetry_deg: 360.0,
-                container: true,
-                library: None,
-            },
-        );
-        layout.push(Item::Instance {
-            asset: name.to_string(),
-            at: (0.0, 0.0),
-            yaw: 0.0,
-            scale: 1.0,
-            base: 0.0,
-            name: Some("room".into()),
-        });
-    }
-
-    // touching pairs first (placed by the draw itself, kept apart with axis-aligned boxes),
-    // then scatters, which keep clear of everything placed before them
-    let mut taken: Vec<Rect2> = Vec::new();
-    let inner = |c: &Candidate| {
-        let r = 0.5 * c.info.footprint.size().length() * u + CLEARANCE * u;
-        (hx - r, hy - r)
+        picked.ground.iter().map(|_| int_in(&mut rng, INSTANCES.0, INSTANCES.1)).collect();
+    let (hx, hy) = room_half_sides(&mut rng, &picked.ground, &counts, grow, u);
+    let mut d = Drawing {
+        seed,
+        rng,
+        u,
+        hx,
+        hy,
+        assets: BTreeMap::new(),
+        layout: Vec::new(),
+        taken: Vec::new(),
     };
+    let floor = d.container();
+    let paired: Vec<bool> = picked.ground.iter().map(|c| d.pair(c)).collect();
     let mut table_keys: Vec<(String, Candidate, usize)> = Vec::new();
-    let mut paired = vec![false; chosen.len()];
-    for (ci, c) in chosen.iter().enumerate() {
-        assets.insert(c.name.clone(), c.def.clone());
-        let item_name = format!("{}s", c.name);
-        let (ix, iy) = inner(c);
-        let pair =
-            c.placement == Placement::Floor && rng.f32() < PAIR_CHANCE && ix > 0.0 && iy > 0.0;
-        let mut placed_pair = false;
-        if pair {
-            // side by side along local y, turned by a multiple of 90 degrees
-            let quarter = rng.below(4);
-            let fp = c.info.footprint.size();
-            let (w, d) = (fp.y, fp.x);
-            let half = if quarter.is_multiple_of(2) {
-                Vec2::new(0.5 * d, w)
-            } else {
-                Vec2::new(w, 0.5 * d)
-            } * u;
-            for _ in 0..50 {
-                let p = Vec2::new(rng.range(-ix, ix), rng.range(-iy, iy));
-                let pad = Vec2::splat(CLEARANCE * u);
-                let r = Rect2::new(p - half - pad, p + half + pad);
-                if r.min.x < -hx || r.min.y < -hy || r.max.x > hx || r.max.y > hy {
-                    continue;
-                }
-                if taken.iter().any(|t| !t.intersection(&r).is_empty()) {
-                    continue;
-                }
-                taken.push(r);
-                layout.push(Item::Group {
-                    name: Some(format!("{}_pair", c.name)),
-                    at: (round3(p.x), round3(p.y)),
-                    yaw: 90.0 * quarter as f32,
-                    scale: u,
-                    base: 0.0,
-                    on: None,
-                    around: None,
-                    children: vec![Item::Row {
-                        asset: c.name.clone(),
-                        // rounded up to the millimetre: in contact, never overlapping
-                        from: (0.0, -ceil3(0.5 * w)),
-                        to: (0.0, ceil3(0.5 * w)),
-                        count: 2,
-                        yaw: 0.0,
-                        face: Default::default(),
-                        scale: 1.0,
-                        vary: None,
-                        name: Some(item_name.clone()),
-                    }],
-                });
-                placed_pair = true;
-                break;
-            }
-        }
-        paired[ci] = placed_pair;
-    }
-    for (ci, (c, &n)) in chosen.iter().zip(&counts).enumerate() {
-        let item_name = format!("{}s", c.name);
-        let (ix, iy) = inner(c);
-        let placed_pair = paired[ci];
-        let rest = if placed_pair { n.saturating_sub(2) } else { n };
+    for (ci, (c, &n)) in picked.ground.iter().zip(&counts).enumerate() {
+        let rest = if paired[ci] { n.saturating_sub(2) } else { n };
         if rest == 0 {
             continue;
         }
-        let diag = c.info.footprint.size().length();
-        let yaw_rule = if rng.f32() < 0.5 {
-            Variation {
-                yaw_jitter_deg: 180.0,
-                seed: seed.wrapping_add(ci as u64),
-                ..Default::default()
-            }
-        } else {
-            Variation {
-                yaw_choices: vec![0.0, 90.0, 180.0, 270.0],
-                yaw_jitter_deg: round3(rng.range(0.0, 20.0)),
-                seed: seed.wrapping_add(ci as u64),
-                ..Default::default()
-            }
-        };
-        let scatter_name = if placed_pair { format!("{}_more", c.name) } else { item_name.clone() };
-        layout.push(Item::Scatter {
-            asset: c.name.clone(),
-            region: Region::Rect { min: (round3(-ix), round3(-iy)), max: (round3(ix), round3(iy)) },
-            count: rest as u32,
-            min_distance: round3((0.5 * diag + CLEARANCE) * u),
-            seed: seed.wrapping_mul(31).wrapping_add(ci as u64),
-            yaw: 0.0,
-            scale: u,
-            overlap: false,
-            vary: Some(yaw_rule),
-            name: Some(scatter_name.clone()),
-        });
+        let key = d.scatter(ci, c, rest, paired[ci]);
         if c.placement == Placement::Table {
-            table_keys.push((scatter_name, c.clone(), rest));
+            table_keys.push((key, c.clone(), rest));
         }
     }
-
-    // objects on tables: one or two per loaded table, in the table's own (unscaled) frame;
-    // every table-top category is used first (where it fits), then tables are loaded by chance
-    let mut unused: Vec<Candidate> = top_cats.clone();
-    let mut used_tops: Vec<String> = Vec::new();
-    for (key, table, n) in &table_keys {
-        for t in 0..*n {
-            if top_cats.is_empty() || (unused.is_empty() && rng.f32() >= LOADED_TABLE_CHANCE) {
-                continue;
-            }
-            let tf = table.info.footprint;
-            let fits = |c: &Candidate| {
-                let room = tf.size() - Vec2::splat(c.info.footprint.size().length());
-                room.x > 0.0 && room.y > 0.0
-            };
-            let top = match unused.iter().position(&fits) {
-                Some(j) => unused.remove(j),
-                None => {
-                    let fitting: Vec<&Candidate> = top_cats.iter().filter(|c| fits(c)).collect();
-                    if fitting.is_empty() {
-                        continue;
-                    }
-                    fitting[rng.below(fitting.len())].clone()
-                }
-            };
-            let of = top.info.footprint.size().length();
-            let room = tf.size() - Vec2::splat(of);
-            assets.insert(top.name.clone(), top.def.clone());
-            if !used_tops.contains(&top.name) {
-                used_tops.push(top.name.clone());
-            }
-            // one object anywhere on the top, or two on the halves of its longer side
-            let two = rng.f32() < 0.4 && room.x.max(room.y) > 2.0 * of;
-            let along_x = tf.size().x >= tf.size().y;
-            let (lo, hi) = (tf.center() - 0.5 * room, tf.center() + 0.5 * room);
-            let spans: Vec<(Vec2, Vec2)> = if !two {
-                vec![(lo, hi)]
-            } else if along_x {
-                let mid = tf.center().x;
-                vec![(lo, Vec2::new(mid - 0.5 * of, hi.y)), (Vec2::new(mid + 0.5 * of, lo.y), hi)]
-            } else {
-                let mid = tf.center().y;
-                vec![(lo, Vec2::new(hi.x, mid - 0.5 * of)), (Vec2::new(lo.x, mid + 0.5 * of), hi)]
-            };
-            let children: Vec<Item> = spans
-                .iter()
-                .enumerate()
-                .map(|(half, (a, b))| Item::Instance {
-                    asset: top.name.clone(),
-                    at: (
-                        round3(rng.range(a.x, b.x.max(a.x))),
-                        round3(rng.range(a.y, b.y.max(a.y))),
-                    ),
-                    yaw: round3(rng.range(-180.0, 180.0)),
-                    scale: 1.0,
-                    base: 0.0,
-                    name: Some(format!("{}_{half}", top.name)),
-                })
-                .collect();
-            layout.push(Item::standing_on(format!("{key}[{t}]"), children));
-        }
-    }
-    let mut categories: Vec<String> = chosen.iter().map(|c| c.name.clone()).collect();
+    let used_tops = d.table_tops(&table_keys, &picked.tops);
+    let mut categories: Vec<String> = picked.ground.iter().map(|c| c.name.clone()).collect();
     categories.extend(used_tops);
-    // table-top categories that found no table: floor categories take their place
-    let spare: Vec<Candidate> =
-        floors.iter().filter(|c| !assets.contains_key(&c.name)).cloned().collect();
-    let extra = pick(&mut rng, &spare, CATEGORIES.0.saturating_sub(categories.len()));
-    for (j, c) in extra.iter().enumerate() {
-        let (ix, iy) = inner(c);
-        assets.insert(c.name.clone(), c.def.clone());
-        layout.push(Item::Scatter {
-            asset: c.name.clone(),
-            region: Region::Rect { min: (round3(-ix), round3(-iy)), max: (round3(ix), round3(iy)) },
-            count: INSTANCES.0 as u32,
-            min_distance: round3((0.5 * c.info.footprint.size().length() + CLEARANCE) * u),
-            seed: seed.wrapping_mul(37).wrapping_add(j as u64),
-            yaw: 0.0,
-            scale: u,
-            overlap: false,
-            vary: Some(Variation {
-                yaw_jitter_deg: 180.0,
-                seed: seed.wrapping_add(100 + j as u64),
-                ..Default::default()
-            }),
-            name: Some(format!("{}s", c.name)),
-        });
-        categories.push(c.name.clone());
-    }
+    categories.extend(d.spare_categories(&picked.floors, categories.len()));
+    let Drawing { assets, layout, .. } = d;
     let script = Script {
         name: Some(format!("random_{seed}")),
         assets,
@@ -671,4 +455,316 @@ fn draw(seed: u64, pool: &[Candidate], grow: f32) -> Result<RandomScene, SynthEr
         u
     );
     Ok(RandomScene { seed, script, text, units_per_metre: u, floor: floor.name(), categories })
+}
+
+/// The categories of a scene: those standing on the ground (tables first), the table-top
+/// categories (only with tables), and the pool's floor categories (for spares).
+struct Picked {
+    ground: Vec<Candidate>,
+    tops: Vec<Candidate>,
+    floors: Vec<Candidate>,
+}
+
+impl Picked {
+    fn draw(rng: &mut Rng, pool: &[Candidate]) -> Self {
+        let k = int_in(rng, CATEGORIES.0, CATEGORIES.1);
+        let of =
+            |p: Placement| pool.iter().filter(|c| c.placement == p).cloned().collect::<Vec<_>>();
+        let (floors, tables, tops) =
+            (of(Placement::Floor), of(Placement::Table), of(Placement::TableTop));
+        // tables in 7 of 10 scenes; table-top categories only with tables
+        let n_tables = if rng.f32() < 0.7 { 1 + rng.below(2) } else { 0 };
+        let n_tops =
+            if n_tables > 0 { rng.below(3).min(k.saturating_sub(n_tables + 1)) } else { 0 };
+        let n_floor = k - n_tables - n_tops;
+        let mut ground: Vec<Candidate> = pick(rng, &tables, n_tables);
+        ground.extend(pick(rng, &floors, n_floor));
+        let tops = pick(rng, &tops, n_tops);
+        Picked { ground, tops, floors }
+    }
+}
+
+/// Half the room's sides in scene units: its area the padded footprints of every instance
+/// times a drawn factor (and `grow` squared), its aspect drawn, no side under [`MIN_SIDE`].
+fn room_half_sides(
+    rng: &mut Rng,
+    ground: &[Candidate],
+    counts: &[usize],
+    grow: f32,
+    u: f32,
+) -> (f32, f32) {
+    let area: f32 = ground
+        .iter()
+        .zip(counts)
+        .map(|(c, &n)| {
+            let s = c.info.footprint.size() + Vec2::splat(CLEARANCE);
+            n as f32 * s.x * s.y
+        })
+        .sum();
+    let room_area = area * rng.range(ROOM_FACTOR.0, ROOM_FACTOR.1) * grow * grow;
+    let aspect = rng.range(0.7, 1.4);
+    let sx = (room_area * aspect).sqrt().max(MIN_SIDE);
+    let sy = (room_area / aspect).sqrt().max(MIN_SIDE);
+    (round3(0.5 * sx * u), round3(0.5 * sy * u))
+}
+
+/// A random scene being drawn: the generator, the scale and the room, and the assets and
+/// layout items drawn so far.
+struct Drawing {
+    seed: u64,
+    rng: Rng,
+    /// Scene units per metre.
+    u: f32,
+    /// Half the room's sides, scene units.
+    hx: f32,
+    hy: f32,
+    assets: BTreeMap<String, AssetDef>,
+    layout: Vec<Item>,
+    /// The boxes of the touching pairs placed so far (scatters keep clear by themselves).
+    taken: Vec<Rect2>,
+}
+
+impl Drawing {
+    /// Half the region a category's instances may stand in: the room less the instance's
+    /// half diagonal and the clearance.
+    fn inner(&self, c: &Candidate) -> (f32, f32) {
+        let r = 0.5 * c.info.footprint.size().length() * self.u + CLEARANCE * self.u;
+        (self.hx - r, self.hy - r)
+    }
+
+    /// The floor and walls, as one container instance named `room` (where there is either).
+    fn container(&mut self) -> FloorKind {
+        let (hx, hy, u) = (self.hx, self.hy, self.u);
+        let floor = FloorKind::ALL[self.rng.below(FloorKind::ALL.len())];
+        let mut container_parts = floor_parts(&mut self.rng, floor, hx, hy, u);
+        let walls = wall_parts(&mut self.rng, hx, hy, u);
+        let has_walls = !walls.is_empty();
+        if !container_parts.is_empty() || has_walls {
+            let name = if container_parts.is_empty() { "walls" } else { floor.name() };
+            container_parts.extend(walls);
+            self.assets.insert(
+                name.to_string(),
+                AssetDef {
+                    parts: container_parts,
+                    obj: None,
+                    category: None,
+                    yaw_symmetry_deg: 360.0,
+                    container: true,
+                    library: None,
+                },
+            );
+            self.layout.push(Item::Instance {
+                asset: name.to_string(),
+                at: (0.0, 0.0),
+                yaw: 0.0,
+                scale: 1.0,
+                base: 0.0,
+                name: Some("room".into()),
+            });
+        }
+        floor
+    }
+
+    /// Add category `c`, and by chance (floor categories only) two of its instances side by
+    /// side, in contact, clear of the pairs placed before: whether the pair was placed.
+    fn pair(&mut self, c: &Candidate) -> bool {
+        self.assets.insert(c.name.clone(), c.def.clone());
+        let (ix, iy) = self.inner(c);
+        let (hx, hy, u) = (self.hx, self.hy, self.u);
+        let pair =
+            c.placement == Placement::Floor && self.rng.f32() < PAIR_CHANCE && ix > 0.0 && iy > 0.0;
+        if !pair {
+            return false;
+        }
+        // side by side along local y, turned by a multiple of 90 degrees
+        let quarter = self.rng.below(4);
+        let fp = c.info.footprint.size();
+        let (w, d) = (fp.y, fp.x);
+        let half =
+            if quarter.is_multiple_of(2) { Vec2::new(0.5 * d, w) } else { Vec2::new(w, 0.5 * d) }
+                * u;
+        for _ in 0..50 {
+            let p = Vec2::new(self.rng.range(-ix, ix), self.rng.range(-iy, iy));
+            let pad = Vec2::splat(CLEARANCE * u);
+            let r = Rect2::new(p - half - pad, p + half + pad);
+            if r.min.x < -hx || r.min.y < -hy || r.max.x > hx || r.max.y > hy {
+                continue;
+            }
+            if self.taken.iter().any(|t| !t.intersection(&r).is_empty()) {
+                continue;
+            }
+            self.taken.push(r);
+            self.layout.push(Item::Group {
+                name: Some(format!("{}_pair", c.name)),
+                at: (round3(p.x), round3(p.y)),
+                yaw: 90.0 * quarter as f32,
+                scale: u,
+                base: 0.0,
+                on: None,
+                around: None,
+                children: vec![Item::Row {
+                    asset: c.name.clone(),
+                    // rounded up to the millimetre: in contact, never overlapping
+                    from: (0.0, -ceil3(0.5 * w)),
+                    to: (0.0, ceil3(0.5 * w)),
+                    count: 2,
+                    yaw: 0.0,
+                    face: Default::default(),
+                    scale: 1.0,
+                    vary: None,
+                    name: Some(format!("{}s", c.name)),
+                }],
+            });
+            return true;
+        }
+        false
+    }
+
+    /// `rest` instances of category `ci` scattered over the room, clear of everything placed
+    /// before them, turned freely or by quarter turns with jitter: the scatter's name.
+    fn scatter(&mut self, ci: usize, c: &Candidate, rest: usize, after_pair: bool) -> String {
+        let seed = self.seed;
+        let (ix, iy) = self.inner(c);
+        let diag = c.info.footprint.size().length();
+        let yaw_rule = if self.rng.f32() < 0.5 {
+            Variation {
+                yaw_jitter_deg: 180.0,
+                seed: seed.wrapping_add(ci as u64),
+                ..Default::default()
+            }
+        } else {
+            Variation {
+                yaw_choices: vec![0.0, 90.0, 180.0, 270.0],
+                yaw_jitter_deg: round3(self.rng.range(0.0, 20.0)),
+                seed: seed.wrapping_add(ci as u64),
+                ..Default::default()
+            }
+        };
+        let name = if after_pair { format!("{}_more", c.name) } else { format!("{}s", c.name) };
+        self.layout.push(Item::Scatter {
+            asset: c.name.clone(),
+            region: Region::Rect { min: (round3(-ix), round3(-iy)), max: (round3(ix), round3(iy)) },
+            count: rest as u32,
+            min_distance: round3((0.5 * diag + CLEARANCE) * self.u),
+            seed: seed.wrapping_mul(31).wrapping_add(ci as u64),
+            yaw: 0.0,
+            scale: self.u,
+            overlap: false,
+            vary: Some(yaw_rule),
+            name: Some(name.clone()),
+        });
+        name
+    }
+
+    /// Objects on tables: one or two per loaded table, in the table's own (unscaled) frame;
+    /// every table-top category is used first (where it fits), then tables are loaded by
+    /// chance. `table_keys`: each table scatter's name, category and count. The table-top
+    /// categories used.
+    fn table_tops(
+        &mut self,
+        table_keys: &[(String, Candidate, usize)],
+        top_cats: &[Candidate],
+    ) -> Vec<String> {
+        let mut unused: Vec<Candidate> = top_cats.to_vec();
+        let mut used_tops: Vec<String> = Vec::new();
+        for (key, table, n) in table_keys {
+            for t in 0..*n {
+                if top_cats.is_empty()
+                    || (unused.is_empty() && self.rng.f32() >= LOADED_TABLE_CHANCE)
+                {
+                    continue;
+                }
+                let tf = table.info.footprint;
+                let fits = |c: &Candidate| {
+                    let room = tf.size() - Vec2::splat(c.info.footprint.size().length());
+                    room.x > 0.0 && room.y > 0.0
+                };
+                let top = match unused.iter().position(&fits) {
+                    Some(j) => unused.remove(j),
+                    None => {
+                        let fitting: Vec<&Candidate> =
+                            top_cats.iter().filter(|c| fits(c)).collect();
+                        if fitting.is_empty() {
+                            continue;
+                        }
+                        fitting[self.rng.below(fitting.len())].clone()
+                    }
+                };
+                self.assets.insert(top.name.clone(), top.def.clone());
+                if !used_tops.contains(&top.name) {
+                    used_tops.push(top.name.clone());
+                }
+                let children = self.on_top(&top, tf);
+                self.layout.push(Item::standing_on(format!("{key}[{t}]"), children));
+            }
+        }
+        used_tops
+    }
+
+    /// One instance of `top` anywhere on a table top of footprint `tf`, or two on the halves
+    /// of its longer side.
+    fn on_top(&mut self, top: &Candidate, tf: Rect2) -> Vec<Item> {
+        let of = top.info.footprint.size().length();
+        let room = tf.size() - Vec2::splat(of);
+        let two = self.rng.f32() < 0.4 && room.x.max(room.y) > 2.0 * of;
+        let along_x = tf.size().x >= tf.size().y;
+        let (lo, hi) = (tf.center() - 0.5 * room, tf.center() + 0.5 * room);
+        let spans: Vec<(Vec2, Vec2)> = if !two {
+            vec![(lo, hi)]
+        } else if along_x {
+            let mid = tf.center().x;
+            vec![(lo, Vec2::new(mid - 0.5 * of, hi.y)), (Vec2::new(mid + 0.5 * of, lo.y), hi)]
+        } else {
+            let mid = tf.center().y;
+            vec![(lo, Vec2::new(hi.x, mid - 0.5 * of)), (Vec2::new(lo.x, mid + 0.5 * of), hi)]
+        };
+        spans
+            .iter()
+            .enumerate()
+            .map(|(half, (a, b))| Item::Instance {
+                asset: top.name.clone(),
+                at: (
+                    round3(self.rng.range(a.x, b.x.max(a.x))),
+                    round3(self.rng.range(a.y, b.y.max(a.y))),
+                ),
+                yaw: round3(self.rng.range(-180.0, 180.0)),
+                scale: 1.0,
+                base: 0.0,
+                name: Some(format!("{}_{half}", top.name)),
+            })
+            .collect()
+    }
+
+    /// Floor categories in place of the table-top categories that found no table, up to the
+    /// fewest categories a scene has (`have`: the categories so far): their names.
+    fn spare_categories(&mut self, floors: &[Candidate], have: usize) -> Vec<String> {
+        let spare: Vec<Candidate> =
+            floors.iter().filter(|c| !self.assets.contains_key(&c.name)).cloned().collect();
+        let extra = pick(&mut self.rng, &spare, CATEGORIES.0.saturating_sub(have));
+        let seed = self.seed;
+        for (j, c) in extra.iter().enumerate() {
+            let (ix, iy) = self.inner(c);
+            self.assets.insert(c.name.clone(), c.def.clone());
+            self.layout.push(Item::Scatter {
+                asset: c.name.clone(),
+                region: Region::Rect {
+                    min: (round3(-ix), round3(-iy)),
+                    max: (round3(ix), round3(iy)),
+                },
+                count: INSTANCES.0 as u32,
+                min_distance: round3((0.5 * c.info.footprint.size().length() + CLEARANCE) * self.u),
+                seed: seed.wrapping_mul(37).wrapping_add(j as u64),
+                yaw: 0.0,
+                scale: self.u,
+                overlap: false,
+                vary: Some(Variation {
+                    yaw_jitter_deg: 180.0,
+                    seed: seed.wrapping_add(100 + j as u64),
+                    ..Default::default()
+                }),
+                name: Some(format!("{}s", c.name)),
+            });
+        }
+        extra.iter().map(|c| c.name.clone()).collect()
+    }
 }

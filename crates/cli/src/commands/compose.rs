@@ -1,6 +1,6 @@
 //! `assetfield compose`: a layout script composed from an asset library and rendered.
 
-use super::backend::{BackendArg, device};
+use super::backend::{BackendArg, ViewRenderer};
 use super::util::{progress_bar, save_rgb};
 use anyhow::{Context, Result, bail};
 use assetfield_core::Camera;
@@ -10,7 +10,6 @@ use assetfield_core::{Orbit, fitting_radius};
 use assetfield_data::{Dataset, Frame, LoadOptions, Split};
 use assetfield_field::eval::evaluate_with;
 use assetfield_field::pictures::{color_plane_name, density_picture, pca_picture};
-use assetfield_gpu::{FieldRenderer, fallback_note};
 use assetfield_layout::{ResolvedLayout, resolve};
 use assetfield_scene::{AssetLibrary, Canvas, Composer, DEFAULT_HALO, ScriptAssets};
 use clap::Args;
@@ -194,90 +193,10 @@ pub fn compose(a: ComposeArgs) -> Result<()> {
     let root = staging.path().to_path_buf();
     let t2 = Instant::now();
     let comp = composer.composition();
-    let ctx = device(a.backend)?;
-    let auto = a.backend == BackendArg::Auto;
-    let mut gpu = match &ctx {
-        None => None,
-        Some(c) => match FieldRenderer::new(c, &comp.field, comp.occupancy.as_ref()) {
-            Ok(r) => Some(r),
-            Err(e) => {
-                let e = c.explain(e);
-                if !(auto && e.cpu_can_do_it()) {
-                    return Err(anyhow::anyhow!(e))
-                        .context(format!("uploading to {}", c.describe()));
-                }
-                eprintln!("assetfield: {}", fallback_note(&e));
-                None
-            }
-        },
-    };
-    let mut backend = if gpu.is_some() { "gpu" } else { "cpu" };
-    // one view on the chosen backend; a GPU failure under `auto` moves the rest to the CPU
-    let mut render = |cam: &Camera| -> Result<Vec<f32>> {
-        if let (Some(r), Some(c)) = (&gpu, &ctx) {
-            match r.render(cam, bg) {
-                Ok(rgb) => return Ok(rgb),
-                Err(e) => {
-                    let e = c.explain(e);
-                    if !(auto && e.cpu_can_do_it()) {
-                        return Err(anyhow::anyhow!(e))
-                            .context(format!("rendering on {}", c.describe()));
-                    }
-                    eprintln!("assetfield: {}", fallback_note(&e));
-                    gpu = None;
-                    backend = "cpu";
-                }
-            }
-        }
-        Ok(comp.render(cam, bg))
-    };
-    let n_views;
-    let mut summary = String::new();
-    match &views {
-        Views::Cameras(cams) => {
-            n_views = cams.len();
-            let pb = progress_bar(cams.len() as u64, "rendering");
-            for (name, cam) in cams {
-                assetfield_core::interrupt::check()?;
-                let rgb = render(cam)?;
-                save_rgb(&root.join(name), cam.intrinsics.width, cam.intrinsics.height, rgb)?;
-                pb.inc(1);
-            }
-            pb.finish_and_clear();
-        }
-        Views::Frames(frames) => {
-            n_views = frames.len();
-            let refs: Vec<&Frame> = frames.iter().collect();
-            let pb = progress_bar(refs.len() as u64, "rendering and comparing");
-            let model = comp.field.config.kind.name();
-            let report = evaluate_with(
-                model,
-                &refs,
-                |f| render(&f.camera),
-                |f, rgb, m| {
-                    let (w, h) = (f.camera.intrinsics.width, f.camera.intrinsics.height);
-                    let name = format!("r_{}.png", f.index);
-                    save_rgb(&root.join(&name), w, h, rgb.to_vec())?;
-                    let err = error_image(rgb, &f.image.rgb, w as usize, h as usize);
-                    assetfield_core::fsx::save_png(&root.join("error").join(&name), &err.into())?;
-                    pb.set_message(format!("view {} psnr {:.2}", f.index, m.psnr));
-                    pb.inc(1);
-                    anyhow::Ok(())
-                },
-            )?;
-            pb.finish_and_clear();
-            write_atomic(
-                &root.join("metrics.json"),
-                serde_json::to_string_pretty(&report)?.as_bytes(),
-            )?;
-            summary = format!(
-                "; against {}: PSNR {:.2} dB, SSIM {:.4}",
-                a.views.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
-                report.psnr,
-                report.ssim
-            );
-        }
-    }
+    let mut renderer = ViewRenderer::new(a.backend, comp)?;
+    let mut render = |cam: &Camera| renderer.render(comp, cam, bg);
+    let model_name = comp.field.config.kind.name();
+    let (n_views, summary) = render_views(&a, &views, &root, model_name, &mut render)?;
     let t_render = t2.elapsed().as_secs_f64();
     if a.planes {
         let field = &comp.field;
@@ -306,8 +225,8 @@ pub fn compose(a: ComposeArgs) -> Result<()> {
         "texels_rasterised": raster.texels,
         "views": n_views,
         "seconds": {"load": t_build, "rasterise": t_frame, "render": t_render},
-        "backend": backend,
-        "device": ctx.as_ref().map(|c| c.describe()),
+        "backend": renderer.backend(),
+        "device": renderer.device(),
         "background": Vec3::to_array(&bg),
     });
     write_atomic(&root.join("compose.json"), serde_json::to_string_pretty(&report)?.as_bytes())?;
@@ -322,9 +241,68 @@ pub fn compose(a: ComposeArgs) -> Result<()> {
         t_frame,
         n_views,
         t_render,
-        backend.to_uppercase(),
+        renderer.backend().to_uppercase(),
         summary
     );
     println!("wrote {}", out.display());
     Ok(())
+}
+
+/// Render every view into `root` (`r_K.png` and `error/r_K.png` with `metrics.json` for the
+/// views of a dataset, the cameras' own names otherwise); the number of views and, against
+/// a dataset, the summary of the scores.
+fn render_views(
+    a: &ComposeArgs,
+    views: &Views,
+    root: &Path,
+    model_name: &str,
+    render: &mut dyn FnMut(&Camera) -> Result<Vec<f32>>,
+) -> Result<(usize, String)> {
+    let mut summary = String::new();
+    let n_views;
+    match views {
+        Views::Cameras(cams) => {
+            n_views = cams.len();
+            let pb = progress_bar(cams.len() as u64, "rendering");
+            for (name, cam) in cams {
+                assetfield_core::interrupt::check()?;
+                let rgb = render(cam)?;
+                save_rgb(&root.join(name), cam.intrinsics.width, cam.intrinsics.height, rgb)?;
+                pb.inc(1);
+            }
+            pb.finish_and_clear();
+        }
+        Views::Frames(frames) => {
+            n_views = frames.len();
+            let refs: Vec<&Frame> = frames.iter().collect();
+            let pb = progress_bar(refs.len() as u64, "rendering and comparing");
+            let report = evaluate_with(
+                model_name,
+                &refs,
+                |f| render(&f.camera),
+                |f, rgb, m| {
+                    let (w, h) = (f.camera.intrinsics.width, f.camera.intrinsics.height);
+                    let name = format!("r_{}.png", f.index);
+                    save_rgb(&root.join(&name), w, h, rgb.to_vec())?;
+                    let err = error_image(rgb, &f.image.rgb, w as usize, h as usize);
+                    assetfield_core::fsx::save_png(&root.join("error").join(&name), &err.into())?;
+                    pb.set_message(format!("view {} psnr {:.2}", f.index, m.psnr));
+                    pb.inc(1);
+                    anyhow::Ok(())
+                },
+            )?;
+            pb.finish_and_clear();
+            write_atomic(
+                &root.join("metrics.json"),
+                serde_json::to_string_pretty(&report)?.as_bytes(),
+            )?;
+            summary = format!(
+                "; against {}: PSNR {:.2} dB, SSIM {:.4}",
+                a.views.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
+                report.psnr,
+                report.ssim
+            );
+        }
+    }
+    Ok((n_views, summary))
 }

@@ -4,10 +4,11 @@
 use super::util::progress_bar;
 use anyhow::{Context, Result, bail};
 use assetfield_layout::GtLayout;
+use assetfield_library::open_library;
 use assetfield_mining::agglomerative::Linkage;
 use assetfield_mining::detect::{DetectParams, Filters, Preset};
 use assetfield_mining::group::GroupCut;
-use assetfield_mining::library::{MergeOptions, merge_libraries_with, open_library};
+use assetfield_mining::merge::{MergeOptions, merge_libraries_with};
 use assetfield_mining::pipeline::{GroupOn, MineOptions, Progress, YawOn, mine as run_mining};
 use assetfield_mining::planes::PlaneChoice;
 use assetfield_mining::regroup::RegroupOptions;

@@ -8,8 +8,8 @@ use anyhow::{Context, Result, anyhow, bail};
 use assetfield_core::fsx::{StagingDir, write_atomic};
 use assetfield_core::{Camera, interrupt};
 use assetfield_data::{Dataset, Frame, LoadOptions, Split};
+use assetfield_library::{open_library, write_library_files};
 use assetfield_mining::layout_out::{layout_script, script_text_checked};
-use assetfield_mining::library::{open_library, write_library_files};
 use assetfield_scene::refine::{
     RefineOptions, TemplateRefiner, cameras_looking_at, compose_draws, own_poses,
 };
@@ -18,7 +18,7 @@ use clap::Args;
 use glam::Vec3;
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Fewest of the training views whose central ray must pass through the library's box: a
@@ -68,7 +68,7 @@ pub struct RefineArgs {
 }
 
 /// `OUT` -> `OUT.ckpt.safetensors` beside it.
-fn checkpoint_path(out: &std::path::Path) -> PathBuf {
+fn checkpoint_path(out: &Path) -> PathBuf {
     let name =
         out.file_name().map_or_else(|| "refined".into(), |s| s.to_string_lossy().into_owned());
     out.with_file_name(format!("{name}.ckpt.safetensors"))
@@ -103,7 +103,99 @@ fn mean_psnr(comp: &Composition, views: &[Frame], bg: Vec3) -> Option<f32> {
     Some(total / views.len() as f32)
 }
 
+/// `assetfield refine`: check the options, open the library and load its scene's views,
+/// measure the layouts before, refine the templates, write the library and report.
 pub fn refine(a: RefineArgs) -> Result<()> {
+    let ckpt = check_refine_args(&a)?;
+    let lib = AssetLibrary::open(&a.lib)?;
+    if lib.index.containers.is_empty() {
+        bail!(
+            "{} has no container: refine needs the emptied scene its templates were mined from",
+            a.lib.display()
+        );
+    }
+    let bg = lib.background;
+    let (train, test) = load_views(&a, &lib)?;
+
+    // before: the mined layout (own patches) and the templates-only layout
+    let patches = lib.patches(assetfield_scene::DEFAULT_HALO)?;
+    let own = own_poses(&lib.index)
+        .into_iter()
+        .map(|(name, t)| {
+            let p = patches.get(&name).ok_or_else(|| anyhow!("no patch for entry {name:?}"))?;
+            Ok((p, t))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let psnr_own = mean_psnr(&compose_draws(&lib, &own)?, &test, bg);
+    let options = RefineOptions {
+        iters: a.iters.unwrap_or(if a.minutes.is_some() { u64::MAX } else { 2000 }),
+        seconds: a.minutes.map(|m| m * 60.0),
+        batch: a.batch,
+        lr: a.lr,
+        seed: a.seed,
+        ..RefineOptions::default()
+    };
+    let views = train.frames.iter().map(|f| (f.camera, f.image.rgb.clone())).collect();
+    let mut r = TemplateRefiner::new(&lib, &patches, views, bg, options.clone())?;
+    // the refiner composes the templates-only layout itself (its taps are the rasteriser's)
+    let psnr_before = mean_psnr(&r.comp, &test, bg);
+    if a.resume {
+        let f = assetfield_core::TensorFile::load(&ckpt)
+            .with_context(|| format!("reading checkpoint {}", ckpt.display()))?;
+        r.resume(&f, &ckpt, a.iters, options.seconds)?;
+        eprintln!("resuming at iteration {} from {}", r.iter, ckpt.display());
+    }
+    eprintln!(
+        "refining {} templates of {} instances against {} training views{}",
+        lib.index.categories.len(),
+        lib.index.entries.len(),
+        train.len(),
+        match (psnr_own, psnr_before) {
+            (Some(o), Some(t)) =>
+                format!(" (test PSNR: own patches {o:.2} dB, templates {t:.2} dB)"),
+            _ => String::new(),
+        }
+    );
+    let (seconds, last) = refine_loop(&mut r, &a, &ckpt, options.iters)?;
+    r.comp.refresh_occupancy(None);
+    let psnr_after = mean_psnr(&r.comp, &test, bg);
+    let report = Report {
+        iterations: r.iter,
+        seconds,
+        templates: lib.index.categories.len(),
+        instances: 0,
+        test_psnr_own_patches: psnr_own,
+        test_psnr_templates_before: psnr_before,
+        test_psnr_templates_after: psnr_after,
+        test_views: test.len(),
+        history: r.history.clone(),
+        options,
+    };
+    let (out, report) = write_refined(&a, &r, report)?;
+    if ckpt.exists() {
+        std::fs::remove_file(&ckpt).with_context(|| format!("removing {}", ckpt.display()))?;
+    }
+    println!(
+        "refined {} templates for {} iterations in {} (final batch PSNR {last:.2} dB)",
+        report.templates,
+        r.iter,
+        fmt_duration(seconds)
+    );
+    if let (Some(o), Some(b), Some(f)) = (psnr_own, psnr_before, psnr_after) {
+        println!(
+            "test PSNR over {} views: own patches {o:.2} dB; templates only {b:.2} -> {f:.2} dB",
+            test.len()
+        );
+    }
+    println!(
+        "wrote {} (index.ron, patches.safetensors, shared.safetensors, layout.ron: templates only, refine.json)",
+        out.display()
+    );
+    Ok(())
+}
+
+/// The numeric options, `--out`, `--resume` and `--force`: the checkpoint's path.
+fn check_refine_args(a: &RefineArgs) -> Result<PathBuf> {
     if let Some(m) = a.minutes
         && !(m.is_finite() && m > 0.0)
     {
@@ -134,19 +226,17 @@ pub fn refine(a: RefineArgs) -> Result<()> {
             ckpt.display()
         );
     }
-    let lib = AssetLibrary::open(&a.lib)?;
-    if lib.index.containers.is_empty() {
-        bail!(
-            "{} has no container: refine needs the emptied scene its templates were mined from",
-            a.lib.display()
-        );
-    }
+    Ok(ckpt)
+}
+
+/// The training views (which must look into the library's box) and the test views (none,
+/// with a note, where the dataset has none), levelled like the library's field.
+fn load_views(a: &RefineArgs, lib: &AssetLibrary) -> Result<(Dataset, Vec<Frame>)> {
     let opts = LoadOptions {
         background: lib.background.to_array(),
         downscale: a.downscale,
         ..LoadOptions::default()
     };
-    let bg = lib.background;
     let load = |split: Split| -> Result<Dataset> {
         let mut d = Dataset::load(&a.data, split, &opts)
             .with_context(|| format!("loading the {split:?} views of {}", a.data.display()))?;
@@ -157,7 +247,7 @@ pub fn refine(a: RefineArgs) -> Result<()> {
     };
     let train = load(Split::Train)?;
     let cams: Vec<Camera> = train.frames.iter().map(|f| f.camera).collect();
-    let looking = cameras_looking_at(&lib, &cams);
+    let looking = cameras_looking_at(lib, &cams);
     if looking < MIN_VIEWS_LOOKING_IN {
         let c = &lib.index.containers[0];
         bail!(
@@ -188,59 +278,30 @@ pub fn refine(a: RefineArgs) -> Result<()> {
             Vec::new()
         }
     };
+    Ok((train, test))
+}
 
-    // before: the mined layout (own patches) and the templates-only layout
-    let patches = lib.patches(assetfield_scene::DEFAULT_HALO)?;
-    let own = own_poses(&lib.index)
-        .into_iter()
-        .map(|(name, t)| {
-            let p = patches.get(&name).ok_or_else(|| anyhow!("no patch for entry {name:?}"))?;
-            Ok((p, t))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let psnr_own = mean_psnr(&compose_draws(&lib, &own)?, &test, bg);
-    let options = RefineOptions {
-        iters: a.iters.unwrap_or(if a.minutes.is_some() { u64::MAX } else { 2000 }),
-        seconds: a.minutes.map(|m| m * 60.0),
-        batch: a.batch,
-        lr: a.lr,
-        seed: a.seed,
-        ..RefineOptions::default()
-    };
-    let views = train.frames.iter().map(|f| (f.camera, f.image.rgb.clone())).collect();
-    let mut r = TemplateRefiner::new(&lib, &patches, views, bg, options.clone())?;
-    // the refiner composes the templates-only layout itself (its taps are the rasteriser's)
-    let psnr_before = mean_psnr(&r.comp, &test, bg);
-    if a.resume {
-        let f = assetfield_core::TensorFile::load(&ckpt)
-            .with_context(|| format!("reading checkpoint {}", ckpt.display()))?;
-        r.resume(&f, &ckpt, a.iters, options.seconds)?;
-        eprintln!("resuming at iteration {} from {}", r.iter, ckpt.display());
-    }
+/// Refine until the budget is spent, with the progress bar and periodic checkpoints;
+/// Ctrl-C saves a checkpoint and ends with an error that says how to resume. The session's
+/// seconds and the last batch PSNR.
+fn refine_loop(
+    r: &mut TemplateRefiner,
+    a: &RefineArgs,
+    ckpt: &Path,
+    iters: u64,
+) -> Result<(f64, f32)> {
     let save = |r: &TemplateRefiner| -> Result<()> {
-        r.checkpoint()?.save(&ckpt).with_context(|| format!("saving checkpoint {}", ckpt.display()))
+        r.checkpoint()?.save(ckpt).with_context(|| format!("saving checkpoint {}", ckpt.display()))
     };
     let every = std::time::Duration::from_secs_f64(a.checkpoint_every_minutes * 60.0);
     let mut last_save = Instant::now();
-    eprintln!(
-        "refining {} templates of {} instances against {} training views{}",
-        lib.index.categories.len(),
-        lib.index.entries.len(),
-        train.len(),
-        match (psnr_own, psnr_before) {
-            (Some(o), Some(t)) =>
-                format!(" (test PSNR: own patches {o:.2} dB, templates {t:.2} dB)"),
-            _ => String::new(),
-        }
-    );
-
-    let pb = training_bar((options.iters != u64::MAX).then_some(options.iters));
+    let pb = training_bar((iters != u64::MAX).then_some(iters));
     let t0 = Instant::now();
     let mut last = f32::NAN;
     while !r.finished() {
         if interrupt::requested() {
             pb.finish_and_clear();
-            save(&r)?;
+            save(r)?;
             return Err(anyhow!(
                 "interrupted at iteration {}: checkpoint saved to {}; no library was written. Continue with: assetfield refine {} --data {} --out {} --resume",
                 r.iter,
@@ -252,7 +313,7 @@ pub fn refine(a: RefineArgs) -> Result<()> {
         }
         last = r.step();
         if !every.is_zero() && last_save.elapsed() >= every {
-            save(&r)?;
+            save(r)?;
             last_save = Instant::now();
         }
         pb.set_position((r.progress() * 1000.0) as u64);
@@ -263,11 +324,12 @@ pub fn refine(a: RefineArgs) -> Result<()> {
         ));
     }
     pb.finish_and_clear();
-    let seconds = t0.elapsed().as_secs_f64();
-    r.comp.refresh_occupancy(None);
-    let psnr_after = mean_psnr(&r.comp, &test, bg);
+    Ok((t0.elapsed().as_secs_f64(), last))
+}
 
-    // the library with the refined template features, and a templates-only layout
+/// The library with the refined template features, a templates-only layout and
+/// `refine.json` (the report, completed with the layout's instances), written to `--out`.
+fn write_refined(a: &RefineArgs, r: &TemplateRefiner, report: Report) -> Result<(PathBuf, Report)> {
     let mut stored = open_library(&a.lib)?;
     for (name, dd, dc) in r.deltas() {
         let e = stored.index.entry(&name).cloned().ok_or_else(|| anyhow!("no entry {name:?}"))?;
@@ -293,43 +355,12 @@ pub fn refine(a: RefineArgs) -> Result<()> {
     let (text, instances) = script_text_checked(&script, &staging.path().join("layout.ron"))?;
     write_library_files(staging.path(), &stored.index, &stored.patches, &stored.shared)?;
     write_atomic(&staging.path().join("layout.ron"), text.as_bytes())?;
-    let report = Report {
-        iterations: r.iter,
-        seconds,
-        templates: stored.index.categories.len(),
-        instances,
-        test_psnr_own_patches: psnr_own,
-        test_psnr_templates_before: psnr_before,
-        test_psnr_templates_after: psnr_after,
-        test_views: test.len(),
-        history: r.history.clone(),
-        options,
-    };
+    let report = Report { templates: stored.index.categories.len(), instances, ..report };
     write_atomic(
         &staging.path().join("refine.json"),
         serde_json::to_string_pretty(&report)?.as_bytes(),
     )?;
-    let out = staging.commit()?;
-    if ckpt.exists() {
-        std::fs::remove_file(&ckpt).with_context(|| format!("removing {}", ckpt.display()))?;
-    }
-    println!(
-        "refined {} templates for {} iterations in {} (final batch PSNR {last:.2} dB)",
-        report.templates,
-        r.iter,
-        fmt_duration(seconds)
-    );
-    if let (Some(o), Some(b), Some(f)) = (psnr_own, psnr_before, psnr_after) {
-        println!(
-            "test PSNR over {} views: own patches {o:.2} dB; templates only {b:.2} -> {f:.2} dB",
-            test.len()
-        );
-    }
-    println!(
-        "wrote {} (index.ron, patches.safetensors, shared.safetensors, layout.ron: templates only, refine.json)",
-        out.display()
-    );
-    Ok(())
+    Ok((staging.commit()?, report))
 }
 
 /// The instance keys of the library's own `layout.ron` by entry (what `mine --gt-names`
@@ -337,8 +368,8 @@ pub fn refine(a: RefineArgs) -> Result<()> {
 /// stands for the entry whose pivot (own patch) or template position it is placed at.
 /// Empty when the layout is missing or does not resolve.
 fn instance_names(
-    lib: &std::path::Path,
-    index: &assetfield_mining::library::LibraryIndex,
+    lib: &Path,
+    index: &assetfield_library::LibraryIndex,
 ) -> BTreeMap<String, String> {
     let Ok(loaded) = assetfield_layout::load(&lib.join("layout.ron")) else {
         return BTreeMap::new();

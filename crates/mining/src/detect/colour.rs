@@ -6,7 +6,7 @@
 use super::context::Ctx;
 use super::shape::{Part, fill_holes, is_thin, more_than, or_into};
 use super::split::{geodesic_assign, lowest_level};
-use crate::image::{Mask, PlaneImage};
+use crate::image::{Mask, PixelRect, PlaneImage};
 use crate::kmeans::{KMeansOptions, kmeans};
 
 /// The first `k` principal components of a feature plane, per texel, each scaled to unit
@@ -123,13 +123,6 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Vec<Par
 /// whole.
 fn split_once(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Result<Vec<Part>, Part> {
     let (vol, start, tau, min_texels) = (cx.vol, cx.start, cx.tau, cx.min_texels);
-    let strip = cx.p.bridge_radius_texels.max(1);
-    // a piece no thicker than its own blurred edges (`2 r + 1` texels everywhere, r the
-    // field's blur, which spreads as far across as up) is a strip of its object, not an
-    // object: the back of a chair (this was a value of its own, also 3; 2, the bridge radius,
-    // lost a stool of `random_2` at 2000 iterations)
-    let thin = cx.p.blur_levels.max(1);
-    let cs = &cx.p.colour;
     let (rect, f) = (part.rect, &part.footprint);
     let (h, w) = (f.rows, f.cols);
     let n = f.count();
@@ -139,24 +132,104 @@ fn split_once(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Result<Vec<Part>, Part>
     if n < 2 * smallest_piece {
         return Err(part);
     }
-    let idx: Vec<usize> = (0..h * w).filter(|&i| f.data[i]).collect();
-    let gi = |i: usize| (rect.r0 + i / w) * vol.cols + rect.c0 + i % w;
     let dim = pcs.first().map_or(0, Vec::len);
     if dim == 0 {
         return Err(part);
     }
-    let pts: Vec<f32> = idx.iter().flat_map(|&i| pcs[gi(i)].iter().copied()).collect();
-    // two clusters, as the paper's second round: a piece and what it is not (three, for a
-    // shadow or trim besides, lost objects on the suite and the basis)
-    let Ok(km) = kmeans(&pts, dim, None, &KMeansOptions { k: 2, ..Default::default() }) else {
+    let texels = PartTexels {
+        pcs,
+        idx: (0..h * w).filter(|&i| f.data[i]).collect(),
+        rect,
+        w,
+        cols: vol.cols,
+        dim,
+    };
+    let Some(seeds) = colour_seeds(cx, &texels, f, smallest_piece) else {
         return Err(part);
     };
-    let mut label = vec![u32::MAX; h * w];
-    for (t, &i) in idx.iter().enumerate() {
-        label[i] = km.labels[t];
+    let owner = geodesic_assign(f, &seeds);
+    let pieces: Vec<Mask> = (0..seeds.len())
+        .map(|s| Mask { rows: h, cols: w, data: owner.iter().map(|&o| o == Some(s)).collect() })
+        .collect();
+    let main = (0..pieces.len()).max_by_key(|&p| pieces[p].count()).unwrap_or(0);
+    let accepted: Vec<usize> = (0..pieces.len())
+        .filter(|&p| p != main)
+        .filter(|&p| cx.on_ground(lowest_level(vol, rect, &pieces[p], start, tau)))
+        .filter(|&p| stands_apart(cx, &texels, f, &pieces[p]))
+        .collect();
+    if accepted.is_empty() {
+        return Err(part);
     }
-    // connected pieces of each label; small ones go to their geodesic neighbours
-    let min_piece = smallest_piece;
+    let mut rest = Mask { rows: h, cols: w, data: vec![false; h * w] };
+    for (p, piece) in pieces.iter().enumerate() {
+        if !accepted.contains(&p) {
+            or_into(&mut rest, piece);
+        }
+    }
+    let (kmin, kmax) = (part.kmin, part.kmax);
+    Ok(accepted
+        .iter()
+        .map(|&p| pieces[p].clone())
+        .chain(std::iter::once(rest))
+        .filter_map(|m| Part { rect, footprint: fill_holes(&m), kmin, kmax }.tighten())
+        .collect())
+}
+
+/// A part's texels and their colour features.
+struct PartTexels<'a> {
+    /// Colour features per plane texel.
+    pcs: &'a [Vec<f32>],
+    /// The footprint's texels (indices into the part's box, row-major).
+    idx: Vec<usize>,
+    rect: PixelRect,
+    /// The box's width.
+    w: usize,
+    /// The plane's width.
+    cols: usize,
+    /// Features per texel.
+    dim: usize,
+}
+
+impl PartTexels<'_> {
+    /// The features of box texel `i`.
+    fn features(&self, i: usize) -> &[f32] {
+        &self.pcs[(self.rect.r0 + i / self.w) * self.cols + self.rect.c0 + i % self.w]
+    }
+
+    /// Mean, variance (summed over the features) and count of the footprint's texels `sel`
+    /// picks.
+    fn stats(&self, sel: &dyn Fn(usize) -> bool) -> (Vec<f32>, f32, usize) {
+        let ids: Vec<usize> = self.idx.iter().copied().filter(|&i| sel(i)).collect();
+        let mut mean = vec![0f32; self.dim];
+        for &i in &ids {
+            mean.iter_mut().zip(self.features(i)).for_each(|(a, b)| *a += b);
+        }
+        mean.iter_mut().for_each(|a| *a /= ids.len().max(1) as f32);
+        let var = ids
+            .iter()
+            .map(|&i| {
+                self.features(i).iter().zip(&mean).map(|(a, b)| (a - b) * (a - b)).sum::<f32>()
+            })
+            .sum::<f32>()
+            / ids.len().max(1) as f32;
+        (mean, var, ids.len())
+    }
+}
+
+/// The seeds of the pieces: two colour clusters over the footprint `f` (as the paper's
+/// second round: a piece and what it is not; three, for a shadow or trim besides, lost
+/// objects on the suite and the basis), each opened to cut thin strips of one colour that
+/// join separate objects, cut into connected pieces of at least `min_piece` texels. `None`
+/// when fewer than two pieces come out.
+fn colour_seeds(cx: &Ctx, t: &PartTexels, f: &Mask, min_piece: usize) -> Option<Vec<Mask>> {
+    let (h, w) = (f.rows, f.cols);
+    let strip = cx.p.bridge_radius_texels.max(1);
+    let pts: Vec<f32> = t.idx.iter().flat_map(|&i| t.features(i).iter().copied()).collect();
+    let km = kmeans(&pts, t.dim, None, &KMeansOptions { k: 2, ..Default::default() }).ok()?;
+    let mut label = vec![u32::MAX; h * w];
+    for (k, &i) in t.idx.iter().enumerate() {
+        label[i] = km.labels[k];
+    }
     let mut seeds: Vec<Mask> = Vec::new();
     for l in 0..km.k as u32 {
         // cut thin strips of one colour joining separate objects (an opening, padded so the
@@ -183,112 +256,75 @@ fn split_once(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Result<Vec<Part>, Part>
             }
         }
     }
-    if seeds.len() < 2 {
-        return Err(part);
-    }
-    let owner = geodesic_assign(f, &seeds);
-    let pieces: Vec<Mask> = (0..seeds.len())
-        .map(|s| Mask { rows: h, cols: w, data: owner.iter().map(|&o| o == Some(s)).collect() })
-        .collect();
-    let main = (0..pieces.len()).max_by_key(|&p| pieces[p].count()).unwrap_or(0);
-    let mut accepted: Vec<usize> = Vec::new();
-    for (p, piece) in pieces.iter().enumerate() {
-        if p == main {
-            continue;
-        }
-        if !cx.on_ground(lowest_level(vol, rect, piece, start, tau)) {
-            continue;
-        }
-        // outline shared with the rest of the part vs outline
-        let (mut outline, mut shared) = (0usize, 0usize);
-        let mut near: Vec<usize> = Vec::new();
-        for r in 0..h {
-            for c in 0..w {
-                if !piece.get(r, c) {
-                    continue;
-                }
-                let mut edge = false;
-                let mut touches = false;
-                for (dr, dc) in [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)] {
-                    let (nr, nc) = (r as isize + dr, c as isize + dc);
-                    let inside = nr >= 0 && nc >= 0 && nr < h as isize && nc < w as isize;
-                    if !inside || !piece.get(nr as usize, nc as usize) {
-                        edge = true;
-                        if inside && f.get(nr as usize, nc as usize) {
-                            touches = true;
-                            near.push(nr as usize * w + nc as usize);
-                        }
+    (seeds.len() >= 2).then_some(seeds)
+}
+
+/// Whether `piece` of footprint `f` is an object of its own: not framed by the rest of the
+/// part (a piece sharing most of its outline with it, a cushion in a sofa; a majority, not
+/// a tuned share), in colour contrast with the texels it touches, of a part whose concave
+/// outline says touching objects, and no thin strip of its object.
+fn stands_apart(cx: &Ctx, t: &PartTexels, f: &Mask, piece: &Mask) -> bool {
+    let (h, w) = (f.rows, f.cols);
+    let n = f.count();
+    // a piece no thicker than its own blurred edges (`2 r + 1` texels everywhere, r the
+    // field's blur, which spreads as far across as up) is a strip of its object, not an
+    // object: the back of a chair (this was a value of its own, also 3; 2, the bridge radius,
+    // lost a stool of `random_2` at 2000 iterations)
+    let thin = cx.p.blur_levels.max(1);
+    // outline shared with the rest of the part vs outline
+    let (mut outline, mut shared) = (0usize, 0usize);
+    let mut near: Vec<usize> = Vec::new();
+    for r in 0..h {
+        for c in 0..w {
+            if !piece.get(r, c) {
+                continue;
+            }
+            let mut edge = false;
+            let mut touches = false;
+            for (dr, dc) in [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)] {
+                let (nr, nc) = (r as isize + dr, c as isize + dc);
+                let inside = nr >= 0 && nc >= 0 && nr < h as isize && nc < w as isize;
+                if !inside || !piece.get(nr as usize, nc as usize) {
+                    edge = true;
+                    if inside && f.get(nr as usize, nc as usize) {
+                        touches = true;
+                        near.push(nr as usize * w + nc as usize);
                     }
                 }
-                outline += usize::from(edge);
-                shared += usize::from(touches);
             }
-        }
-        // colour contrast with the texels it touches (and their neighbours)
-        let ring = crate::morphology::dilate(
-            &Mask { rows: h, cols: w, data: (0..h * w).map(|i| near.contains(&i)).collect() },
-            2,
-        )
-        .unwrap_or_else(|_| piece.clone());
-        let stats = |sel: &dyn Fn(usize) -> bool| -> (Vec<f32>, f32, usize) {
-            let ids: Vec<usize> = idx.iter().copied().filter(|&i| sel(i)).collect();
-            let mut mean = vec![0f32; dim];
-            for &i in &ids {
-                mean.iter_mut().zip(&pcs[gi(i)]).for_each(|(a, b)| *a += b);
-            }
-            mean.iter_mut().for_each(|a| *a /= ids.len().max(1) as f32);
-            let var = ids
-                .iter()
-                .map(|&i| pcs[gi(i)].iter().zip(&mean).map(|(a, b)| (a - b) * (a - b)).sum::<f32>())
-                .sum::<f32>()
-                / ids.len().max(1) as f32;
-            (mean, var, ids.len())
-        };
-        let (ma, va, na) = stats(&|i| piece.data[i]);
-        let (mb, vb, nb) = stats(&|i| ring.data[i] && !piece.data[i]);
-        let d2: f32 = ma.iter().zip(&mb).map(|(a, b)| (a - b) * (a - b)).sum();
-        let contrast = d2 / (0.5 * (va + vb)).max(1e-6);
-        // touching objects make a concave outline that the split straightens
-        let solid = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
-        let s_all = solid(f);
-        tracing::debug!(
-            ?rect,
-            piece = piece.count(),
-            n,
-            shared,
-            outline,
-            contrast,
-            na,
-            nb,
-            s_all,
-            "colour split candidate"
-        );
-        // (framed by the rest: a piece sharing most of its outline with it, a cushion in a
-        // sofa; a majority, not a tuned share)
-        if nb == 0
-            || more_than(shared, 0.5, outline)
-            || contrast < cx.p.colour_contrast
-            || s_all > cs.max_part_solidity
-            || is_thin(piece, thin)
-        {
-            continue;
-        }
-        accepted.push(p);
-    }
-    if accepted.is_empty() {
-        return Err(part);
-    }
-    let mut rest = Mask { rows: h, cols: w, data: vec![false; h * w] };
-    for (p, piece) in pieces.iter().enumerate() {
-        if !accepted.contains(&p) {
-            or_into(&mut rest, piece);
+            outline += usize::from(edge);
+            shared += usize::from(touches);
         }
     }
-    let (kmin, kmax) = (part.kmin, part.kmax);
-    Ok(accepted
-        .iter()
-        .map(|&p| pieces[p].clone())
-        .chain(std::iter::once(rest))
-        .filter_map(|m| Part { rect, footprint: fill_holes(&m), kmin, kmax }.tighten())
-        .collect())
+    // colour contrast with the texels it touches (and their neighbours)
+    let ring = crate::morphology::dilate(
+        &Mask { rows: h, cols: w, data: (0..h * w).map(|i| near.contains(&i)).collect() },
+        2,
+    )
+    .unwrap_or_else(|_| piece.clone());
+    let (ma, va, na) = t.stats(&|i| piece.data[i]);
+    let (mb, vb, nb) = t.stats(&|i| ring.data[i] && !piece.data[i]);
+    let d2: f32 = ma.iter().zip(&mb).map(|(a, b)| (a - b) * (a - b)).sum();
+    let contrast = d2 / (0.5 * (va + vb)).max(1e-6);
+    // touching objects make a concave outline that the split straightens
+    let solid = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
+    let s_all = solid(f);
+    let rect = t.rect;
+    tracing::debug!(
+        ?rect,
+        piece = piece.count(),
+        n,
+        shared,
+        outline,
+        contrast,
+        na,
+        nb,
+        s_all,
+        "colour split candidate"
+    );
+    !(nb == 0
+        || more_than(shared, 0.5, outline)
+        || contrast < cx.p.colour_contrast
+        || s_all > cx.p.colour.max_part_solidity
+        || is_thin(piece, thin))
 }

@@ -127,7 +127,7 @@ pub(super) fn far_from_surface(points: &[f32], dim: usize, seed: &[bool]) -> Vec
 /// The second round inside one object: returns the objects standing on its largest surface
 /// and the top level of that surface.
 pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
-    let (vol, color, start, tau, min_texels) = (cx.vol, cx.color, cx.start, cx.tau, cx.min_texels);
+    let (vol, start, min_texels) = (cx.vol, cx.start, cx.min_texels);
     let p = cx.p;
     let up = &p.unpack;
     let (rect, f) = (part.rect, &part.footprint);
@@ -135,47 +135,156 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     if n < min_texels.max(1) || vol.nz <= start {
         return (Vec::new(), None);
     }
-    // area per level over the footprint (surfaces may be faint: half the voxel threshold),
-    // and the same per window of `thin` levels (accumulated opacity): a briefly trained
-    // field's soft table top spreads over a few levels, none of which covers the whole top
-    let ts = up.surface_opacity * tau;
-    let thin = p.blur_levels.max(1);
-    let mut area = vec![0usize; vol.nz];
-    let mut areaw = vec![0usize; vol.nz];
-    for r in 0..rect.rows() {
-        for c in 0..rect.cols() {
-            if f.get(r, c) {
-                let col = vol.column(rect.r0 + r, rect.c0 + c);
-                for k in start..vol.nz {
-                    area[k] += usize::from(col[k] >= ts);
-                    let t = col[k..(k + thin).min(vol.nz)].iter().fold(1f32, |t, &o| t * (1.0 - o));
-                    areaw[k] += usize::from(1.0 - t >= ts);
-                }
-            }
-        }
-    }
-    let amax = area.iter().copied().max().unwrap_or(0);
-    tracing::trace!(?rect, n, amax, start, area = ?&area[start..], windowed = ?&areaw[start..], "unpack");
+    let levels = Levels::of(cx, part);
+    let amax = levels.area.iter().copied().max().unwrap_or(0);
+    tracing::trace!(?rect, n, amax, start, area = ?&levels.area[start..], windowed = ?&levels.windowed[start..], "unpack");
     // no level covers half the footprint (a majority, not a tuned value): no surface
     if amax * 2 < n {
         return (Vec::new(), None);
     }
-    // the top surface: the highest window of levels covering at least 60% of the densest one
-    // (ghost layers under a table top can be denser than the top itself), at its densest level
-    // (candidates: the top window of every run of such windows, highest first)
+    let Some(s) = find_surface(cx, part, &levels) else {
+        return (Vec::new(), None);
+    };
+    let hi = s.hi;
+    if s.raised.count() == 0 {
+        return (Vec::new(), Some(hi));
+    }
+    let (h, w) = (rect.rows(), rect.cols());
+    // the free surface: the footprint away from what rises above it (a solid body's top is
+    // judged away from its blurred fringe; a thin slab has none): `rim_texels`, as for the
+    // rim band below
+    let near_raised =
+        crate::morphology::dilate(&s.raised, up.rim_texels).unwrap_or_else(|_| s.raised.clone());
+    let judged = if s.solid { inner_footprint(f, up.rim_texels) } else { f.clone() };
+    let free_n = (0..h * w).filter(|&i| judged.data[i] && !near_raised.data[i]).count();
+    tracing::debug!(?rect, lo = s.lo, hi, kstar = s.kstar, solid = s.solid, free_n, n, "surface");
+    // a low support (a pallet's deck, within `low_support_levels` of the ground) carries an
+    // object over most of it: its free surface is a margin, too narrow to judge away from
+    // the object; the rim and ring checks below still apply
+    let low = low_level(cx, hi);
+    // an object held above the surface on a stem (a table lamp: its shade covers most of a
+    // side table, leaving no free surface to judge)
+    let waist = held_on_a_stem(&levels.area, hi, levels.thin, min_texels);
+    if waist {
+        tracing::debug!(?rect, "an object held on a stem above the slab");
+    }
+    if !low && !waist && !at_least(free_n, up.free_share, n) {
+        return (Vec::new(), Some(hi));
+    }
+    // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
+    // features of a window around it: the cluster holding the blob is the object, the other
+    // one the surface it stands on (the paper's second round with the table as background).
+    let seeds = match components(&s.raised) {
+        Ok(r) => r,
+        Err(_) => return (Vec::new(), Some(hi)),
+    };
+    let mut seeded = Seeded {
+        cx,
+        part,
+        surface: &s,
+        // the footprint's outline: seeds on it are a table's rim
+        ring: border_ring(f),
+        // the window never reaches the rim band (edges of a table have colours of their own)
+        interior: {
+            let e = inner_footprint(f, up.rim_texels);
+            Mask::from_fn(h, w, |r, c| e.get(r, c) || s.raised.get(r, c))
+        },
+        taken: Mask { rows: h, cols: w, data: vec![false; h * w] },
+    };
+    let mut children = Vec::new();
+    for sd in seeds.iter().filter(|g| g.depth == 0) {
+        if let Some((comp, kmax)) = seeded.grow(sd) {
+            or_into(&mut seeded.taken, &comp);
+            children.extend(Child::cut(rect, &comp, kmax));
+        }
+    }
+    (children, Some(hi))
+}
+
+/// Occupied texels of a part's footprint per volume level: `area[k]` at level `k` (surfaces
+/// may be faint: half the voxel threshold), `windowed[k]` over the window of `thin` levels
+/// from `k` (accumulated opacity: a briefly trained field's soft table top spreads over a
+/// few levels, none of which covers the whole top).
+struct Levels {
+    area: Vec<usize>,
+    windowed: Vec<usize>,
+    /// The field's vertical blur, levels (at least one).
+    thin: usize,
+    /// The opacity a surface voxel reaches.
+    surface_opacity: f32,
+}
+
+impl Levels {
+    fn of(cx: &Ctx, part: &Part) -> Self {
+        let (vol, start) = (cx.vol, cx.start);
+        let (rect, f) = (part.rect, &part.footprint);
+        let ts = cx.p.unpack.surface_opacity * cx.tau;
+        let thin = cx.p.blur_levels.max(1);
+        let mut area = vec![0usize; vol.nz];
+        let mut windowed = vec![0usize; vol.nz];
+        for r in 0..rect.rows() {
+            for c in 0..rect.cols() {
+                if f.get(r, c) {
+                    let col = vol.column(rect.r0 + r, rect.c0 + c);
+                    for k in start..vol.nz {
+                        area[k] += usize::from(col[k] >= ts);
+                        let t =
+                            col[k..(k + thin).min(vol.nz)].iter().fold(1f32, |t, &o| t * (1.0 - o));
+                        windowed[k] += usize::from(1.0 - t >= ts);
+                    }
+                }
+            }
+        }
+        Levels { area, windowed, thin, surface_opacity: ts }
+    }
+}
+
+/// Whether level `k` lies within `low_support_levels` of the evidence's first level (a
+/// pallet's deck).
+fn low_level(cx: &Ctx, k: usize) -> bool {
+    k.saturating_sub(cx.start) < cx.p.low_support_levels
+}
+
+/// The footprint `f` eroded by `rim` texels, the outside of its box counting as footprint
+/// (an object cut by the plane's border keeps its edge there).
+fn inner_footprint(f: &Mask, rim: usize) -> Mask {
+    let (h, w) = (f.rows, f.cols);
+    let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
+    let e = erode(&padded, rim).unwrap_or(padded);
+    Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1))
+}
+
+/// The top surface found in a part: its densest level, its levels `lo..=hi`, whether it is
+/// the top of a solid body, and over the part's box the texels of the surface and those
+/// with something raised above it.
+struct Surface {
+    kstar: usize,
+    hi: usize,
+    lo: usize,
+    solid: bool,
+    surface: Mask,
+    raised: Mask,
+}
+
+/// The top surface: the highest window of levels covering at least `dense_window_share` of
+/// the densest one (ghost layers under a table top can be denser than the top itself), at
+/// its densest level (candidates: the top window of every run of such windows, highest
+/// first); a surface with nothing on it gives way to a low deck below it.
+fn find_surface(cx: &Ctx, part: &Part, levels: &Levels) -> Option<Surface> {
+    let (vol, start, tau) = (cx.vol, cx.start, cx.tau);
+    let p = cx.p;
+    let (rect, f) = (part.rect, &part.footprint);
+    let (area, areaw, thin, ts) =
+        (&levels.area, &levels.windowed, levels.thin, levels.surface_opacity);
     let amaxw = areaw.iter().copied().max().unwrap_or(0);
-    let dense = |k: usize| at_least(areaw[k], up.dense_window_share, amaxw);
+    let dense = |k: usize| at_least(areaw[k], p.unpack.dense_window_share, amaxw);
     let mut tops: Vec<usize> =
         (start..vol.nz).rev().filter(|&k| dense(k) && (k + 1 == vol.nz || !dense(k + 1))).collect();
     if tops.is_empty() {
         tops.push(start);
     }
-    let low_level = |k: usize| k.saturating_sub(start) < p.low_support_levels;
     let raise = p.blur_levels.max(1);
     let (h, w) = (rect.rows(), rect.cols());
-    // the footprint's outline: seeds on it are a table's rim
-    let ring = border_ring(f);
-    let mut found = None;
     for (i, &kw) in tops.iter().enumerate() {
         let kstar = (kw..(kw + thin).min(vol.nz))
             .max_by_key(|&k| (area[k], std::cmp::Reverse(k)))
@@ -218,63 +327,39 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         }
         // nothing stands on the highest surface, but a low deck lies below it: the lid of a
         // hollow box (a crate whose walls cover a fifth of the footprint) on a pallet
-        if raised.count() == 0 && tops.get(i + 1).is_some_and(|&k| low_level(k)) {
+        if raised.count() == 0 && tops.get(i + 1).is_some_and(|&k| low_level(cx, k)) {
             tracing::trace!(kw, "nothing on the surface: trying the low one below");
             continue;
         }
-        found = Some((kstar, hi, lo, solid, surface, raised));
-        break;
+        return Some(Surface { kstar, hi, lo, solid, surface, raised });
     }
-    let Some((kstar, hi, lo, solid, surface, raised)) = found else {
-        return (Vec::new(), None);
-    };
-    if raised.count() == 0 {
-        return (Vec::new(), Some(hi));
-    }
-    let above = hi + raise;
-    // the free surface: the footprint away from what rises above it (a solid body's top is
-    // judged away from its blurred fringe; a thin slab has none): `rim_texels`, as for the
-    // rim band below
-    let near_raised =
-        crate::morphology::dilate(&raised, up.rim_texels).unwrap_or_else(|_| raised.clone());
-    let judged = if solid {
-        let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
-        let e = erode(&padded, up.rim_texels).unwrap_or(padded);
-        Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1))
-    } else {
-        f.clone()
-    };
-    let free_n = (0..h * w).filter(|&i| judged.data[i] && !near_raised.data[i]).count();
-    tracing::debug!(?rect, lo, hi, kstar, solid, free_n, n, "surface");
-    // a low support (a pallet's deck, within `low_support_levels` of the ground) carries an
-    // object over most of it: its free surface is a margin, too narrow to judge away from
-    // the object; the rim and ring checks below still apply
-    let low = low_level(hi);
-    // an object held above the surface on a stem (a table lamp: its shade covers most of a
-    // side table, leaving no free surface to judge)
-    let waist = held_on_a_stem(&area, hi, thin, min_texels);
-    if waist {
-        tracing::debug!(?rect, "an object held on a stem above the slab");
-    }
-    if !low && !waist && !at_least(free_n, up.free_share, n) {
-        return (Vec::new(), Some(hi));
-    }
-    // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
-    // features of a window around it: the cluster holding the blob is the object, the other
-    // one the surface it stands on (the paper's second round with the table as background).
-    let seeds = match components(&raised) {
-        Ok(r) => r,
-        Err(_) => return (Vec::new(), Some(hi)),
-    };
-    // the window never reaches the rim band (edges of a table have colours of their own)
-    let interior = {
-        let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && f.get(r - 1, c - 1));
-        let e = erode(&padded, up.rim_texels).unwrap_or(padded);
-        Mask::from_fn(h, w, |r, c| e.get(r + 1, c + 1) || raised.get(r, c))
-    };
-    let mut taken = Mask { rows: h, cols: w, data: vec![false; h * w] };
-    let mut children = Vec::new();
-    for sd in seeds.iter().filter(|g| g.depth == 0) {
+    None
+}
+
+/// The seeds of one part's surface grown into the objects standing on it.
+struct Seeded<'a> {
+    cx: &'a Ctx<'a>,
+    part: &'a Part,
+    surface: &'a Surface,
+    /// The footprint's outline: seeds on it are a table's rim.
+    ring: Mask,
+    /// Where the colour window may reach: the footprint away from its rim band, and the
+    /// raised texels.
+    interior: Mask,
+    /// Texels of the objects found so far.
+    taken: Mask,
+}
+
+impl Seeded<'_> {
+    /// The object seeded by raised blob `sd` (its texels over the part's box) and its top
+    /// level; `None` when the seed lies on the rim or on an object found before, is haze,
+    /// grows to the rim or under the smallest object, or does not stand within free surface.
+    fn grow(&self, sd: &crate::contours::Region) -> Option<(Mask, usize)> {
+        let Seeded { cx, part, surface: s, ring, interior, taken } = self;
+        let (vol, tau, min_texels) = (cx.vol, cx.tau, cx.min_texels);
+        let (rect, f) = (part.rect, &part.footprint);
+        let (h, w) = (rect.rows(), rect.cols());
+        let (hi, above) = (s.hi, s.hi + cx.p.blur_levels.max(1));
         let sb = sd.bbox;
         let at = |r: usize, c: usize| sb.contains(r, c) && sd.pixels.get(r - sb.r0, c - sb.c0);
         let seed_px: Vec<(usize, usize)> = (sb.r0..sb.r1)
@@ -283,7 +368,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
             .collect();
         if seed_px.iter().any(|&(r, c)| ring.get(r, c) || taken.get(r, c)) {
             tracing::trace!(?sb, texels = seed_px.len(), "seed on the rim or taken");
-            continue;
+            return None;
         }
         // on a solid body, a speck of haze above the top is no object (small and low)
         // (solid voxels above the surface: a laptop's screen is a narrow seed, but tall)
@@ -294,9 +379,9 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
                 (above..vol.nz).filter(|&k| col[k] >= tau).count()
             })
             .sum();
-        if solid && seed_px.len() < min_texels && voxels < 2 * min_texels {
+        if s.solid && seed_px.len() < min_texels && voxels < 2 * min_texels {
             tracing::trace!(?sb, texels = seed_px.len(), voxels, "seed too small");
-            continue;
+            return None;
         }
         // the window: the seed's box grown on every side by the seed's larger side (the
         // second K-means sees as much surface as object, whatever the object's size: a
@@ -307,56 +392,16 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         for r in win.r0..win.r1 {
             for c in win.c0..win.c1 {
                 if interior.get(r, c)
-                    && let Some(v) = color.get(rect.r0 + r, rect.c0 + c)
+                    && let Some(v) = cx.color.get(rect.r0 + r, rect.c0 + c)
                 {
                     idx.push((r, c));
                     pts.extend_from_slice(v);
                 }
             }
         }
-        let mut object = Mask { rows: h, cols: w, data: vec![false; h * w] };
-        for &(r, c) in &seed_px {
-            object.set(r, c, true);
-        }
         let seedf: Vec<bool> = idx.iter().map(|&(r, c)| at(r, c)).collect();
-        // the connected part of the object cluster that holds the seed
-        let grow_seed = |labels: &[bool]| -> Mask {
-            let mut object = object.clone();
-            for (t, &(r, c)) in idx.iter().enumerate() {
-                if labels[t] {
-                    object.set(r, c, true);
-                }
-            }
-            let mut comp = Mask { rows: h, cols: w, data: vec![false; h * w] };
-            let mut stack: Vec<(usize, usize)> = seed_px.clone();
-            for &(r, c) in &seed_px {
-                comp.set(r, c, true);
-            }
-            while let Some((r, c)) = stack.pop() {
-                for dr in -1isize..=1 {
-                    for dc in -1isize..=1 {
-                        let (nr, nc) = (r as isize + dr, c as isize + dc);
-                        if nr < 0 || nc < 0 {
-                            continue;
-                        }
-                        let (nr, nc) = (nr as usize, nc as usize);
-                        if win.contains(nr, nc) && object.get(nr, nc) && !comp.get(nr, nc) {
-                            comp.set(nr, nc, true);
-                            stack.push((nr, nc));
-                        }
-                    }
-                }
-            }
-            // close the one-texel gaps the colour clusters leave in it
-            let padded =
-                Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && comp.get(r - 1, c - 1));
-            match crate::morphology::close(&padded, 1) {
-                Ok(m) => Mask::from_fn(h, w, |r, c| m.get(r + 1, c + 1) && win.contains(r, c)),
-                Err(_) => comp,
-            }
-        };
-        let comp = grow_seed(&far_from_surface(&pts, color.ch, &seedf));
-        let comp = fill_holes(&comp);
+        let labels = far_from_surface(&pts, cx.color.ch, &seedf);
+        let comp = fill_holes(&seed_component(&seed_px, &idx, &labels, win, h, w));
         let count = comp.count();
         let touches = (0..h * w).any(|i| comp.data[i] && (ring.data[i] || !f.data[i]));
         let kmax = seed_px
@@ -369,9 +414,17 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
             .unwrap_or(hi);
         tracing::trace!(?sb, count, touches, "seed grown");
         if touches || count < min_texels {
-            continue;
+            return None;
         }
-        // it must stand within the surface: most of the ring around it is surface
+        self.stands_within_surface(&comp).then_some((comp, kmax))
+    }
+
+    /// Whether most of the ring of texels around `comp` is free surface (part of the slab
+    /// with nothing above it). A majority, not a tuned share: a monitor at a desk's back
+    /// edge has a third of its ring over the edge; 0.6 lost three of the suite office's six.
+    fn stands_within_surface(&self, comp: &Mask) -> bool {
+        let (vol, tau, rect) = (self.cx.vol, self.cx.tau, self.part.rect);
+        let (h, w) = (rect.rows(), rect.cols());
         let (mut ring_n, mut ring_s) = (0usize, 0usize);
         for r in 0..h {
             for c in 0..w {
@@ -384,22 +437,62 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
                 if near {
                     ring_n += 1;
                     // a free surface texel: part of the slab with nothing above it
-                    let free = surface.get(r, c) && {
+                    let free = self.surface.surface.get(r, c) && {
                         let col = vol.column(rect.r0 + r, rect.c0 + c);
-                        !(hi + 1..vol.nz).any(|k| col[k] >= tau)
+                        !(self.surface.hi + 1..vol.nz).any(|k| col[k] >= tau)
                     };
                     ring_s += usize::from(free);
                 }
             }
         }
         tracing::trace!(ring_s, ring_n, "ring of free surface");
-        // (a majority, not a tuned share: a monitor at a desk's back edge has a third of its
-        // ring over the edge; 0.6 lost three of the suite office's six)
-        if ring_n == 0 || !more_than(ring_s, 0.5, ring_n) {
-            continue;
-        }
-        or_into(&mut taken, &comp);
-        children.extend(Child::cut(rect, &comp, kmax));
+        ring_n > 0 && more_than(ring_s, 0.5, ring_n)
     }
-    (children, Some(hi))
+}
+
+/// The connected part of the object cluster (`labels[t]` for window texel `idx[t]`, within
+/// `win`) that holds the seed `seed_px`, with the one-texel gaps the colour clusters leave
+/// in it closed.
+fn seed_component(
+    seed_px: &[(usize, usize)],
+    idx: &[(usize, usize)],
+    labels: &[bool],
+    win: PixelRect,
+    h: usize,
+    w: usize,
+) -> Mask {
+    let mut object = Mask { rows: h, cols: w, data: vec![false; h * w] };
+    for &(r, c) in seed_px {
+        object.set(r, c, true);
+    }
+    for (t, &(r, c)) in idx.iter().enumerate() {
+        if labels[t] {
+            object.set(r, c, true);
+        }
+    }
+    let mut comp = Mask { rows: h, cols: w, data: vec![false; h * w] };
+    let mut stack: Vec<(usize, usize)> = seed_px.to_vec();
+    for &(r, c) in seed_px {
+        comp.set(r, c, true);
+    }
+    while let Some((r, c)) = stack.pop() {
+        for dr in -1isize..=1 {
+            for dc in -1isize..=1 {
+                let (nr, nc) = (r as isize + dr, c as isize + dc);
+                if nr < 0 || nc < 0 {
+                    continue;
+                }
+                let (nr, nc) = (nr as usize, nc as usize);
+                if win.contains(nr, nc) && object.get(nr, nc) && !comp.get(nr, nc) {
+                    comp.set(nr, nc, true);
+                    stack.push((nr, nc));
+                }
+            }
+        }
+    }
+    let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && comp.get(r - 1, c - 1));
+    match crate::morphology::close(&padded, 1) {
+        Ok(m) => Mask::from_fn(h, w, |r, c| m.get(r + 1, c + 1) && win.contains(r, c)),
+        Err(_) => comp,
+    }
 }

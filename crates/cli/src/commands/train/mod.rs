@@ -14,7 +14,7 @@ use assetfield_field::joint::first_shared_difference;
 use assetfield_field::{
     Clock, DecoderKind, Field, FieldConfig, GridRule, ModelKind, TrainConfig, Trainer, share_config,
 };
-use assetfield_mining::library::{content_hash, open_library};
+use assetfield_library::{content_hash, open_library};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -408,7 +408,7 @@ impl SharedSource {
 /// Content hash of a field's shared tensors: the `shared.hash` a library mined from it
 /// records, equal for fields trained together.
 pub(crate) fn shared_hash(field: &Field) -> Result<String> {
-    let f = assetfield_mining::pipeline::shared_tensors(field, "")?;
+    let f = assetfield_library::shared_tensors(field, "")?;
     Ok(content_hash(&f))
 }
 
@@ -428,6 +428,8 @@ fn model_kind(a: &TrainArgs, shared: Option<&SharedSource>) -> Result<ModelKind>
     }
 }
 
+/// `assetfield train`: check the options, load the views, start or resume the run, train,
+/// write the field and report.
 pub fn train(a: TrainArgs) -> Result<()> {
     // cheap checks first, before anything is loaded
     let res = check_options(&a)?;
@@ -439,10 +441,47 @@ pub fn train(a: TrainArgs) -> Result<()> {
         }
         return joint::train_joint(a, res);
     }
-    let data_path = a.data[0].clone();
     let shared = a.share.as_deref().map(SharedSource::load).transpose()?;
     let kind = model_kind(&a, shared.as_ref())?;
-    if let (Some(s), Some(d)) = (&shared, a.decoder) {
+    check_share_options(&a, shared.as_ref())?;
+    let background = parse_color(&a.background).context("--background")?;
+    let user_aabb = a.aabb.as_deref().map(parse_aabb).transpose()?;
+    let ckpt = check_outputs(&a)?;
+    let inputs = Inputs::load(&a, &ckpt, background, kind)?;
+    let (mut trainer, info) = match &inputs.stored {
+        Some(stored) => resume_trainer(&inputs, &ckpt, &a, stored)?,
+        None => start_trainer(&inputs, &a, shared.as_ref(), kind, res, user_aabb)?,
+    };
+    if let (Some(s), true) = (&shared, a.resume)
+        && let Some(name) = first_shared_difference(&s.field, &trainer.field)
+    {
+        bail!(
+            "the checkpoint's shared tensor \"{name}\" differs from that of --share {}: the run was fitted against other shared tensors",
+            s.path.display()
+        );
+    }
+    let mut run = Run {
+        ckpt: ckpt.clone(),
+        info,
+        val_history: inputs.stored.as_ref().and_then(|s| s.val_history.clone()).unwrap_or_default(),
+    };
+    let session = train_loop(&mut trainer, &mut run, &a, &inputs)?;
+
+    // the final checkpoint first, then the field file, then (with --discard-checkpoint) the
+    // checkpoint's removal: a kill at any moment leaves a checkpoint or the field, never neither
+    run.save_checkpoint(&trainer)?;
+    let val_history = (!run.val_history.is_empty()).then(|| run.val_history.clone());
+    write_field(&trainer, FieldInfo { val_history, ..run.info.clone() }, &a.out)?;
+    if a.discard_checkpoint && ckpt.exists() {
+        std::fs::remove_file(&ckpt).with_context(|| format!("removing {}", ckpt.display()))?;
+    }
+    report(&trainer, &run, &session, &a, shared.as_ref())
+}
+
+/// `--decoder` and `--res` against the shared tensors of `--share`.
+fn check_share_options(a: &TrainArgs, shared: Option<&SharedSource>) -> Result<()> {
+    let Some(s) = shared else { return Ok(()) };
+    if let Some(d) = a.decoder {
         let want = match d {
             DecoderArg::Mlp => matches!(s.field.config.decoder, DecoderKind::Mlp { .. }),
             DecoderArg::Sh => matches!(s.field.config.decoder, DecoderKind::Sh { .. }),
@@ -455,13 +494,16 @@ pub fn train(a: TrainArgs) -> Result<()> {
             );
         }
     }
-    if shared.is_some() && a.res.is_some() {
+    if a.res.is_some() {
         bail!(
             "--res and --share: a scene fitted against shared tensors has their texel size; drop --res"
         );
     }
-    let background = parse_color(&a.background).context("--background")?;
-    let user_aabb = a.aabb.as_deref().map(parse_aabb).transpose()?;
+    Ok(())
+}
+
+/// `--out`, the checkpoint beside it, `--resume` and `--force`: the checkpoint's path.
+fn check_outputs(a: &TrainArgs) -> Result<PathBuf> {
     if a.out.is_dir() {
         bail!(
             "--out {} is a folder; give the field file to write, e.g. {}/field.safetensors",
@@ -492,216 +534,313 @@ pub fn train(a: TrainArgs) -> Result<()> {
             );
         }
     }
+    Ok(ckpt)
+}
 
-    // what a resumed run keeps from its checkpoint
-    let stored = if a.resume {
-        let f = TensorFile::load(&ckpt)
-            .with_context(|| format!("reading checkpoint {}", ckpt.display()))?;
-        if f.meta(keys::TRAIN_STATE).is_none() {
-            bail!("{} is not a training checkpoint (no training state in it)", ckpt.display());
+/// What a run trains on: the views, levelled, with their feature maps, and what a resumed
+/// run keeps from its checkpoint.
+struct Inputs {
+    data_path: PathBuf,
+    /// Every view's camera (train and test), levelled like the views: the scene box's basis.
+    all_cams: assetfield_data::DatasetCameras,
+    data: Dataset,
+    alignment: Option<GroundAlignment>,
+    /// The checkpoint's record, when resuming.
+    stored: Option<FieldInfo>,
+    background: [f32; 3],
+    downscale: u32,
+    semantic_channels: usize,
+    /// Two test views for `--val-every` (none without it).
+    val_frames: Vec<Frame>,
+}
+
+impl Inputs {
+    fn load(a: &TrainArgs, ckpt: &Path, background: [f32; 3], kind: ModelKind) -> Result<Self> {
+        let data_path = a.data[0].clone();
+        // what a resumed run keeps from its checkpoint
+        let stored = if a.resume {
+            let f = TensorFile::load(ckpt)
+                .with_context(|| format!("reading checkpoint {}", ckpt.display()))?;
+            if f.meta(keys::TRAIN_STATE).is_none() {
+                bail!("{} is not a training checkpoint (no training state in it)", ckpt.display());
+            }
+            Some(FieldInfo::read(&f)?)
+        } else {
+            None
+        };
+        let (background, downscale) = match &stored {
+            Some(s) => (s.background.unwrap_or(background), s.downscale.unwrap_or(a.downscale)),
+            None => (background, a.downscale),
+        };
+        let opts = LoadOptions { background, downscale, ..LoadOptions::default() };
+        let all_cams = Dataset::load_cameras_only(&data_path, Split::All, &opts)
+            .with_context(|| format!("reading dataset {}", data_path.display()))?;
+        let alignment = match &stored {
+            Some(s) => s.ground_transform,
+            None => match a.align_ground {
+                AlignArg::Pca => Some(GroundAlignment::fit_pca(&all_cams.cameras())?),
+                AlignArg::None => None,
+            },
+        };
+        let t_load = Instant::now();
+        let mut data = Dataset::load(&data_path, Split::Train, &opts)
+            .with_context(|| format!("loading the training views of {}", data_path.display()))?;
+        if let Some(g) = &alignment {
+            g.apply_to_dataset(&mut data);
         }
-        Some(FieldInfo::read(&f)?)
-    } else {
-        None
-    };
-    let (background, downscale) = match &stored {
-        Some(s) => (s.background.unwrap_or(background), s.downscale.unwrap_or(a.downscale)),
-        None => (background, a.downscale),
-    };
-    let opts = LoadOptions { background, downscale, ..LoadOptions::default() };
-    let all_cams = Dataset::load_cameras_only(&data_path, Split::All, &opts)
-        .with_context(|| format!("reading dataset {}", data_path.display()))?;
-    let alignment = match &stored {
-        Some(s) => s.ground_transform,
-        None => match a.align_ground {
-            AlignArg::Pca => Some(GroundAlignment::fit_pca(&all_cams.cameras())?),
-            AlignArg::None => None,
-        },
-    };
-    let t_load = Instant::now();
-    let mut data = Dataset::load(&data_path, Split::Train, &opts)
-        .with_context(|| format!("loading the training views of {}", data_path.display()))?;
-    if let Some(g) = &alignment {
-        g.apply_to_dataset(&mut data);
+        let semantic_channels = load_features(a, &mut data, stored.is_none().then_some(kind))?;
+        let (w, h) = data.resolution();
+        eprintln!(
+            "loaded {} training views ({w}x{h}) from {} in {:.1} s",
+            data.len(),
+            data.root.display(),
+            t_load.elapsed().as_secs_f64()
+        );
+        if let Some(g) = &alignment
+            && stored.is_none()
+        {
+            report_alignment(g);
+        }
+        let val_frames = match a.val_every {
+            None => Vec::new(),
+            Some(_) => validation_frames(&data_path, &opts, alignment.as_ref()),
+        };
+        Ok(Inputs {
+            data_path,
+            all_cams,
+            data,
+            alignment,
+            stored,
+            background,
+            downscale,
+            semantic_channels,
+            val_frames,
+        })
     }
-    // semantic feature maps (I-AssetField)
-    let model_kind = match &stored {
-        Some(_) => None,
-        None => Some(kind),
-    };
+}
+
+/// The semantic feature maps of an I-AssetField run (`--features`, or the dataset's
+/// `features/` when the model is I or a resumed run's): their channel count, 0 for none.
+/// `model_kind`: the model of a new run (`None` when resuming).
+fn load_features(
+    a: &TrainArgs,
+    data: &mut Dataset,
+    model_kind: Option<ModelKind>,
+) -> Result<usize> {
     let features_dir = match &a.features {
         Some(d) => Some(d.clone()),
         None => {
-            let d = data_path.join("features");
+            let d = a.data[0].join("features");
             (d.is_dir() && model_kind.is_none_or(|k| k == ModelKind::Integrated)).then_some(d)
         }
     };
     if a.features.is_some() && model_kind.is_some_and(|k| k != ModelKind::Integrated) {
         bail!("--features trains a semantic field, which only I-AssetField has: add --model i");
     }
-    let semantic_channels = match &features_dir {
-        Some(d) => {
-            let c = data
-                .load_features(d)
-                .with_context(|| format!("loading feature maps from {}", d.display()))?;
-            eprintln!("loaded {c}-channel feature maps from {}", d.display());
-            c
-        }
-        None => 0,
-    };
-    let (w, h) = data.resolution();
+    let Some(d) = &features_dir else { return Ok(0) };
+    let c = data
+        .load_features(d)
+        .with_context(|| format!("loading feature maps from {}", d.display()))?;
+    eprintln!("loaded {c}-channel feature maps from {}", d.display());
+    Ok(c)
+}
+
+/// What `--align-ground pca` found, and a warning when it is unlikely to be the ground.
+fn report_alignment(g: &GroundAlignment) {
     eprintln!(
-        "loaded {} training views ({w}x{h}) from {} in {:.1} s",
-        data.len(),
-        data.root.display(),
-        t_load.elapsed().as_secs_f64()
+        "ground alignment (pca): normal {} -> +Z, look-at {} -> origin (flatness {:.3})",
+        fmt_vec(g.normal),
+        fmt_vec(g.look_at),
+        g.flatness
     );
-    if let Some(g) = &alignment
-        && stored.is_none()
-    {
+    if g.up_cosine < 0.5 {
         eprintln!(
-            "ground alignment (pca): normal {} -> +Z, look-at {} -> origin (flatness {:.3})",
-            fmt_vec(g.normal),
-            fmt_vec(g.look_at),
-            g.flatness
+            "warning: the fitted ground normal is {:.0} degrees from the cameras' mean up \
+             vector: the cameras may not circle the scene (a forward-facing capture?), so \
+             the plane of their positions may not be the ground; consider training without \
+             --align-ground",
+            g.up_cosine.clamp(0.0, 1.0).acos().to_degrees()
         );
-        if g.up_cosine < 0.5 {
-            eprintln!(
-                "warning: the fitted ground normal is {:.0} degrees from the cameras' mean up \
-                 vector: the cameras may not circle the scene (a forward-facing capture?), so \
-                 the plane of their positions may not be the ground; consider training without \
-                 --align-ground",
-                g.up_cosine.clamp(0.0, 1.0).acos().to_degrees()
-            );
+    }
+}
+
+/// Two test views for `--val-every`, levelled like the training views (none, with a note,
+/// when the dataset has no test views).
+fn validation_frames(
+    data_path: &Path,
+    opts: &LoadOptions,
+    alignment: Option<&GroundAlignment>,
+) -> Vec<Frame> {
+    let vopts = LoadOptions { max_frames: Some(2), ..opts.clone() };
+    match Dataset::load(data_path, Split::Test, &vopts) {
+        Ok(mut d) => {
+            if let Some(g) = alignment {
+                g.apply_to_dataset(&mut d);
+            }
+            d.frames
+        }
+        Err(e) => {
+            eprintln!("note: --val-every ignored: no test views ({e})");
+            Vec::new()
         }
     }
-    let val_frames: Vec<Frame> = match a.val_every {
-        None => Vec::new(),
-        Some(_) => {
-            let vopts = LoadOptions { max_frames: Some(2), ..opts.clone() };
-            match Dataset::load(&data_path, Split::Test, &vopts) {
-                Ok(mut d) => {
-                    if let Some(g) = &alignment {
-                        g.apply_to_dataset(&mut d);
-                    }
-                    d.frames
-                }
-                Err(e) => {
-                    eprintln!("note: --val-every ignored: no test views ({e})");
-                    Vec::new()
-                }
-            }
-        }
-    };
+}
 
+/// The trainer of a resumed run and the record it continues.
+fn resume_trainer(
+    inputs: &Inputs,
+    ckpt: &Path,
+    a: &TrainArgs,
+    stored: &FieldInfo,
+) -> Result<(Trainer, FieldInfo)> {
     let seconds = a.minutes.map(|m| m * 60.0);
-    let (mut trainer, info) = if a.resume {
-        let t = Trainer::resume(&data, &ckpt, a.iters, seconds)
-            .with_context(|| format!("resuming from {}", ckpt.display()))?;
-        let want = t.field.config.semantic_dim();
-        if want != semantic_channels {
-            bail!(
-                "the checkpoint's semantic field has {want} channels but {} were loaded; pass                  --features with the feature maps the run started with",
-                semantic_channels
-            );
-        }
-        eprintln!(
-            "resuming {} at iteration {} ({} trained) from {}",
-            t.field.config.kind.name(),
-            t.iter,
-            fmt_duration(t.elapsed()),
-            ckpt.display()
-        );
-        let s = stored.clone().unwrap_or_default();
-        if let Some(d) = s.dataset.as_ref().filter(|d| **d != data.root) {
-            eprintln!(
-                "note: the checkpoint was trained on {}; continuing on {}",
-                d.display(),
-                data.root.display()
-            );
-        }
-        (t, FieldInfo { history: None, val_history: None, ..s })
-    } else {
-        let (aabb, source) = match user_aabb {
-            Some(b) => (b, "--aabb".to_string()),
-            None => {
-                let mut cams = all_cams.clone();
-                if let Some(g) = &alignment {
-                    g.apply_to_cameras(&mut cams);
-                }
-                scene_bounds(cams.scene_box, data.format, &cams.cameras(), alignment.as_ref())?
-            }
-        };
-        eprintln!(
-            "scene box {} .. {} ({source})",
-            fmt_vec(aabb.min.to_array()),
-            fmt_vec(aabb.max.to_array())
-        );
-        let (fc, grid, res) = match &shared {
-            Some(s) => {
-                let (fc, grid) = share_config(&s.field.config, aabb)?;
-                let have = fc.semantic_dim();
-                if semantic_channels > 0 && semantic_channels != have {
-                    bail!(
-                        "{semantic_channels}-channel feature maps were loaded, but the shared tensors of {} decode {have} semantic channels",
-                        s.path.display()
-                    );
-                }
-                eprintln!(
-                    "fitting the ground planes against the frozen shared tensors of {} ({} texels of {:.4} x {:.4}, vertical axis {} samples over z {:.3} .. {:.3})",
-                    s.path.display(),
-                    format_args!("{} x {}", fc.res[0], fc.res[1]),
-                    fc.voxel_size().x,
-                    fc.voxel_size().y,
-                    fc.res[2],
-                    fc.aabb[0][2],
-                    fc.aabb[1][2]
-                );
-                let final_res = fc.res[0].max(fc.res[1]);
-                (fc, grid, final_res)
-            }
-            None => {
-                let mut fc = FieldConfig::new(kind, aabb, res);
-                if a.decoder == Some(DecoderArg::Sh) {
-                    fc.decoder = DecoderKind::Sh { degree: 2 };
-                }
-                fc.semantic_channels = semantic_channels;
-                (fc, GridRule::default(), res)
-            }
-        };
-        // the same bounds a field file is loaded with, before anything is allocated
-        fc.validate(&a.out).context("the field these options describe cannot be trained")?;
-        let mut tc = train_config(&a, kind, res, background);
-        tc.grid = grid;
-        let info = FieldInfo {
-            dataset: Some(data.root.clone()),
-            aabb: Some([aabb.min.to_array(), aabb.max.to_array()]),
-            aabb_source: Some(source),
-            ground_transform: alignment,
-            background: Some(background),
-            downscale: Some(downscale),
-            ..FieldInfo::default()
-        };
-        let mut t = Trainer::new(&data, fc, tc);
-        if let Some(s) = &shared {
-            t.field.copy_shared_from(&s.field);
-        }
-        (t, info)
-    };
-    if let (Some(s), true) = (&shared, a.resume)
-        && let Some(name) = first_shared_difference(&s.field, &trainer.field)
-    {
+    let data = &inputs.data;
+    let t = Trainer::resume(data, ckpt, a.iters, seconds)
+        .with_context(|| format!("resuming from {}", ckpt.display()))?;
+    let want = t.field.config.semantic_dim();
+    if want != inputs.semantic_channels {
         bail!(
-            "the checkpoint's shared tensor \"{name}\" differs from that of --share {}: the run was fitted against other shared tensors",
+            "the checkpoint's semantic field has {want} channels but {} were loaded; pass                  --features with the feature maps the run started with",
+            inputs.semantic_channels
+        );
+    }
+    eprintln!(
+        "resuming {} at iteration {} ({} trained) from {}",
+        t.field.config.kind.name(),
+        t.iter,
+        fmt_duration(t.elapsed()),
+        ckpt.display()
+    );
+    if let Some(d) = stored.dataset.as_ref().filter(|d| **d != data.root) {
+        eprintln!(
+            "note: the checkpoint was trained on {}; continuing on {}",
+            d.display(),
+            data.root.display()
+        );
+    }
+    Ok((t, FieldInfo { history: None, val_history: None, ..stored.clone() }))
+}
+
+/// The trainer of a new run (its scene box, configuration and, with `--share`, the frozen
+/// shared tensors) and the record it starts.
+fn start_trainer(
+    inputs: &Inputs,
+    a: &TrainArgs,
+    shared: Option<&SharedSource>,
+    kind: ModelKind,
+    res: usize,
+    user_aabb: Option<Aabb3>,
+) -> Result<(Trainer, FieldInfo)> {
+    let data = &inputs.data;
+    let alignment = inputs.alignment;
+    let (aabb, source) = match user_aabb {
+        Some(b) => (b, "--aabb".to_string()),
+        None => {
+            let mut cams = inputs.all_cams.clone();
+            if let Some(g) = &alignment {
+                g.apply_to_cameras(&mut cams);
+            }
+            scene_bounds(cams.scene_box, data.format, &cams.cameras(), alignment.as_ref())?
+        }
+    };
+    eprintln!(
+        "scene box {} .. {} ({source})",
+        fmt_vec(aabb.min.to_array()),
+        fmt_vec(aabb.max.to_array())
+    );
+    let (fc, grid, res) = match shared {
+        Some(s) => shared_config(s, aabb, inputs.semantic_channels)?,
+        None => {
+            let mut fc = FieldConfig::new(kind, aabb, res);
+            if a.decoder == Some(DecoderArg::Sh) {
+                fc.decoder = DecoderKind::Sh { degree: 2 };
+            }
+            fc.semantic_channels = inputs.semantic_channels;
+            (fc, GridRule::default(), res)
+        }
+    };
+    // the same bounds a field file is loaded with, before anything is allocated
+    fc.validate(&a.out).context("the field these options describe cannot be trained")?;
+    let mut tc = train_config(a, kind, res, inputs.background);
+    tc.grid = grid;
+    let info = FieldInfo {
+        dataset: Some(data.root.clone()),
+        aabb: Some([aabb.min.to_array(), aabb.max.to_array()]),
+        aabb_source: Some(source),
+        ground_transform: alignment,
+        background: Some(inputs.background),
+        downscale: Some(inputs.downscale),
+        ..FieldInfo::default()
+    };
+    let mut t = Trainer::new(data, fc, tc);
+    if let Some(s) = shared {
+        t.field.copy_shared_from(&s.field);
+    }
+    Ok((t, info))
+}
+
+/// The configuration of a scene fitted against `s`'s shared tensors in `aabb`: its grid
+/// rule and final plane resolution.
+fn shared_config(
+    s: &SharedSource,
+    aabb: Aabb3,
+    semantic_channels: usize,
+) -> Result<(FieldConfig, GridRule, usize)> {
+    let (fc, grid) = share_config(&s.field.config, aabb)?;
+    let have = fc.semantic_dim();
+    if semantic_channels > 0 && semantic_channels != have {
+        bail!(
+            "{semantic_channels}-channel feature maps were loaded, but the shared tensors of {} decode {have} semantic channels",
             s.path.display()
         );
     }
-    let mut run = Run {
-        ckpt: ckpt.clone(),
-        info,
-        val_history: stored.as_ref().and_then(|s| s.val_history.clone()).unwrap_or_default(),
-    };
+    eprintln!(
+        "fitting the ground planes against the frozen shared tensors of {} ({} texels of {:.4} x {:.4}, vertical axis {} samples over z {:.3} .. {:.3})",
+        s.path.display(),
+        format_args!("{} x {}", fc.res[0], fc.res[1]),
+        fc.voxel_size().x,
+        fc.voxel_size().y,
+        fc.res[2],
+        fc.aabb[0][2],
+        fc.aabb[1][2]
+    );
+    let final_res = fc.res[0].max(fc.res[1]);
+    Ok((fc, grid, final_res))
+}
 
+/// What one session of training did, for the closing lines.
+struct Session {
+    /// Iterations trained in this session.
+    done: u64,
+    seconds: f64,
+    samples: u64,
+    /// The last iteration's batch PSNR.
+    last_psnr: f32,
+}
+
+/// Smoothed seconds and samples per iteration, for the progress bar's rates.
+#[derive(Default)]
+struct Rates {
+    step_time: f64,
+    step_samples: f64,
+}
+
+impl Rates {
+    fn add(&mut self, seconds: f64, samples: f64) {
+        let k = if self.step_time == 0.0 { 1.0 } else { 0.05 };
+        self.step_time += k * (seconds - self.step_time);
+        self.step_samples += k * (samples - self.step_samples);
+    }
+}
+
+/// Train until the budget is spent, with the progress bar, `--val-every` views and periodic
+/// checkpoints; Ctrl-C saves a checkpoint and ends with an error that says how to resume.
+fn train_loop(
+    trainer: &mut Trainer,
+    run: &mut Run,
+    a: &TrainArgs,
+    inputs: &Inputs,
+) -> Result<Session> {
     let limit_iters = (trainer.config.iters != u64::MAX).then_some(trainer.config.iters);
     if trainer.finished() {
         eprintln!(
@@ -715,8 +854,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
     let session = Instant::now();
     let mut last_ckpt = Instant::now();
     let every = Duration::from_secs_f64(a.checkpoint_every_minutes * 60.0);
-    let mut step_time = 0.0f64; // smoothed seconds per iteration
-    let mut step_samples = 0.0f64; // smoothed samples per iteration
+    let mut rates = Rates::default();
     let mut samples_done = 0u64;
     let mut last_psnr = trainer.history.last().map_or(f32::NAN, |h| h.2);
     let mut val_text = String::new();
@@ -724,38 +862,41 @@ pub fn train(a: TrainArgs) -> Result<()> {
     while !trainer.finished() {
         if interrupt::requested() {
             pb.finish_and_clear();
-            run.save_checkpoint(&trainer)?;
+            run.save_checkpoint(trainer)?;
             return Err(anyhow!(
                 "interrupted at iteration {}: checkpoint saved to {}; the field file was not written. Continue with: assetfield train {} --out {} --resume",
                 trainer.iter,
-                ckpt.display(),
-                data_path.display(),
+                run.ckpt.display(),
+                inputs.data_path.display(),
                 a.out.display()
             ));
         }
         let s = trainer.step();
         last_psnr = s.psnr;
-        let k = if step_time == 0.0 { 1.0 } else { 0.05 };
-        step_time += k * (s.seconds - step_time);
-        step_samples += k * (s.samples as f64 - step_samples);
+        rates.add(s.seconds, s.samples as f64);
         samples_done += s.samples as u64;
-        let rays_per_s = batch / step_time.max(1e-9);
-        let samples_per_s = step_samples / step_time.max(1e-9);
+        let rays_per_s = batch / rates.step_time.max(1e-9);
+        let samples_per_s = rates.step_samples / rates.step_time.max(1e-9);
         if let Some(n) = a.val_every
-            && !val_frames.is_empty()
+            && !inputs.val_frames.is_empty()
             && s.iter.is_multiple_of(n)
         {
             let bg = Vec3::from(trainer.config.background);
-            let p = mean_psnr(&trainer.field, trainer.occupancy.as_ref(), &val_frames, bg);
+            let p = mean_psnr(&trainer.field, trainer.occupancy.as_ref(), &inputs.val_frames, bg);
             run.val_history.push((trainer.elapsed(), s.iter, p));
             val_text = format!(" | test {p:.2} dB");
         }
         if !every.is_zero() && last_ckpt.elapsed() >= every {
-            run.save_checkpoint(&trainer)?;
+            run.save_checkpoint(trainer)?;
             last_ckpt = Instant::now();
         }
-        let left =
-            time_left(limit_iters, s.iter, step_time, trainer.config.seconds, trainer.elapsed());
+        let left = time_left(
+            limit_iters,
+            s.iter,
+            rates.step_time,
+            trainer.config.seconds,
+            trainer.elapsed(),
+        );
         pb.set_position((trainer.progress() * 1000.0) as u64);
         pb.set_message(format!(
             "it {}{} | loss {:.5} | psnr {:.2}{} | {:.2} M rays/s, {:.1} M samples/s | plane {} | left {}{val_text}",
@@ -771,19 +912,24 @@ pub fn train(a: TrainArgs) -> Result<()> {
         ));
     }
     pb.finish_and_clear();
-    let session_s = session.elapsed().as_secs_f64();
-    let done = trainer.iter - start_iter;
+    Ok(Session {
+        done: trainer.iter - start_iter,
+        seconds: session.elapsed().as_secs_f64(),
+        samples: samples_done,
+        last_psnr,
+    })
+}
 
-    // the final checkpoint first, then the field file, then (with --discard-checkpoint) the
-    // checkpoint's removal: a kill at any moment leaves a checkpoint or the field, never neither
-    run.save_checkpoint(&trainer)?;
-    let val_history = (!run.val_history.is_empty()).then(|| run.val_history.clone());
-    write_field(&trainer, FieldInfo { val_history, ..run.info.clone() }, &a.out)?;
-    if a.discard_checkpoint && ckpt.exists() {
-        std::fs::remove_file(&ckpt).with_context(|| format!("removing {}", ckpt.display()))?;
-    }
-
+/// The closing lines: what was trained, how fast, the field's sizes and where it went.
+fn report(
+    trainer: &Trainer,
+    run: &Run,
+    session: &Session,
+    a: &TrainArgs,
+    shared: Option<&SharedSource>,
+) -> Result<()> {
     let cfg = &trainer.field.config;
+    let (done, session_s) = (session.done, session.seconds);
     println!(
         "trained {} ({}) for {} iterations in {} ({} this session){}",
         cfg.kind.name(),
@@ -799,15 +945,15 @@ pub fn train(a: TrainArgs) -> Result<()> {
     let rays = if done > 0 && session_s > 0.0 {
         format!(
             ", {:.2} M rays/s, {:.1} M samples/s",
-            done as f64 * batch / session_s / 1e6,
-            samples_done as f64 / session_s / 1e6
+            done as f64 * trainer.config.batch as f64 / session_s / 1e6,
+            session.samples as f64 / session_s / 1e6
         )
     } else {
         String::new()
     };
     println!(
         "final batch PSNR {:.2} dB{rays}, plane {}x{}, vertical axis {}{}",
-        last_psnr,
+        session.last_psnr,
         cfg.res[0],
         cfg.res[1],
         cfg.res[2],
@@ -817,14 +963,12 @@ pub fn train(a: TrainArgs) -> Result<()> {
         println!(
             "shared tensors {} (frozen: those of {})",
             shared_hash(&trainer.field)?,
-            shared
-                .as_ref()
-                .map_or_else(|| "the run's start".into(), |s| s.path.display().to_string())
+            shared.map_or_else(|| "the run's start".into(), |s| s.path.display().to_string())
         );
     }
     println!("wrote {}", a.out.display());
     if !a.discard_checkpoint {
-        println!("checkpoint {} (extend the run with --resume --iters N)", ckpt.display());
+        println!("checkpoint {} (extend the run with --resume --iters N)", run.ckpt.display());
     }
     Ok(())
 }
