@@ -493,8 +493,6 @@ fn canvas_planes(field: &Field, h: &RasterHeader) -> Vec<f32> {
 /// The sizes of the buffers that depend on the planes and the occupancy grid, checked
 /// against the device's limit and 32-bit indices.
 struct BufferSizes {
-    /// The canvas planes' floats.
-    canvas: usize,
     /// The weight and core weight sums of every texel.
     scratch_bytes: u64,
     /// One bit per corner of the occupancy grid's cells.
@@ -530,7 +528,7 @@ impl BufferSizes {
             let what = "the occupancy grid's corners";
             return Err(GpuError::BufferTooLarge { what, bytes: corner_bytes, limit });
         }
-        Ok(BufferSizes { canvas, scratch_bytes, corner_bytes })
+        Ok(BufferSizes { scratch_bytes, corner_bytes })
     }
 }
 
@@ -588,7 +586,6 @@ impl RasterObjects {
         let occ_pipelines = ["occupancy_points", "occupancy_cells"].map(|entry| {
             crate::context::compute_pipeline(device, entry, &occ_layout, renderer.module(), entry)
         });
-        debug_assert_eq!(canvas.len(), sizes.canvas);
         let canvas_buf = buffer(device, "canvas", canvas.len() as u64 * 4, STORAGE_IN);
         queue.write_buffer(&canvas_buf, 0, bytemuck::cast_slice(canvas));
         let b = |label, size, usage| buffer(device, label, size, usage);

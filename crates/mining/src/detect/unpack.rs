@@ -260,6 +260,8 @@ fn inner_footprint(f: &Mask, rim: usize) -> Mask {
 struct Surface {
     kstar: usize,
     hi: usize,
+    /// The first level counted as raised above the surface (past its blur).
+    above: usize,
     lo: usize,
     solid: bool,
     surface: Mask,
@@ -331,7 +333,7 @@ fn find_surface(cx: &Ctx, part: &Part, levels: &Levels) -> Option<Surface> {
             tracing::trace!(kw, "nothing on the surface: trying the low one below");
             continue;
         }
-        return Some(Surface { kstar, hi, lo, solid, surface, raised });
+        return Some(Surface { kstar, hi, above, lo, solid, surface, raised });
     }
     None
 }
@@ -359,7 +361,7 @@ impl Seeded<'_> {
         let (vol, tau, min_texels) = (cx.vol, cx.tau, cx.min_texels);
         let (rect, f) = (part.rect, &part.footprint);
         let (h, w) = (rect.rows(), rect.cols());
-        let (hi, above) = (s.hi, s.hi + cx.p.blur_levels.max(1));
+        let (hi, above) = (s.hi, s.above);
         let sb = sd.bbox;
         let at = |r: usize, c: usize| sb.contains(r, c) && sd.pixels.get(r - sb.r0, c - sb.c0);
         let seed_px: Vec<(usize, usize)> = (sb.r0..sb.r1)
