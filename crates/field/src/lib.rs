@@ -13,6 +13,7 @@ pub mod mlp;
 pub mod model;
 pub mod occupancy;
 pub mod params;
+pub mod touched;
 pub mod train;
 
 pub use config::{DecoderKind, FieldConfig, ModelKind};

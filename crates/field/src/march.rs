@@ -5,6 +5,7 @@
 use crate::mlp::sigmoid;
 use crate::model::{ColorWork, Field};
 use crate::occupancy::Occupancy;
+use crate::touched::TouchedBlocks;
 use assetfield_core::Ray;
 use glam::Vec3;
 
@@ -85,6 +86,9 @@ pub struct MarchWork {
     d_sem: Vec<f32>,
     /// One ray's density-feature gradients, by sample.
     d_feat: Vec<f32>,
+    /// The gradient blocks the backward passes wrote plane gradients to; off unless the
+    /// caller turns it on (the trainer does, to read only those blocks).
+    pub touched: TouchedBlocks,
 }
 
 const NO_COLOR: u32 = u32::MAX;
@@ -351,11 +355,11 @@ pub fn backward(
             after += weight * g;
             w.d_feat[i - a] = w.s_dscale[i] * d_sigma * sigmoid(w.s_feat[i] + shift);
         }
-        field.density_backward(&w.s_pos[a..b], &w.d_feat[..b - a], grad);
+        field.density_backward(&w.s_pos[a..b], &w.d_feat[..b - a], grad, &mut w.touched);
     }
     let d = std::mem::take(&mut w.d_rgb);
     let ds = std::mem::take(&mut w.d_sem);
-    field.color_backward(&mut w.color, &d, d_sem.map(|_| ds.as_slice()), grad);
+    field.color_backward(&mut w.color, &d, d_sem.map(|_| ds.as_slice()), grad, &mut w.touched);
     w.d_rgb = d;
     w.d_sem = ds;
 }

@@ -8,6 +8,7 @@ use crate::mlp::{
     softplus,
 };
 use crate::params::{Group, ParamSet};
+use crate::touched::TouchedBlocks;
 use glam::Vec3;
 
 /// A plane-axis pair: a plane over grid axes `axes[0]` (columns) and `axes[1]` (rows), and an
@@ -416,7 +417,14 @@ impl Field {
     /// texels (or the same two line samples), as the samples of one ray mostly do, add up
     /// in a small buffer that reaches `grad` once: the gradient's memory is written once per
     /// texel met, not once per sample.
-    pub fn density_backward(&self, points: &[Vec3], d_feats: &[f32], grad: &mut [f32]) {
+    /// The plane blocks written are marked in `touched` (see [`crate::touched`]).
+    pub fn density_backward(
+        &self,
+        points: &[Vec3],
+        d_feats: &[f32],
+        grad: &mut [f32],
+        touched: &mut TouchedBlocks,
+    ) {
         const B: usize = BACKWARD_BLOCK;
         let d = &self.params.data;
         for c in &self.density {
@@ -435,13 +443,13 @@ impl Field {
                     let ([p0, p1, p2, p3], [l0, l1]) = c.taps(d, &b, &l);
                     if quad != Some(b.idx) {
                         if let Some(q) = quad {
-                            flush(grad, c.plane + q0, q, &mut dp, n);
+                            flush(grad, c.plane + q0, q, &mut dp, n, touched);
                         }
                         quad = Some(b.idx);
                     }
                     if pair != Some(l.idx) {
                         if let Some(q) = pair {
-                            flush(grad, line + q0, q, &mut dl, n);
+                            flush(grad, line + q0, q, &mut dl, n, touched);
                         }
                         pair = Some(l.idx);
                     }
@@ -461,10 +469,10 @@ impl Field {
                     }
                 }
                 if let Some(q) = quad {
-                    flush(grad, c.plane + q0, q, &mut dp, n);
+                    flush(grad, c.plane + q0, q, &mut dp, n, touched);
                 }
                 if let Some(q) = pair {
-                    flush(grad, line + q0, q, &mut dl, n);
+                    flush(grad, line + q0, q, &mut dl, n, touched);
                 }
             }
         }
@@ -598,13 +606,14 @@ impl Field {
 
     /// Backward of [`Field::color_forward`] for `d_rgb` (`[n][3]`) and, when the field has a
     /// semantic head and the forward pass evaluated it, `d_sem` (`[n][semantic_channels]`),
-    /// accumulated into `grad`.
+    /// accumulated into `grad`; the plane blocks written are marked in `touched`.
     pub fn color_backward(
         &self,
         w: &mut ColorWork,
         d_rgb: &[f32],
         d_sem: Option<&[f32]>,
         grad: &mut [f32],
+        touched: &mut TouchedBlocks,
     ) {
         let n = w.pos.len();
         let cfg = &self.config;
@@ -667,6 +676,9 @@ impl Field {
                     for c in &self.color {
                         let (b, l) = (c.plane_at(g), c.line_at(g));
                         let line = c.line.expect("colour line");
+                        for &t in &b.idx {
+                            touched.mark(c.plane + t, c.ch);
+                        }
                         for q0 in (0..c.ch).step_by(BACKWARD_BLOCK) {
                             let nq = (c.ch - q0).min(BACKWARD_BLOCK);
                             let mut dm = [0.0f32; BACKWARD_BLOCK];
@@ -721,12 +733,16 @@ impl Field {
                 let mut tmp = vec![0.0f32; nd];
                 for j in 0..n {
                     let g = self.to_grid(w.pos[j]);
-                    cc.plane_at(g)
-                        .scatter(&mut grad[cc.plane..], &w.dapp[j * app_dim..][..app_dim]);
+                    let (cb, db) = (cc.plane_at(g), dc.plane_at(g));
+                    for (&ct, &dt) in cb.idx.iter().zip(&db.idx) {
+                        touched.mark(cc.plane + ct, cc.ch);
+                        touched.mark(dc.plane + dt, dc.ch);
+                    }
+                    cb.scatter(&mut grad[cc.plane..], &w.dapp[j * app_dim..][..app_dim]);
                     for k in 0..nd {
                         tmp[k] = w.dgin[j * nd + k] * w.gh[j * nd + k];
                     }
-                    dc.plane_at(g).scatter(&mut grad[dc.plane..], &tmp);
+                    db.scatter(&mut grad[dc.plane..], &tmp);
                     for k in 0..nd {
                         tmp[k] = w.dgin[j * nd + k] * w.gm[j * nd + k];
                     }
@@ -822,15 +838,18 @@ impl Field {
 }
 
 /// `grad[base + idx[t] ..][..n] += acc[t][..n]` for every tap `t`, tap by tap (border taps
-/// may name the same texel twice), leaving `acc` zero.
+/// may name the same texel twice), leaving `acc` zero; the blocks written are marked in
+/// `touched`.
 fn flush<const T: usize>(
     grad: &mut [f32],
     base: usize,
     idx: [usize; T],
     acc: &mut [[f32; BACKWARD_BLOCK]; T],
     n: usize,
+    touched: &mut TouchedBlocks,
 ) {
     for (t, a) in idx.iter().zip(acc.iter_mut()) {
+        touched.mark(base + t, n);
         for (o, v) in grad[base + t..][..n].iter_mut().zip(a.iter_mut()) {
             *o += *v;
             *v = 0.0;
@@ -1032,6 +1051,13 @@ impl Field {
             let dst = dst.offset..dst.offset + dst.len;
             self.params.data[dst].copy_from_slice(&from.params.data[src]);
         }
+    }
+
+    /// The planes whose gradient blocks the backward passes mark (see [`crate::touched`]):
+    /// every density and colour component's plane. Everything else (lines, networks) is
+    /// written on every iteration and not marked.
+    pub fn marked_plane_ranges(&self) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+        self.density.iter().chain(&self.color).map(|c| c.plane..c.plane + c.rows * c.cols * c.ch)
     }
 
     /// Offsets and lengths of the density grid tensors (for L1 regularisation).

@@ -213,6 +213,22 @@ pub fn process_cpu_seconds() -> Option<f64> {
 /// Floats per task of the gradient reduction (32 KiB: a block of every chunk buffer and of
 /// the sum stay in L1/L2 together).
 const REDUCE_BLOCK: usize = 8192;
+/// `n` zeros written to memory: a chunk's gradient buffer, whose blocks a sparse field's
+/// iterations read only where they wrote. `vec![0.0; n]` maps pages that fault in on first
+/// write, and those faults (a zeroed page and a TLB flush on both cores each) would be spread
+/// over the first hundreds of iterations instead of paid once here.
+fn resident_zeros(n: usize) -> Vec<f32> {
+    let mut v = Vec::with_capacity(n);
+    v.resize(n, 0.0);
+    v
+}
+
+/// Floats per block that a backward pass marks as written (see [`crate::touched`]): 256
+/// (1 KiB), small enough that a chunk's samples leave most of a sparse scene's planes
+/// unmarked (a 300 x 300 plane of 48 channels is 17 k such blocks; every chunk met every one
+/// of its 8192-float blocks), large enough that the flags cost nothing to clear. Divides
+/// [`REDUCE_BLOCK`].
+const TOUCH_BLOCK: usize = 256;
 
 /// Iterations before the first occupancy grid: before that the density has not formed and
 /// a grid would mark the scene empty for good (short runs never use one).
@@ -330,7 +346,7 @@ impl Trainer {
         Trainer {
             adam: Adam::new(n),
             grad: vec![0.0; n],
-            work: (0..config.chunks).map(|_| (MarchWork::default(), vec![0.0; n])).collect(),
+            work: (0..config.chunks).map(|_| (MarchWork::default(), resident_zeros(n))).collect(),
             rng: config.seed,
             config,
             field,
@@ -392,7 +408,7 @@ impl Trainer {
         self.adam.reset(n);
         self.grad = vec![0.0; n];
         for (_, g) in &mut self.work {
-            *g = vec![0.0; n];
+            *g = resident_zeros(n);
         }
         if self.occupancy.is_some() {
             self.rebuild_occupancy_with(self.occupancy_threshold());
@@ -526,6 +542,7 @@ impl Trainer {
                     }
                 }
                 work.want_semantic = semantic;
+                work.touched.track(grad.len(), TOUCH_BLOCK);
                 march::forward(field, occ, &rays, Some(&jitter), bg, &settings, work);
                 let (sse, d) = colour_error(&work.rgb, &targets, scale);
                 let mut sem_sse = 0.0;
@@ -543,35 +560,7 @@ impl Trainer {
                 (sse, sem_sse, work.samples, work.color_samples)
             })
             .collect();
-        // deterministic reduction: chunk buffers summed in order, each cleared as it is read
-        // (one pass over them, and they are zero for the next iteration)
-        let mut bufs: Vec<&mut [f32]> =
-            self.work.iter_mut().map(|(_, g)| g.as_mut_slice()).collect();
-        let mut parts: Vec<Vec<&mut [f32]>> =
-            bufs.iter_mut().map(|b| b.chunks_mut(REDUCE_BLOCK).collect()).collect();
-        let mut blocks: Vec<Vec<&mut [f32]>> =
-            Vec::with_capacity(self.grad.len().div_ceil(REDUCE_BLOCK));
-        for _ in 0..self.grad.len().div_ceil(REDUCE_BLOCK) {
-            blocks.push(Vec::with_capacity(parts.len()));
-        }
-        for p in &mut parts {
-            for (k, b) in p.drain(..).enumerate() {
-                blocks[k].push(b);
-            }
-        }
-        self.grad.par_chunks_mut(REDUCE_BLOCK).zip(blocks.par_iter_mut()).for_each(
-            |(out, srcs)| {
-                let (first, rest) = srcs.split_first_mut().expect("at least one chunk");
-                out.copy_from_slice(first);
-                first.fill(0.0);
-                for b in rest {
-                    for (o, v) in out.iter_mut().zip(b.iter_mut()) {
-                        *o += *v;
-                        *v = 0.0;
-                    }
-                }
-            },
-        );
+        self.reduce_chunk_gradients();
         self.regularise();
         if self.config.grid.frozen_shared {
             for (_, r) in self.field.shared_ranges() {
@@ -593,6 +582,70 @@ impl Trainer {
             color_samples: results.iter().map(|r| r.3).sum(),
             seconds: 0.0,
         }
+    }
+
+    /// `self.grad` = the chunks' gradient buffers summed in chunk order (deterministic),
+    /// each buffer cleared as it is read, so it is zero for the next iteration. Of the
+    /// planes, only the blocks a chunk's backward pass marked are read (see
+    /// [`crate::touched`]); a block no chunk wrote to is zero in `self.grad`.
+    fn reduce_chunk_gradients(&mut self) {
+        let n_touch = self.grad.len().div_ceil(TOUCH_BLOCK);
+        // blocks that lie wholly in a marked plane are read only where marked
+        let mut always = vec![true; n_touch];
+        for r in self.field.marked_plane_ranges() {
+            let (a, b) = (r.start.div_ceil(TOUCH_BLOCK), r.end / TOUCH_BLOCK);
+            always[a..b.max(a)].fill(false);
+        }
+        let per_block = REDUCE_BLOCK / TOUCH_BLOCK;
+        let mut blocks: Vec<Vec<(&mut [f32], &[bool])>> =
+            (0..self.grad.len().div_ceil(REDUCE_BLOCK))
+                .map(|_| Vec::with_capacity(self.work.len()))
+                .collect();
+        for (work, buf) in &mut self.work {
+            let flags = work.touched.flags();
+            debug_assert!(flags.len() == n_touch, "every chunk tracks its blocks");
+            for ((b, f), srcs) in
+                buf.chunks_mut(REDUCE_BLOCK).zip(flags.chunks(per_block)).zip(&mut blocks)
+            {
+                srcs.push((b, f));
+            }
+        }
+        self.grad
+            .par_chunks_mut(REDUCE_BLOCK)
+            .zip(blocks.par_iter_mut())
+            .zip(always.par_chunks(per_block))
+            .for_each(|((out, srcs), always)| {
+                for (s, out) in out.chunks_mut(TOUCH_BLOCK).enumerate() {
+                    let r = s * TOUCH_BLOCK..s * TOUCH_BLOCK + out.len();
+                    let mut first = true;
+                    for (buf, flags) in srcs.iter_mut() {
+                        if !(always[s] || flags[s]) {
+                            continue;
+                        }
+                        let src = &mut buf[r.clone()];
+                        if first {
+                            out.copy_from_slice(src);
+                            src.fill(0.0);
+                            first = false;
+                        } else {
+                            for (o, v) in out.iter_mut().zip(src.iter_mut()) {
+                                *o += *v;
+                                *v = 0.0;
+                            }
+                        }
+                    }
+                    if first {
+                        out.fill(0.0);
+                    }
+                }
+            });
+        for (work, _) in &mut self.work {
+            work.touched.clear();
+        }
+        debug_assert!(
+            self.work.iter().all(|(_, g)| g.iter().all(|&v| v == 0.0)),
+            "a backward pass wrote to a plane block it did not mark"
+        );
     }
 
     /// The Adam update with `self.grad` at `progress` (learning-rate decay); the iteration
@@ -741,7 +794,7 @@ impl Trainer {
         t.adam.set_state(m, v, state.adam_t);
         t.grad = vec![0.0; n];
         for (_, g) in &mut t.work {
-            *g = vec![0.0; n];
+            *g = resident_zeros(n);
         }
         t.iter = state.iter;
         t.elapsed_before = state.elapsed;
