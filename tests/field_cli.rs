@@ -222,11 +222,13 @@ fn resume_continues_the_run() {
 }
 
 /// Start an endless `train` in `dir` (dataset `d`), send it `signal` once it runs, and check
-/// that it stops with status 130, a checkpoint and no field file.
+/// that it stops with status 130, a checkpoint and no field file. `closed`: the reader of its
+/// standard output and error has gone (both pipes closed) before the signal.
 #[cfg(unix)]
-fn signal_stops_training_with_a_checkpoint(dir: &Path, signal: &str) {
+fn signal_stops_training_with_a_checkpoint(dir: &Path, signal: &str, closed: bool) {
     use std::process::{Command, Stdio};
-    let child = Command::new(assetfield_tests::assetfield_bin())
+    let _ = std::fs::remove_file(dir.join("f.ckpt.safetensors"));
+    let mut child = Command::new(assetfield_tests::assetfield_bin())
         .args(["train", "d", "--out", "f.safetensors", "--iters", "1000000", "--res", "32"])
         .args(["--batch", "256", "--force"])
         .current_dir(dir)
@@ -234,11 +236,35 @@ fn signal_stops_training_with_a_checkpoint(dir: &Path, signal: &str) {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    if closed {
+        drop(child.stdout.take());
+        drop(child.stderr.take());
+    }
     // wait until training runs (the box is printed just before the first step)
     std::thread::sleep(std::time::Duration::from_millis(1500));
     let status =
         Command::new("kill").args([&format!("-{signal}"), &child.id().to_string()]).status();
     assert!(status.unwrap().success());
+    if closed {
+        let start = std::time::Instant::now();
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            if start.elapsed() > std::time::Duration::from_secs(60) {
+                let _ = child.kill();
+                panic!("SIG{signal} with closed output pipes did not stop train in 60 s");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        };
+        assert_eq!(status.code(), Some(130), "SIG{signal}, closed pipes");
+        assert!(
+            dir.join("f.ckpt.safetensors").exists(),
+            "SIG{signal}, closed pipes: no checkpoint"
+        );
+        assert!(!dir.join("f.safetensors").exists(), "SIG{signal}, closed pipes: a field file");
+        return;
+    }
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(130), "SIG{signal}: {err}");
@@ -255,8 +281,13 @@ fn ctrl_c_term_and_hup_save_a_checkpoint_and_no_field() {
     // SIGTERM (kill, a batch system's time limit) and SIGHUP (the terminal closing) stop a
     // run as Ctrl-C does
     for signal in ["TERM", "HUP", "INT"] {
-        signal_stops_training_with_a_checkpoint(&dir, signal);
+        signal_stops_training_with_a_checkpoint(&dir, signal, false);
     }
+    // whatever has become of standard output and error (`train ... 2>&1 | head -1`)
+    for signal in ["TERM", "INT"] {
+        signal_stops_training_with_a_checkpoint(&dir, signal, true);
+    }
+    signal_stops_training_with_a_checkpoint(&dir, "INT", false);
     // and the run goes on from there
     let state: serde_json::Value =
         TensorFile::load(&dir.join("f.ckpt.safetensors")).unwrap().meta_json("train").unwrap();

@@ -1,6 +1,18 @@
 //! The `assetfield` command line: argument parsing (clap), progress bars, Ctrl-C handling
 //! and error reporting around the library crates. `anyhow` is used here and only here.
 
+/// `eprintln!` for the whole command line, without its panic: a message to a closed standard
+/// error (`assetfield edit LIB 2>&1 | head -1` once `head` has its line) is dropped and the
+/// job goes on. The standard macro panics there, and a panic in the signal handler's thread
+/// left the process deaf to Ctrl-C and SIGTERM. Defined before the modules, it shadows the
+/// standard macro in all of them.
+macro_rules! eprintln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 mod commands;
 
 use clap::{Parser, Subcommand};
@@ -284,12 +296,14 @@ fn install_ctrlc() {
     ONCE.call_once(|| {
         // A second signal while a job winds down exits at once; outputs are staged, so
         // nothing half-written is left in place either way.
+        // The request comes first and the note cannot panic: whatever happens to standard
+        // error, the job hears the signal.
         let _ = ctrlc::set_handler(|| {
             if assetfield_core::interrupt::requested() {
                 std::process::exit(130);
             }
-            eprintln!("\ninterrupt: finishing the current step and discarding partial output (Ctrl-C again to quit now)");
             assetfield_core::interrupt::request();
+            eprintln!("\ninterrupt: finishing the current step and discarding partial output (Ctrl-C again to quit now)");
         });
     });
 }
@@ -310,7 +324,8 @@ fn install_broken_pipe_exit() {
                 .or_else(|| info.payload().downcast_ref::<&str>().copied())
                 .unwrap_or("");
             if is_broken_stdout(message) {
-                std::process::exit(0);
+                // an interrupted job still says so in its status
+                std::process::exit(if assetfield_core::interrupt::requested() { 130 } else { 0 });
             }
             default(info);
         }));
