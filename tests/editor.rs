@@ -392,11 +392,169 @@ fn the_api_answers_every_endpoint_and_guards_the_session() {
     let rgb = composer.render(&camera, library.background);
     let composed = decode_png(&assetfield_editor::png::encode_rgb_f32(80, 60, rgb).unwrap());
     assert_eq!(served, composed, "the saved layout composes to the image the server rendered");
-    // a new session continues the saved edits
+    // a new session continues the saved edits: its own, listed as a script writes them
+    // (no `Some(...)`), and undone one by one
     assert_eq!(session.layout().objects().count(), resolved.objects().count());
     assert!(session.layout().instances.iter().any(|i| i.key == "new"));
+    let mut session = session;
+    let log = session.edits_ron();
+    assert!(log.contains("Add(") && log.contains("ReplaceAsset("), "{log}");
+    assert!(!log.contains("Some("), "the log writes what a person types: {log}");
+    let n = session.edits().len();
+    assert!(session.view().can_undo, "the reopened session's edits can be undone");
+    assert!(session.undo().unwrap());
+    assert_eq!(session.edits().len(), n - 1);
+    assert!(session.view().can_redo);
+    let text = session.saved_text().unwrap();
+    assert_eq!(text.matches("Add(").count(), 1, "edits are saved once: {text}");
     // the server survives all of that
     assert_eq!(s.get("/api/layout").status, 200);
+}
+
+/// Resident memory of process `pid`, bytes (Linux).
+fn rss_bytes(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let kb: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()?;
+    Some(kb * 1024)
+}
+
+#[test]
+fn a_session_stays_bounded_and_reading_it_never_waits() {
+    let lib = library();
+    let dir = scratch("editor-bounded");
+    let saved = dir.join("bounded.ron");
+    let s = start_server(lib, &["--layout", saved.to_str().unwrap(), "--render-budget", "2"]);
+
+    // names are never patterns: a key names its instance as written
+    for bad in [
+        "[Add(asset: \"obj000\", at: (0.0, 0.0), name: \"obj*\")]",
+        "[Duplicate(target: \"w0\", by: (0.0, 0.5), name: \"?\")]",
+        "[Add(asset: \"obj000\", at: (0.0, 0.0), name: \"\")]",
+    ] {
+        let r = s.post("/api/edits", bad);
+        assert_eq!(r.status, 400, "{bad}: {}", String::from_utf8_lossy(&r.body));
+        assert!(r.json()["error"].as_str().unwrap().contains("name"), "{bad}");
+    }
+
+    // a batch that would make more instances than the session allows is refused whole,
+    // naming the limit, and changes nothing
+    let start = s.get("/api/layout").json();
+    let count = start["instances"].as_array().unwrap().len();
+    let doubling = vec!["Duplicate(target: \"*\", by: (0.0, 0.0))"; 16].join(", ");
+    let r = s.post("/api/edits", &format!("[{doubling}]"));
+    assert_eq!(r.status, 400, "{}", String::from_utf8_lossy(&r.body));
+    let e = r.json()["error"].as_str().unwrap().to_string();
+    assert!(e.contains("instances per script") && e.contains("20000"), "{e}");
+    let after = s.get("/api/layout").json();
+    assert_eq!(after["version"], start["version"]);
+    assert_eq!(after["instances"].as_array().unwrap().len(), count);
+
+    // a render over the session's budget is cancelled, and reading the layout meanwhile
+    // does not wait for it
+    let (host, token) = (s.host.clone(), s.token.clone());
+    let big = std::thread::spawn(move || {
+        let t = Instant::now();
+        let r = http(
+            &host,
+            "GET",
+            "/api/render?width=2048&height=2048",
+            &[("X-Assetfield-Token", &token)],
+            b"",
+        );
+        (r.status, String::from_utf8_lossy(&r.body).into_owned(), t.elapsed())
+    });
+    std::thread::sleep(Duration::from_millis(300));
+    let t = Instant::now();
+    assert_eq!(s.get("/api/layout").status, 200);
+    let waited = t.elapsed();
+    let (status, body, took) = big.join().unwrap();
+    assert!(waited < Duration::from_secs(1), "GET /api/layout waited {waited:?} for a render");
+    if took > Duration::from_millis(2500) {
+        assert_eq!(status, 400, "a render past its budget is cancelled: {body}");
+        assert!(body.contains("cancelled"), "{body}");
+    }
+
+    // a thousand one-line moves: memory grows with the edits, not their square
+    let pid = s.child.id();
+    let before = rss_bytes(pid);
+    for k in 0..1000 {
+        let by = if k % 2 == 0 { 0.01 } else { -0.01 };
+        let r = s.post("/api/edits", &format!("[Move(target: \"w0\", by: ({by}, 0.0))]"));
+        assert_eq!(r.status, 200, "move {k}: {}", String::from_utf8_lossy(&r.body));
+    }
+    if let (Some(a), Some(b)) = (before, rss_bytes(pid)) {
+        let grown = b.saturating_sub(a) as f64 / 1e6;
+        println!("RSS {:.0} MB -> {:.0} MB after 1000 moves", a as f64 / 1e6, b as f64 / 1e6);
+        assert!(grown < 150.0, "1000 one-line moves grew the server by {grown:.0} MB");
+    }
+    // undo walks back through them
+    let undone = s.post("/api/undo", "").json();
+    assert_eq!(undone["can_undo"], true);
+
+    // the bird's-eye view, redrawn only where edits changed it, is the picture a fresh
+    // session draws of the same layout
+    assert_eq!(
+        s.post("/api/edits", "[Move(target: \"b0\", by: (0.3, 0.2)), Remove(\"w1\")]").status,
+        200
+    );
+    let served = s.get("/api/bev?footprints=false");
+    assert_eq!(served.status, 200);
+    assert_eq!(s.post("/api/save", "").status, 200);
+    let opts = SessionOptions { layout: Some(saved.clone()), ..Default::default() };
+    let mut fresh = EditSession::open(lib, &opts, None).unwrap();
+    assert_eq!(fresh.version(), 0);
+    assert!(
+        fresh.bev_png(false).unwrap() == served.body,
+        "incremental and full bird's-eye views differ"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `assetfield edit LIB 2>&1 | head -1`: once the reader has its line, standard output and
+/// error are closed pipes; Ctrl-C and SIGTERM still stop the server.
+#[cfg(unix)]
+#[test]
+fn signals_stop_the_editor_whatever_became_of_its_output() {
+    let lib = library();
+    let dir = scratch("editor-signals");
+    for signal in ["INT", "TERM"] {
+        let mut child = Command::new(assetfield_bin())
+            .arg("edit")
+            .arg(lib)
+            .args(["--port", "0", "--backend", "cpu", "--layout"])
+            .arg(dir.join("signals.ron"))
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stderr.take());
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        assert!(line.starts_with("listening on"), "{line}");
+        std::thread::sleep(Duration::from_millis(300));
+        let kill =
+            Command::new("kill").args([&format!("-{signal}"), &child.id().to_string()]).status();
+        assert!(kill.unwrap().success());
+        let start = Instant::now();
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            if start.elapsed() > Duration::from_secs(30) {
+                let _ = child.kill();
+                panic!("SIG{signal} did not stop the editor with its output pipes closed");
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        assert!(status.success(), "SIG{signal}: {status}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 // ---- the page in headless Chromium --------------------------------------------------
@@ -605,7 +763,7 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
     // the view changed, and around where the object stood
     let (w, h) = after.dimensions();
     // a session of its own (the API test writes LIB/edited.ron meanwhile), for the camera
-    let own = SessionOptions { layout: Some(lib.join("camera_only.ron")), halo: None };
+    let own = SessionOptions { layout: Some(lib.join("camera_only.ron")), ..Default::default() };
     let session = EditSession::open(lib, &own, None).unwrap();
     let view = b.script("return [editor.view.azimuth, editor.view.elevation];");
     let camera = session
@@ -655,6 +813,21 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
     let off = (yaw1 - want).rem_euclid(360.0);
     assert!(off.min(360.0 - off) < 1e-3, "Shift+Q: {yaw0} -> {yaw1}, wanted {want}");
 
+    // Ctrl-D duplicates the selected instance (the page sends its key, never a pattern)
+    let count = |l: &Value| l["instances"].as_array().unwrap().len();
+    let n0 = count(&s.get("/api/layout").json());
+    b.cmd(
+        "POST",
+        "actions",
+        Some(json!({"actions": [{"type": "key", "id": "keyboard", "actions": [
+            {"type": "keyDown", "value": "\u{E009}"}, {"type": "keyDown", "value": "d"},
+            {"type": "keyUp", "value": "d"}, {"type": "keyUp", "value": "\u{E009}"}]}]})),
+    );
+    b.wait_for(&full_render(4), "the render after Ctrl-D");
+    let duplicated = s.get("/api/layout").json();
+    assert_eq!(count(&duplicated), n0 + 1, "Ctrl-D makes one copy");
+    instance(&duplicated, &format!("{key}+copy1"));
+
     // choose a library asset, click on an empty spot of the plane: a new instance there
     let asset = b.script(
         "const li = document.querySelector('#palette li'); li.click(); return li.dataset.asset;",
@@ -677,7 +850,7 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
         Some(json!({"actions": [{"type": "pointer", "id": "mouse", "parameters": {"pointerType": "mouse"},
             "actions": [pointer(sx, sy, 0), {"type": "pointerDown", "button": 0}, {"type": "pointerUp", "button": 0}]}]})),
     );
-    b.wait_for(&full_render(4), "the render after the insert");
+    b.wait_for(&full_render(5), "the render after the insert");
     let inserted = s.get("/api/layout").json();
     let new = instance(&inserted, &format!("{asset}+new1"));
     let at = b.script(&format!(
@@ -723,7 +896,7 @@ fn the_gpu_backend_renders_what_the_cpu_renders_across_edits() {
         Err(e) => panic!("{e}"),
     };
     let lib = library();
-    let opts = |name: &str| SessionOptions { layout: Some(lib.join(name)), halo: None };
+    let opts = |name: &str| SessionOptions { layout: Some(lib.join(name)), ..Default::default() };
     let mut cpu = EditSession::open(lib, &opts("gpu_cpu.ron"), None).unwrap();
     let mut gpu = EditSession::open(lib, &opts("gpu_gpu.ron"), Some((ctx, false))).unwrap();
     assert_eq!((cpu.backend(), gpu.backend()), ("cpu", "gpu"));

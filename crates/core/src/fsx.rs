@@ -139,15 +139,34 @@ fn inside_staging(path: &Path) -> bool {
 /// Write `bytes` to `path` atomically (temporary sibling, then rename). Temporaries that a
 /// killed run left for the same path are removed first ([`clean_stale`]), except inside a
 /// staging folder, which holds none (so a dataset's thousand views read no folder listing).
+/// The temporary is created afresh, never opened through a link someone left in its place.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CoreError> {
-    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+    write_atomic_with(path, bytes, false)
+}
+
+/// [`write_atomic`], and on the disk before it returns: the temporary's data is synced
+/// before the rename and the folder after it, so a power cut leaves the old file or the new
+/// one, never an empty one. For what a person saves (an edited layout); a dataset's views
+/// do without (a sync per file would slow them tenfold, and a lost view is written again).
+pub fn write_durable(path: &Path, bytes: &[u8]) -> Result<(), CoreError> {
+    write_atomic_with(path, bytes, true)
+}
+
+fn write_atomic_with(path: &Path, bytes: &[u8], sync: bool) -> Result<(), CoreError> {
+    use std::io::Write;
+    let parent = path.parent().filter(|p| !p.as_os_str().is_empty());
+    if let Some(parent) = parent {
         std::fs::create_dir_all(parent).map_err(|e| CoreError::io(parent, e))?;
     }
     if !inside_staging(path) {
         clean_stale(path)?;
     }
     let tmp = sibling(path, "tmp");
-    if let Err(e) = std::fs::write(&tmp, bytes) {
+    let written = create_fresh(&tmp).and_then(|mut f| {
+        f.write_all(bytes)?;
+        if sync { f.sync_all() } else { Ok(()) }
+    });
+    if let Err(e) = written {
         // a disk that fills up part way leaves no half-written temporary behind
         let _ = std::fs::remove_file(&tmp);
         return Err(CoreError::io(&tmp, e));
@@ -155,7 +174,33 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CoreError> {
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         CoreError::io(path, e)
-    })
+    })?;
+    if sync {
+        // the rename itself is durable once the folder is; a folder that cannot be opened
+        // for syncing (some platforms) keeps the rename the file system gives
+        let dir = parent.unwrap_or(Path::new("."));
+        if let Ok(d) = std::fs::File::open(dir) {
+            d.sync_all().map_err(|e| CoreError::io(dir, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// Create `path` as a new file for writing: `create_new` (O_CREAT | O_EXCL) refuses an
+/// existing name, symbolic links included, so nothing is written through a link left at the
+/// temporary's name. What is there (our own process's leftover, or such a link) is removed
+/// (the link, not what it points to) and the file created once more; if something takes
+/// the name again in between, the error says so.
+fn create_fresh(path: &Path) -> std::io::Result<std::fs::File> {
+    let mut o = std::fs::OpenOptions::new();
+    o.write(true).create_new(true);
+    match o.open(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+            std::fs::remove_file(path)?;
+            o.open(path)
+        }
+        r => r,
+    }
 }
 
 /// Encode an image as PNG and write it atomically.
@@ -365,5 +410,26 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&p).unwrap(), "{\"a\":1}");
         assert_eq!(std::fs::read_dir(root.join("sub")).unwrap().count(), 1);
         std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn the_temporary_is_never_written_through_a_link() {
+        let dir = std::env::temp_dir().join(format!("af-fsx-link-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let victim = dir.join("victim.txt");
+        std::fs::write(&victim, "keep me").unwrap();
+        let target = dir.join("saved.ron");
+        // a link planted at the name this process's temporary takes
+        std::os::unix::fs::symlink(&victim, sibling(&target, "tmp")).unwrap();
+        write_durable(&target, b"new text").unwrap();
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep me");
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "new text");
+        assert!(!std::fs::symlink_metadata(&target).unwrap().file_type().is_symlink());
+        assert!(!sibling(&target, "tmp").exists(), "no temporary left");
+        write_atomic(&target, b"again").unwrap();
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "again");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

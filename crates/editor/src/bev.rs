@@ -1,7 +1,11 @@
 //! The bird's-eye view: the composed scene's column opacity seen from above, enlarged to a
 //! comfortable size, with the instances' footprints outlined in their category's colour.
 
-use assetfield_field::pictures::{Picture, density_picture};
+use assetfield_field::Field;
+use assetfield_field::pictures::{
+    Picture, max_opacity_columns, max_opacity_columns_in, opacity_picture,
+};
+use assetfield_scene::TexelRect;
 use glam::Vec2;
 use serde::Serialize;
 
@@ -54,10 +58,48 @@ impl BevMapping {
     }
 }
 
-/// The bird's-eye picture and its mapping.
-pub fn bev_picture(s: &EditSession, footprints: bool) -> (Picture, BevMapping) {
+/// The composed field's column opacities ([`max_opacity_columns`]), kept up to date over
+/// the rectangles that edits redraw: a move recomputes its two footprints' columns, not the
+/// whole grid.
+#[derive(Debug, Default)]
+pub struct BevColumns {
+    cols: usize,
+    rows: usize,
+    values: Vec<f32>,
+    /// Texel rectangles redrawn since `values` was brought up to date.
+    pending: Vec<TexelRect>,
+}
+
+impl BevColumns {
+    /// Note rectangles the composer redrew.
+    pub fn invalidate(&mut self, rects: &[TexelRect]) {
+        self.pending.extend_from_slice(rects);
+    }
+
+    /// The column opacities of `field`, recomputed where invalidated (everywhere when the
+    /// grid's size changed).
+    pub fn update(&mut self, field: &Field) -> (usize, usize, &[f32]) {
+        let [nx, ny, _] = field.config.res;
+        if (nx, ny) != (self.cols, self.rows) || self.values.len() != nx * ny {
+            let (_, _, values) = max_opacity_columns(field);
+            *self = BevColumns { cols: nx, rows: ny, values, pending: Vec::new() };
+        } else {
+            for r in TexelRect::merge_overlapping(std::mem::take(&mut self.pending)) {
+                max_opacity_columns_in(field, r.r0..r.r1, r.c0..r.c1, &mut self.values);
+            }
+        }
+        (self.cols, self.rows, &self.values)
+    }
+}
+
+/// The bird's-eye picture of column opacities `columns` (see [`BevColumns`]) and its mapping.
+pub fn bev_picture(
+    s: &EditSession,
+    (cols, rows, columns): (usize, usize, &[f32]),
+    footprints: bool,
+) -> (Picture, BevMapping) {
     let m = BevMapping::of(s);
-    let base = density_picture(&s.composer().composition().field);
+    let base = opacity_picture(cols, rows, columns);
     let zoom = if base.width == 0 { 1 } else { m.width / base.width.max(1) };
     let mut pic = base.upscaled(zoom.max(1));
     if footprints {

@@ -6,7 +6,9 @@
 //! to 127.0.0.1 but cannot know the token. Request bodies are read up to
 //! [`MAX_BODY_BYTES`]; a longer one, a body that is not UTF-8 and an edit that does not parse
 //! or resolve answer 400 and change nothing. The session runs on blocking threads behind a
-//! mutex (requests are served one at a time); a panic in one request (a bug) answers 500 and
+//! mutex (changes and renders are served one at a time); `GET /api/layout` answers the
+//! layout as the last finished change left it without waiting for the session, so a slow
+//! request never blocks reading the layout. A panic in one request (a bug) answers 500 and
 //! the server goes on with the session as the panic left it.
 
 use std::net::SocketAddr;
@@ -35,6 +37,8 @@ const EDITOR_CSS: &str = include_str!("page/editor.css");
 #[derive(Clone)]
 pub struct AppState {
     session: Arc<Mutex<EditSession>>,
+    /// `GET /api/layout`'s answer (JSON) as of the last finished change.
+    layout: Arc<Mutex<Bytes>>,
     token: Arc<str>,
     /// The `Host` headers requests may carry (`None`: any): for a server on loopback, its
     /// own address by number or as `localhost`, so that a page whose domain was rebound to
@@ -51,7 +55,13 @@ impl std::fmt::Debug for AppState {
 impl AppState {
     /// A state serving `session`, guarded by `token`.
     pub fn new(session: EditSession, token: String) -> Self {
-        AppState { session: Arc::new(Mutex::new(session)), token: token.into(), hosts: None }
+        let layout = Arc::new(Mutex::new(layout_bytes(&session)));
+        AppState {
+            session: Arc::new(Mutex::new(session)),
+            layout,
+            token: token.into(),
+            hosts: None,
+        }
     }
 
     /// Accept only the `Host` headers a browser sends to `addr` when it is a loopback
@@ -202,24 +212,34 @@ async fn with_session(
     })
 }
 
-/// [`with_session`] for a change: answers the layout after it.
+/// [`with_session`] for a change: answers the layout after it (and keeps it for
+/// `GET /api/layout`).
 async fn change(
     s: &AppState,
     f: impl FnOnce(&mut EditSession) -> Result<(), EditorError> + Send + 'static,
 ) -> Response {
-    with_session(s, |s| {
+    let snapshot = s.layout.clone();
+    with_session(s, move |s| {
         f(s)?;
-        Ok(layout_json(s))
+        let json = layout_bytes(s);
+        *snapshot.lock().unwrap_or_else(|p| p.into_inner()) = json.clone();
+        Ok(json_response(json))
     })
     .await
 }
 
-fn layout_json(s: &EditSession) -> Response {
-    axum::Json(s.view()).into_response()
+/// The layout as `GET /api/layout` answers it, serialised.
+fn layout_bytes(s: &EditSession) -> Bytes {
+    // a LayoutView holds strings and numbers only: serialising it cannot fail
+    Bytes::from(serde_json::to_vec(&s.view()).unwrap_or_default())
+}
+
+fn json_response(body: Bytes) -> Response {
+    ([(header::CONTENT_TYPE, HeaderValue::from_static("application/json"))], body).into_response()
 }
 
 async fn get_layout(State(s): State<AppState>) -> Response {
-    with_session(&s, |s| Ok(layout_json(s))).await
+    json_response(s.layout.lock().unwrap_or_else(|p| p.into_inner()).clone())
 }
 
 /// The body as UTF-8 text, at most [`MAX_BODY_BYTES`].

@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use assetfield_core::{Aabb3, Camera};
 use assetfield_core::{Orbit, fitting_radius};
 use assetfield_gpu::{FieldRenderer, GpuContext};
+use assetfield_layout::source::{EditNode, SourceFile};
 use assetfield_layout::{
     AssetDef, Edit, LibraryRef, LoadedScript, ResolvedLayout, Script, resolve,
 };
@@ -19,11 +20,24 @@ use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, ScriptAssets};
 use glam::{Vec2, Vec3};
 use serde::Serialize;
 
-use crate::bev::{BevMapping, bev_picture};
+use crate::bev::{BevColumns, BevMapping, bev_picture};
 use crate::error::{EditorError, Result};
 
 /// Largest render side the session accepts, pixels.
 pub const MAX_RENDER_SIDE: u32 = 2048;
+
+/// Instances a session's layout may come to hold (everything its script and edits make,
+/// removed ones included, as [`assetfield_layout::Limits::max_instances`] counts them),
+/// unless `ASSETFIELD_MAX_INSTANCES` or `--limit instances=N` sets that limit; twice the
+/// starting layout's count when that is more. A room or a hall has hundreds to a few
+/// thousand; composing 20,000 takes a few seconds here, where the scripts' own default
+/// (1,000,000) would hold the session for minutes on one request.
+pub const EDITOR_MAX_INSTANCES: usize = 20_000;
+
+/// Default time a CPU render may take before it is cancelled (the GPU renders the largest
+/// view in well under a second): a 512 x 512 view of a room takes about a second on two
+/// cores, a 2048 x 2048 one over a minute.
+pub const DEFAULT_RENDER_BUDGET: std::time::Duration = std::time::Duration::from_secs(10);
 
 /// How the session was asked to start.
 #[derive(Debug, Clone, Default)]
@@ -34,6 +48,8 @@ pub struct SessionOptions {
     pub layout: Option<PathBuf>,
     /// Texels around each entry's mask that its patch covers (default: the composer's).
     pub halo: Option<usize>,
+    /// Time a CPU render may take before it is cancelled (default [`DEFAULT_RENDER_BUDGET`]).
+    pub render_budget: Option<std::time::Duration>,
 }
 
 /// What Save writes.
@@ -46,13 +62,24 @@ enum SaveAs {
     Whole { script: Box<Script> },
 }
 
-/// One applied batch of edits: the script as it stands after it (the start file plus every
-/// batch up to this one, so undo and redo resolve a script without parsing anything again)
-/// and the batch's own edits (for the log and Save).
+/// One applied batch of edits: where its edits (and the request text they came from, when
+/// it has one) start in the session's script, and its edits (for the log and Save). Undo
+/// cuts the script back there; the memory a session holds is the text of its requests once,
+/// however long the history.
 #[derive(Debug, Clone)]
 struct Batch {
-    script: LoadedScript,
+    edits_at: usize,
+    files_at: usize,
     edits: Vec<Edit>,
+}
+
+/// A batch taken back: its place, and what undo cut from the script (put back by redo,
+/// without parsing anything again).
+#[derive(Debug, Clone)]
+struct Undone {
+    batch: Batch,
+    nodes: Vec<EditNode>,
+    files: Vec<SourceFile>,
 }
 
 /// A view of the composed scene to render.
@@ -139,20 +166,22 @@ struct Gpu {
 pub struct EditSession {
     lib: AssetLibrary,
     assets: ScriptAssets,
-    /// The start file as loaded (with its own edits).
-    start: LoadedScript,
+    /// The script as it stands: the start file as loaded, then every applied batch.
+    script: LoadedScript,
     save_path: PathBuf,
     save_as: SaveAs,
     batches: Vec<Batch>,
-    redo: Vec<Batch>,
+    redo: Vec<Undone>,
     layout: ResolvedLayout,
     composer: Composer,
     version: u64,
     requests: u64,
     bev_cache: Option<(u64, bool, Vec<u8>)>,
+    bev_columns: BevColumns,
     gpu: Option<Gpu>,
     /// Texels around each entry's mask that its patch covers.
     halo: usize,
+    render_budget: std::time::Duration,
     /// Assets the session defined (recoloured categories), by name: Save writes them into
     /// the script's `assets`, with the library path relative to the saved file.
     defined: std::collections::BTreeMap<String, AssetDef>,
@@ -252,11 +281,43 @@ impl EditSession {
                 SaveAs::EditScript { base: base.to_string_lossy().into_owned(), earlier: vec![] },
             )
         };
-        let start = assetfield_layout::load(&start_path)?;
+        let mut start = assetfield_layout::load(&start_path)?;
+        // the start file's own edits become the session's first batches, one per edit, so
+        // a reopened session lists them and can undo them
+        let own: &[Edit] = match &save_as {
+            SaveAs::EditScript { earlier, .. } => earlier,
+            SaveAs::Whole { script } => &script.edits,
+        };
+        let first = start.edits.len().checked_sub(own.len()).filter(|&f| {
+            !own.is_empty() && start.edits[f..].iter().map(|n| &n.edit).eq(own.iter())
+        });
+        let (save_as, batches) = match first {
+            None => (save_as, Vec::new()),
+            Some(first) => {
+                let files_at = start.files.len();
+                let batches = own
+                    .iter()
+                    .enumerate()
+                    .map(|(k, e)| Batch { edits_at: first + k, files_at, edits: vec![e.clone()] })
+                    .collect();
+                let save_as = match save_as {
+                    SaveAs::EditScript { base, .. } => SaveAs::EditScript { base, earlier: vec![] },
+                    SaveAs::Whole { mut script } => {
+                        script.edits.clear();
+                        SaveAs::Whole { script }
+                    }
+                };
+                (save_as, batches)
+            }
+        };
         let halo = opts.halo.unwrap_or(DEFAULT_HALO);
         let assets = ScriptAssets::resolve(&start, &lib, halo)
             .map_err(scene_err(format!("resolving the assets of {}", start_path.display())))?;
         let layout = resolve(&start, &assets)?;
+        if !assetfield_layout::Limits::explicitly_set(assetfield_layout::Limit::Instances) {
+            let cap = EDITOR_MAX_INSTANCES.max(2 * layout.instances.len());
+            start.limits.max_instances = start.limits.max_instances.min(cap);
+        }
         let canvas = lib.canvas_for(&layout);
         let composition = lib.composition(&canvas).map_err(scene_err("building the canvas"))?;
         let mut composer = Composer::new(composition);
@@ -270,18 +331,20 @@ impl EditSession {
         Ok(EditSession {
             lib,
             assets,
-            start,
+            script: start,
             save_path,
             save_as,
-            batches: Vec::new(),
+            batches,
             redo: Vec::new(),
             layout,
             composer,
             version: 0,
             requests: 0,
             bev_cache: None,
+            bev_columns: BevColumns::default(),
             gpu,
             halo,
+            render_budget: opts.render_budget.unwrap_or(DEFAULT_RENDER_BUDGET),
             defined: Default::default(),
         })
     }
@@ -311,15 +374,11 @@ impl EditSession {
         &self.save_path
     }
 
-    /// The script after the first `n` batches.
-    fn script_after(&self, n: usize) -> &LoadedScript {
-        n.checked_sub(1).and_then(|k| self.batches.get(k)).map_or(&self.start, |b| &b.script)
-    }
-
     /// Make the composer match `layout` (nothing changes when it refuses).
     fn show(&mut self, layout: ResolvedLayout) -> Result<()> {
         self.composer.apply_layout(&layout).map_err(scene_err("composing the edited layout"))?;
         self.composer.update();
+        self.bev_columns.invalidate(self.composer.last_dirty());
         self.layout = layout;
         self.version += 1;
         Ok(())
@@ -331,16 +390,21 @@ impl EditSession {
     pub fn apply(&mut self, text: &str) -> Result<()> {
         self.requests += 1;
         let name = PathBuf::from(format!("edit request {}", self.requests));
-        let mut script = self.script_after(self.batches.len()).clone();
-        let before = script.edits.len();
-        assetfield_layout::append_edits_str(&mut script, &name, text)?;
-        let edits: Vec<Edit> = script.edits[before..].iter().map(|n| n.edit.clone()).collect();
-        if edits.is_empty() {
-            return Err(EditorError::BadRequest(format!("{}: no edits", name.display())));
+        let (edits_at, files_at) = (self.script.edits.len(), self.script.files.len());
+        assetfield_layout::append_edits_str(&mut self.script, &name, text)?;
+        let edits: Vec<Edit> =
+            self.script.edits[edits_at..].iter().map(|n| n.edit.clone()).collect();
+        let shown = if edits.is_empty() {
+            Err(EditorError::BadRequest(format!("{}: no edits", name.display())))
+        } else {
+            resolve(&self.script, &self.assets).map_err(Into::into).and_then(|l| self.show(l))
+        };
+        if let Err(e) = shown {
+            self.script.edits.truncate(edits_at);
+            self.script.files.truncate(files_at);
+            return Err(e);
         }
-        let layout = resolve(&script, &self.assets)?;
-        self.show(layout)?;
-        self.batches.push(Batch { script, edits });
+        self.batches.push(Batch { edits_at, files_at, edits });
         self.redo.clear();
         Ok(())
     }
@@ -414,19 +478,37 @@ impl EditSession {
 
     /// Take back the last batch; `false` when there is none.
     pub fn undo(&mut self) -> Result<bool> {
-        let Some(n) = self.batches.len().checked_sub(1) else { return Ok(false) };
-        let layout = resolve(self.script_after(n), &self.assets)?;
-        self.show(layout)?;
-        self.redo.extend(self.batches.pop());
+        let Some(batch) = self.batches.last() else { return Ok(false) };
+        let nodes = self.script.edits.split_off(batch.edits_at);
+        let files = self.script.files.split_off(batch.files_at);
+        let shown =
+            resolve(&self.script, &self.assets).map_err(Into::into).and_then(|l| self.show(l));
+        if let Err(e) = shown {
+            self.script.edits.extend(nodes);
+            self.script.files.extend(files);
+            return Err(e);
+        }
+        let batch = self.batches.pop().expect("checked above");
+        self.redo.push(Undone { batch, nodes, files });
         Ok(true)
     }
 
     /// Apply the last batch taken back again; `false` when there is none.
     pub fn redo(&mut self) -> Result<bool> {
-        let Some(next) = self.redo.last() else { return Ok(false) };
-        let layout = resolve(&next.script, &self.assets)?;
-        self.show(layout)?;
-        self.batches.extend(self.redo.pop());
+        let Some(undone) = self.redo.pop() else { return Ok(false) };
+        let (edits_at, files_at) = (self.script.edits.len(), self.script.files.len());
+        debug_assert_eq!((edits_at, files_at), (undone.batch.edits_at, undone.batch.files_at));
+        self.script.edits.extend(undone.nodes.iter().cloned());
+        self.script.files.extend(undone.files.iter().cloned());
+        let shown =
+            resolve(&self.script, &self.assets).map_err(Into::into).and_then(|l| self.show(l));
+        if let Err(e) = shown {
+            self.script.edits.truncate(edits_at);
+            self.script.files.truncate(files_at);
+            self.redo.push(undone);
+            return Err(e);
+        }
+        self.batches.push(undone.batch);
         Ok(true)
     }
 
@@ -443,7 +525,12 @@ impl EditSession {
             return String::new();
         }
         let cfg = ron::ser::PrettyConfig::new().struct_names(true).depth_limit(2).indentor("    ");
-        ron::ser::to_string_pretty(&edits, cfg).unwrap_or_default()
+        // optional values as a script writes them (`to: (1.0, 2.0)`, not `Some((1.0, 2.0))`):
+        // every reader of edits parses with implicit `Some`
+        ron::Options::default()
+            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+            .to_string_pretty(&edits, cfg)
+            .unwrap_or_default()
     }
 
     /// The text Save writes.
@@ -472,12 +559,16 @@ impl EditSession {
         Ok(assetfield_layout::source::write_script(&script)?)
     }
 
-    /// Write the layout (start file plus edits) to [`Self::save_path`], atomically.
+    /// Write the layout (start file plus edits) to [`Self::save_path`], atomically and
+    /// durably (synced before it returns; see [`assetfield_core::fsx::write_durable`]).
     pub fn save(&self) -> Result<PathBuf> {
         let text = self.saved_text()?;
-        assetfield_core::fsx::write_atomic(&self.save_path, text.as_bytes()).map_err(|source| {
-            EditorError::Io { context: format!("saving {}", self.save_path.display()), source }
-        })?;
+        assetfield_core::fsx::write_durable(&self.save_path, text.as_bytes()).map_err(
+            |source| EditorError::Io {
+                context: format!("saving {}", self.save_path.display()),
+                source,
+            },
+        )?;
         Ok(self.save_path.clone())
     }
 
@@ -552,7 +643,16 @@ impl EditSession {
                 }
             }
         }
-        Ok(self.composer.render(&cam, bg))
+        let started = std::time::Instant::now();
+        let budget = self.render_budget;
+        self.composer.render_unless(&cam, bg, &|| started.elapsed() > budget).ok_or_else(|| {
+            EditorError::BadRequest(format!(
+                "the {} x {} render was cancelled after {:.0} s (the session's render budget on the CPU); ask for a smaller view",
+                v.width,
+                v.height,
+                budget.as_secs_f64()
+            ))
+        })
     }
 
     /// Which backend renders: `"gpu"` or `"cpu"`.
@@ -569,7 +669,10 @@ impl EditSession {
         {
             return Ok(png.clone());
         }
-        let (pic, _) = bev_picture(self, footprints);
+        let mut columns = std::mem::take(&mut self.bev_columns);
+        let (pic, _) =
+            bev_picture(self, columns.update(&self.composer.composition().field), footprints);
+        self.bev_columns = columns;
         let png = crate::png::encode_rgb8(pic.width, pic.height, &pic.pixels)?;
         self.bev_cache = Some((self.version, footprints, png.clone()));
         Ok(png)

@@ -24,7 +24,7 @@ pub use model::Field;
 pub use occupancy::Occupancy;
 pub use train::{
     Clock, GridRule, StepStats, TrainConfig, Trainer, process_cpu_seconds, render_semantic_view,
-    render_view,
+    render_view, render_view_unless,
 };
 pub mod eval;
 pub mod pictures;

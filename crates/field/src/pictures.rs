@@ -11,7 +11,6 @@ use crate::model::Field;
 use assetfield_core::canvas::{Canvas, Rgba};
 use assetfield_core::plot::{PlotOptions, Series, colormap, line_plot, pca_colors, rgb_image};
 use assetfield_core::{CoreError, fsx};
-use glam::Vec3;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -94,29 +93,53 @@ pub fn plane<'a>(field: &'a Field, name: &str) -> Option<(usize, usize, usize, &
 /// for VM) at every grid node of the column. 0 = empty, 1 = opaque. Returns
 /// `(cols, rows, values)` with row 0 at y = ymin.
 pub fn max_opacity_columns(field: &Field) -> (usize, usize, Vec<f32>) {
+    let [nx, ny, _] = field.config.res;
+    let mut out = vec![0.0f32; nx * ny];
+    max_opacity_columns_in(field, 0..ny, 0..nx, &mut out);
+    (nx, ny, out)
+}
+
+/// [`max_opacity_columns`] over the texel rows `rows` and columns `cols` only, written into
+/// `out` (the whole grid's values, row 0 at y = ymin); the rest of `out` is left as it is.
+/// Ranges are clipped to the grid. An editor redraws the rectangles an edit changed.
+pub fn max_opacity_columns_in(
+    field: &Field,
+    rows: std::ops::Range<usize>,
+    cols: std::ops::Range<usize>,
+    out: &mut [f32],
+) {
     let cfg = &field.config;
     let [nx, ny, nz] = cfg.res;
+    assert_eq!(out.len(), nx * ny, "a column value per texel of the {nx} x {ny} grid");
     let a = cfg.aabb();
     let v = cfg.voxel_size();
     let delta = cfg.step_size() * cfg.distance_scale;
-    let mut out = vec![0.0f32; nx * ny];
-    out.par_chunks_mut(nx).enumerate().for_each(|(r, row)| {
-        let y = a.min.y + r as f32 * v.y;
-        for (c, o) in row.iter_mut().enumerate() {
-            let x = a.min.x + c as f32 * v.x;
-            let max_sigma = (0..nz)
-                .map(|k| field.density(Vec3::new(x, y, a.min.z + k as f32 * v.z)))
-                .fold(0.0f32, f32::max);
-            *o = 1.0 - (-max_sigma * delta).exp();
-        }
-    });
-    (nx, ny, out)
+    let zs: Vec<f32> = (0..nz).map(|k| a.min.z + k as f32 * v.z).collect();
+    let (rows, cols) = (rows.start.min(ny)..rows.end.min(ny), cols.start.min(nx)..cols.end.min(nx));
+    out.par_chunks_mut(nx).enumerate().skip(rows.start).take(rows.len()).for_each_init(
+        || (Vec::new(), vec![0.0f32; nz]),
+        |(scratch, sigma), (r, row)| {
+            let y = a.min.y + r as f32 * v.y;
+            for c in cols.clone() {
+                let x = a.min.x + c as f32 * v.x;
+                field.density_column(x, y, &zs, scratch, sigma);
+                let max_sigma = sigma.iter().copied().fold(0.0f32, f32::max);
+                row[c] = 1.0 - (-max_sigma * delta).exp();
+            }
+        },
+    );
 }
 
 /// `density.png`: [`max_opacity_columns`] through the colour ramp (dark violet = empty,
 /// yellow = opaque), seen from above.
 pub fn density_picture(field: &Field) -> Picture {
     let (cols, rows, values) = max_opacity_columns(field);
+    opacity_picture(cols, rows, &values)
+}
+
+/// Column opacities (`cols x rows`, row 0 at y = ymin, as [`max_opacity_columns`] gives
+/// them) through the colour ramp of [`density_picture`], seen from above.
+pub fn opacity_picture(cols: usize, rows: usize, values: &[f32]) -> Picture {
     from_plane_rows(values.iter().map(|&v| colormap(v)).collect(), cols, rows)
 }
 
@@ -160,6 +183,7 @@ mod tests {
     use super::*;
     use crate::config::FieldConfig;
     use assetfield_core::Aabb3;
+    use glam::Vec3;
 
     /// A field with density only in the column above (x, y), elsewhere empty.
     fn field_with_column(kind: ModelKind, x: f32, y: f32) -> Field {

@@ -822,13 +822,31 @@ pub fn render_view(
     camera: &Camera,
     background: Vec3,
 ) -> Vec<f32> {
+    render_view_unless(field, occ, camera, background, &|| false)
+        .expect("a render nothing stops finishes")
+}
+
+/// [`render_view`] that gives up when `stop` says so (asked before each tile of about 1024
+/// rays): `None` then. An interactive tool renders with a time budget this way.
+pub fn render_view_unless(
+    field: &Field,
+    occ: Option<&Occupancy>,
+    camera: &Camera,
+    background: Vec3,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<Vec<f32>> {
     let (w, h) = (camera.intrinsics.width as usize, camera.intrinsics.height as usize);
     let mut out = vec![0.0f32; w * h * 3];
     let settings = MarchSettings::default();
     let rows_per_task = (1024 / w.max(1)).max(1);
+    let stopped = std::sync::atomic::AtomicBool::new(false);
     out.par_chunks_mut(w * 3 * rows_per_task).enumerate().for_each_init(
         MarchWork::default,
         |work, (t, dst)| {
+            if stopped.load(std::sync::atomic::Ordering::Relaxed) || stop() {
+                stopped.store(true, std::sync::atomic::Ordering::Relaxed);
+                return;
+            }
             let j0 = t * rows_per_task;
             let rows = dst.len() / (w * 3);
             let rays: Vec<Ray> = (0..rows)
@@ -841,7 +859,7 @@ pub fn render_view(
             }
         },
     );
-    out
+    (!stopped.into_inner()).then_some(out)
 }
 
 /// Render a view's semantic features (`[height][width][semantic_channels]`) with a field

@@ -173,6 +173,15 @@ impl Limits {
         Ok(limits)
     }
 
+    /// Whether `limit` was set for this process (its environment variable or
+    /// [`Limits::set_for_process`]) rather than left at its default: a tool with a tighter
+    /// default of its own (the editor) keeps what a person asked for.
+    pub fn explicitly_set(limit: Limit) -> bool {
+        let k = Limit::ALL.iter().position(|l| *l == limit).unwrap_or(0);
+        std::env::var_os(limit.env_var()).is_some()
+            || PROCESS_LIMITS.lock().unwrap_or_else(|p| p.into_inner())[k].is_some()
+    }
+
     /// Set one limit for every script this process loads from now on (what the CLI's
     /// `--limit NAME=N` does); it wins over the environment variable.
     pub fn set_for_process(limit: Limit, value: u64) {

@@ -16,6 +16,9 @@ use crate::script::{
 use crate::source::{EditNode, ItemNode, SourceFile};
 use std::fmt::Display;
 
+/// Characters no instance name may hold: the wildcards that make a key a pattern.
+pub(crate) const NAME_RESERVED: [char; 2] = ['*', '?'];
+
 /// The place and name of what holds the values being checked.
 struct Check<'a> {
     location: &'a Location,
@@ -50,6 +53,27 @@ impl Check<'_> {
             Ok(())
         } else {
             Err(self.fail(field, v, &format!("between {lo} and {hi}")))
+        }
+    }
+
+    /// An instance name: it becomes part of keys, and a key names its instance in an edit
+    /// as it is, so a name holds no wildcard (`*`, `?`), does not start with `#` (an id),
+    /// has no spaces at its ends and is not empty.
+    fn name(&self, field: &str, name: Option<&str>) -> Result<(), LayoutError> {
+        match name {
+            Some(n)
+                if n.is_empty()
+                    || n.contains(NAME_RESERVED)
+                    || n.starts_with('#')
+                    || n.trim() != n =>
+            {
+                Err(self.fail(
+                    field,
+                    format!("{n:?}"),
+                    "a non-empty name without * or ?, not starting with # and without spaces at its ends (keys are built from names, and an edit's key names its instance as written)",
+                ))
+            }
+            _ => Ok(()),
         }
     }
 
@@ -142,6 +166,7 @@ pub(crate) fn items(nodes: &[ItemNode]) -> Result<(), LayoutError> {
 /// Check one item's own values (not its children's).
 fn item(item: &Item, location: &Location) -> Result<(), LayoutError> {
     let c = Check { location, item: item.variant().to_string() };
+    c.name("name", item.name())?;
     match item {
         Item::Instance { at, yaw, scale, base, .. } => {
             c.point("at", *at)?;
@@ -225,12 +250,14 @@ fn edit(edit: &Edit, location: &Location) -> Result<(), LayoutError> {
             positive("scale", to)?;
             positive("scale factor", by)
         }
-        Edit::Duplicate { at, by, yaw, .. } => {
+        Edit::Duplicate { at, by, yaw, name, .. } => {
+            c.name("name", name.as_deref())?;
             point("at", at)?;
             point("by", by)?;
             finite("yaw", yaw)
         }
-        Edit::Add { at, yaw, scale, .. } => {
+        Edit::Add { at, yaw, scale, name, .. } => {
+            c.name("name", name.as_deref())?;
             c.point("at", *at)?;
             finite("yaw", yaw)?;
             positive("scale", scale)

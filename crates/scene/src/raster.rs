@@ -249,4 +249,20 @@ impl Composition {
     pub fn render(&self, camera: &Camera, background: glam::Vec3) -> Vec<f32> {
         assetfield_field::render_view(&self.field, self.occupancy.as_ref(), camera, background)
     }
+
+    /// [`Composition::render`] that gives up (`None`) when `stop` says so.
+    pub fn render_unless(
+        &self,
+        camera: &Camera,
+        background: glam::Vec3,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Option<Vec<f32>> {
+        assetfield_field::render_view_unless(
+            &self.field,
+            self.occupancy.as_ref(),
+            camera,
+            background,
+            stop,
+        )
+    }
 }

@@ -284,6 +284,11 @@ impl Composer {
         &self.world.resource::<ComposedPlanes>().0
     }
 
+    /// The texel rectangles the last frame redrew (the whole grid when the canvas changed).
+    pub fn last_dirty(&self) -> &[TexelRect] {
+        &self.world.resource::<Footprints>().last_dirty
+    }
+
     pub fn stats(&self) -> RasterStats {
         *self.world.resource::<RasterStats>()
     }
@@ -549,10 +554,18 @@ impl Composer {
 
     /// Render a view of the composed scene (builds the occupancy grid on first use).
     pub fn render(&mut self, camera: &Camera, background: glam::Vec3) -> Vec<f32> {
-        let mut comp = self.world.resource_mut::<ComposedPlanes>();
-        if comp.0.occupancy.is_none() {
-            comp.0.refresh_occupancy(None);
-        }
-        comp.0.render(camera, background)
+        self.ensure_occupancy();
+        self.composition().render(camera, background)
+    }
+
+    /// [`Composer::render`] that gives up (`None`) when `stop` says so.
+    pub fn render_unless(
+        &mut self,
+        camera: &Camera,
+        background: glam::Vec3,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Option<Vec<f32>> {
+        self.ensure_occupancy();
+        self.composition().render_unless(camera, background, stop)
     }
 }

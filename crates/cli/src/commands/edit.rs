@@ -29,6 +29,12 @@ pub struct EditArgs {
     /// a hardware wgpu adapter exists, else the CPU with one line saying so.
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     pub backend: BackendArg,
+    /// Seconds a render on the CPU may take before it is cancelled (the request then
+    /// answers 400 and the session goes on). Edits are bounded by the layout limits: a
+    /// session's layout holds at most 20,000 instances (or twice its starting count) unless
+    /// `--limit instances=N` says otherwise.
+    #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
+    pub render_budget: f64,
 }
 
 pub fn edit(a: EditArgs) -> Result<()> {
@@ -39,7 +45,14 @@ pub fn edit(a: EditArgs) -> Result<()> {
         );
     }
     let gpu = device(a.backend)?.map(|ctx| (ctx, a.backend == BackendArg::Auto));
-    let opts = SessionOptions { layout: a.layout.clone(), halo: None };
+    if !(a.render_budget.is_finite() && a.render_budget > 0.0) {
+        bail!("--render-budget must be a positive number of seconds, got {}", a.render_budget);
+    }
+    let opts = SessionOptions {
+        layout: a.layout.clone(),
+        render_budget: Some(std::time::Duration::from_secs_f64(a.render_budget.min(86_400.0))),
+        ..Default::default()
+    };
     let session = EditSession::open(&a.library, &opts, gpu)
         .with_context(|| format!("opening {} for editing", a.library.display()))?;
     let backend = session.backend();

@@ -312,13 +312,14 @@ function onKey(evt) {
   if (ctrl && evt.key.toLowerCase() === "z") { evt.preventDefault(); evt.shiftKey ? redo() : undo(); return; }
   if (ctrl && evt.key.toLowerCase() === "y") { evt.preventDefault(); redo(); return; }
   if (ctrl && evt.key.toLowerCase() === "s") { evt.preventDefault(); save(); return; }
-  if (ctrl || evt.altKey) return; // browser shortcuts (Ctrl-+ zooms the page)
+  const duplicate = ctrl && !evt.altKey && evt.key.toLowerCase() === "d";
+  if ((ctrl || evt.altKey) && !duplicate) return; // browser shortcuts (Ctrl-+ zooms the page)
   const key = editor.selected;
   if (!key) return;
   const inst = editor.layout.instances.find((i) => i.key === key);
   if (!inst) return;
   const t = ronString(key);
-  if (ctrl && evt.key.toLowerCase() === "d") {
+  if (duplicate) {
     evt.preventDefault();
     const w = Math.max(...inst.footprint.map(([x]) => x)) - Math.min(...inst.footprint.map(([x]) => x));
     sendEdits(`[Duplicate(target: ${t}, by: (${num(w * 1.1)}, 0.0))]`);

@@ -48,7 +48,7 @@ pub fn bench_edit(a: BenchEditArgs) -> Result<()> {
     let scratch =
         std::env::temp_dir().join(format!("assetfield-bench-edit-{}.ron", std::process::id()));
     let gpu = device(a.backend)?.map(|ctx| (ctx, a.backend == BackendArg::Auto));
-    let opts = SessionOptions { layout: Some(scratch.clone()), halo: None };
+    let opts = SessionOptions { layout: Some(scratch.clone()), ..Default::default() };
     let _ = std::fs::remove_file(&scratch);
     let mut s = EditSession::open(&a.library, &opts, gpu)
         .with_context(|| format!("opening {}", a.library.display()))?;
