@@ -358,6 +358,22 @@ fn the_api_answers_every_endpoint_and_guards_the_session() {
         .filter(|i| i["category"] == cat)
         .collect();
     assert!(!of_cat.is_empty() && of_cat.iter().all(|i| i["asset"] == name.as_str()), "{of_cat:?}");
+    // drawn with the template now, each keeps the orientation its own entry was cut with
+    let index = AssetLibrary::open(lib).unwrap().index;
+    let cut_yaw =
+        |asset: &str| index.entries.iter().find(|e| e.name == asset).map_or(0.0, |e| e.yaw_deg);
+    for i in &of_cat {
+        let was = instance(&added.json(), i["key"].as_str().unwrap()).clone();
+        let want =
+            was["yaw_deg"].as_f64().unwrap() + cut_yaw(was["asset"].as_str().unwrap()) as f64;
+        let off = (i["yaw_deg"].as_f64().unwrap() - want).rem_euclid(360.0);
+        assert!(
+            off.min(360.0 - off) < 1e-3,
+            "{}: yaw {} after recolouring, {want} wanted",
+            i["key"],
+            i["yaw_deg"]
+        );
+    }
     assert_eq!(s.post("/api/recolour?category=nope&from=obj000", "").status, 400);
     assert_eq!(s.post(&format!("/api/recolour?category={cat}&from=nope"), "").status, 400);
     assert_eq!(s.post("/api/recolour", "").status, 400, "missing query");

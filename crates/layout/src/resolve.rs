@@ -29,6 +29,12 @@ pub struct AssetInfo {
     pub height: f32,
     pub yaw_symmetry_deg: f32,
     pub container: bool,
+    /// Counter-clockwise turn from the asset's category frame to its own, degrees: a mined
+    /// entry is cut as its object stood (the turn taking its category's template onto it);
+    /// 0 for templates and for assets made of parts. Giving an instance another asset of
+    /// its category turns the instance by the difference, so the object keeps its
+    /// orientation in the world.
+    pub frame_yaw_deg: f32,
 }
 
 /// Where resolution looks up assets: the synthesiser (geometry), the composer (asset library).
@@ -75,6 +81,7 @@ pub fn asset_info_from_bounds(name: &str, def: &AssetDef, b: Aabb3) -> AssetInfo
         height: b.max.z.max(0.0),
         yaw_symmetry_deg: def.yaw_symmetry_deg,
         container: def.container,
+        frame_yaw_deg: 0.0,
     }
 }
 
@@ -1350,13 +1357,35 @@ impl<'a> Resolver<'a> {
         Ok(())
     }
 
+    /// Give instance `k` asset `asset` (described by `info`). The instance turns by the
+    /// difference of the two assets' frames ([`AssetInfo::frame_yaw_deg`]), so the object
+    /// keeps its orientation in the world, and what stands on it keeps its place. Callers
+    /// [`Self::refresh`] afterwards.
     fn retarget(&mut self, k: usize, asset: &str, info: &AssetInfo) {
         self.record(k);
+        let old = self.catalog.asset_info(&self.out[k].asset).map_or(0.0, |i| i.frame_yaw_deg);
+        let turn = wrap_degrees(old - info.frame_yaw_deg);
         let inst = &mut self.out[k];
         inst.asset = asset.to_string();
         inst.category = info.category.clone();
         inst.yaw_symmetry_deg = info.yaw_symmetry_deg;
         inst.container = info.container;
+        if turn != 0.0 {
+            let children = self.supported[k].clone();
+            let worlds: Vec<GroundTransform> =
+                children.iter().map(|&c| self.out[c].transform).collect();
+            let mut w = self.out[k].transform;
+            w.yaw_deg = wrap_degrees(w.yaw_deg + turn);
+            self.set_world(k, w);
+            // the world transform too (the refresh derives the same from the local one), for
+            // an edit that goes on from it (Override sets `at` after the asset)
+            self.out[k].transform = w;
+            let top = GroundTransform { base: self.out[k].top, ..w };
+            for (c, world) in children.into_iter().zip(worlds) {
+                self.record(c);
+                self.out[c].local = relative_to(&world, &top);
+            }
+        }
     }
 
     fn unique_copy_key(&self, key: &str) -> String {

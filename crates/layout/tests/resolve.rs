@@ -1,6 +1,6 @@
 //! The layout language end to end: generators, supports, edits, ids and located errors.
 
-use assetfield_layout::resolve::glob_match;
+use assetfield_layout::resolve::{AssetCatalog, AssetInfo, glob_match};
 use assetfield_layout::source::{parse_script, write_script};
 use assetfield_layout::{GtLayout, LayoutError, PartsCatalog, ResolvedLayout, load_str, resolve};
 use std::path::Path;
@@ -362,4 +362,53 @@ fn written_scripts_parse_back_identically() {
     let s = parse_script(Path::new("t.ron"), &text).unwrap();
     let again = parse_script(Path::new("t.ron"), &write_script(&s).unwrap()).unwrap();
     assert_eq!(s, again);
+}
+
+/// A catalog whose "chair_cut" is a chair cut as it stood, turned 30 degrees from its
+/// category's frame (as a mined entry is).
+struct TurnedCatalog(PartsCatalog);
+
+impl AssetCatalog for TurnedCatalog {
+    fn asset_info(&self, name: &str) -> Option<AssetInfo> {
+        let base = if name == "chair_cut" { "chair" } else { name };
+        let mut info = self.0.asset_info(base)?;
+        if name == "chair_cut" {
+            info.frame_yaw_deg = 30.0;
+        }
+        Some(info)
+    }
+    fn asset_names(&self) -> Vec<String> {
+        let mut names = self.0.asset_names();
+        names.push("chair_cut".into());
+        names
+    }
+}
+
+#[test]
+fn another_asset_of_the_category_keeps_the_object_s_orientation() {
+    let text = scene(
+        r#"layout: [
+        Instance(asset: "chair_cut", at: (1, 0), yaw: 10, name: "c"),
+        Instance(asset: "chair_cut", at: (3, 0), name: "d"),
+        Group(on: "d", name: "g", children: [Instance(asset: "cup", at: (0.1, 0), name: "cup")]),
+    ],
+    edits: [ReplaceAsset(category: "chair", with: "chair"), Override(target: "c", asset: "chair_cut")]"#,
+    );
+    let loaded = load_str(Path::new("test.ron"), &text).unwrap();
+    let catalog = TurnedCatalog(PartsCatalog::from_script(&loaded));
+    let all = resolve(&loaded, &catalog).unwrap();
+    let get = |l: &ResolvedLayout, k: &str| {
+        l.instances.iter().find(|i| i.key.ends_with(k)).unwrap_or_else(|| panic!("{k}")).clone()
+    };
+    // ReplaceAsset turned both by the 30 degrees the cut carried; Override turned c back
+    assert!(close(get(&all, "d").transform.yaw_deg, 30.0), "{}", get(&all, "d").transform.yaw_deg);
+    assert_eq!(get(&all, "c").asset, "chair_cut");
+    assert!(close(get(&all, "c").transform.yaw_deg, 10.0));
+    // what stands on d kept its place and orientation
+    let mut before = loaded.clone();
+    before.edits.clear();
+    let plain = resolve(&before, &catalog).unwrap();
+    let (a, b) = (get(&plain, "cup").transform, get(&all, "cup").transform);
+    assert!(close(a.position.x, b.position.x) && close(a.position.y, b.position.y), "{a:?} {b:?}");
+    assert!(close(a.yaw_deg, b.yaw_deg) && close(a.base, b.base), "{a:?} {b:?}");
 }

@@ -396,6 +396,7 @@ impl AssetLibrary {
             height: e.extent.2,
             yaw_symmetry_deg: 360.0,
             container: false,
+            frame_yaw_deg: e.yaw_deg,
         }
     }
 }
@@ -588,6 +589,8 @@ impl LibraryAsset<'_> {
         let from_parts = parts.asset_info(name);
         let shift_footprint = from_parts.is_some();
         let mut info = from_parts.unwrap_or_else(|| lib.entry_info(e));
+        // the patch is the entry's, cut as its object stood, whatever the script's size
+        info.frame_yaw_deg = e.yaw_deg;
         let mut patch = lib.patch(&e.name, halo)?;
         // the pivot: the script's, else the entry's
         match lref.pivot {

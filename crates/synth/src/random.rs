@@ -140,6 +140,7 @@ fn curated_candidate(m: &CuratedModel) -> Candidate {
         height: h / 100.0,
         yaw_symmetry_deg: m.yaw_symmetry_deg,
         container: false,
+        frame_yaw_deg: 0.0,
     };
     Candidate { name, def, info, placement: m.placement }
 }
