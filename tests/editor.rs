@@ -740,6 +740,14 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
         )
     };
     b.wait_for(&full_render(0), "the page and its first full render");
+    let state = b.script(
+        "return [document.getElementById('unsaved').hidden, document.getElementById('edit-text').value];",
+    );
+    assert_eq!(state[0], true, "nothing is unsaved yet");
+    assert!(
+        state[1].as_str().unwrap().contains("Move(target: \""),
+        "the example edit names an instance: {state}"
+    );
     let before = b.view_image();
     let layout = s.get("/api/layout").json();
     let key = "b0";
@@ -762,6 +770,11 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
                         {"type": "pointerUp", "button": 0}]}]})),
     );
     b.wait_for(&full_render(1), "the render after the drag");
+    assert_eq!(
+        b.script("return document.getElementById('unsaved').hidden;"),
+        false,
+        "unsaved marker"
+    );
     let upc = b.script("return editor.unitsPerCssPixel();");
     let (ux, uy) = (upc[0].as_f64().unwrap(), upc[1].as_f64().unwrap());
     let moved = s.get("/api/layout").json();
@@ -880,6 +893,45 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
         (nx - wx).abs() <= 1.01 * ux && (ny - wy).abs() <= 1.01 * uy,
         "inserted at ({nx}, {ny}), clicked ({wx}, {wy})"
     );
+
+    // the category panel: draw a category with its template; the dropdown keeps the choice,
+    // each instance keeps its orientation (its entry's cut turn), and the colours are the
+    // server's
+    let chosen = b.script(
+        "const li = document.querySelector('#categories li'); const sel = li.querySelector('select');
+         sel.value = li.dataset.category; sel.dispatchEvent(new Event('change'));
+         return li.dataset.category;",
+    );
+    let cat = chosen.as_str().unwrap().to_string();
+    let was = s.get("/api/layout").json();
+    b.wait_for(&full_render(6), "the render after ReplaceAsset");
+    let now = s.get("/api/layout").json();
+    let index = AssetLibrary::open(lib).unwrap().index;
+    let cut =
+        |a: &str| index.entries.iter().find(|e| e.name == a).map_or(0.0, |e| e.yaw_deg) as f64;
+    for i in now["instances"].as_array().unwrap().iter().filter(|i| i["category"] == cat.as_str()) {
+        assert_eq!(i["asset"], cat.as_str());
+        let w = instance(&was, i["key"].as_str().unwrap());
+        let want = w["yaw_deg"].as_f64().unwrap() + cut(w["asset"].as_str().unwrap());
+        let off = (i["yaw_deg"].as_f64().unwrap() - want).rem_euclid(360.0);
+        assert!(off.min(360.0 - off) < 1e-3, "{}: yaw {} wanted {want}", i["key"], i["yaw_deg"]);
+    }
+    let panel = b.script(&format!(
+        "const li = document.querySelector('#categories li[data-category=\"{cat}\"]');
+         return [li.querySelector('select').value, li.querySelector('.swatch').style.background,
+                 editor.layout.category_colours['{cat}']];"
+    ));
+    assert_eq!(panel[0], cat.as_str(), "the dropdown shows the choice after the change");
+    let hex = panel[2].as_str().unwrap();
+    let rgb = (1..7)
+        .step_by(2)
+        .map(|k| u8::from_str_radix(&hex[k..k + 2], 16).unwrap())
+        .collect::<Vec<_>>();
+    assert_eq!(panel[1], format!("rgb({}, {}, {})", rgb[0], rgb[1], rgb[2]), "{panel}");
+    // the example edit applies as it stands
+    b.script("document.getElementById('apply-text').click(); return true;");
+    b.wait_for(&full_render(7), "the render after the example edit");
+    assert_eq!(b.script("return document.getElementById('edit-error').textContent;"), "");
 
     // a screenshot under the test's output
     let shot = b.cmd("GET", "screenshot", None);

@@ -103,10 +103,9 @@ pub fn bev_picture(
     let zoom = if base.width == 0 { 1 } else { m.width / base.width.max(1) };
     let mut pic = base.upscaled(zoom.max(1));
     if footprints {
-        let categories = &s.library().index.categories;
+        let colours = s.category_colour_indices();
         for inst in s.layout().objects() {
-            let k = categories.iter().position(|c| c.name == inst.category);
-            let [r, g, b, _] = palette(k.unwrap_or(categories.len()));
+            let [r, g, b, _] = palette(colours.get(&inst.category).copied().unwrap_or(0));
             let pts = footprint_corners(inst).map(|p| m.pixel(p));
             for i in 0..pts.len() {
                 draw_line(&mut pic, pts[i], pts[(i + 1) % pts.len()], [r, g, b]);

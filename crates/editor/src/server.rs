@@ -329,8 +329,10 @@ async fn post_recolour(State(s): State<AppState>, Query(q): Query<RecolourQuery>
 }
 
 async fn post_save(State(s): State<AppState>) -> Response {
-    with_session(&s, |s| {
+    let snapshot = s.layout.clone();
+    with_session(&s, move |s| {
         let path = s.save()?;
+        *snapshot.lock().unwrap_or_else(|p| p.into_inner()) = layout_bytes(s);
         let body = serde_json::json!({"saved": path.display().to_string(), "version": s.version()});
         Ok(axum::Json(body).into_response())
     })

@@ -152,6 +152,12 @@ pub struct LayoutView {
     pub edits: String,
     /// Where Save writes.
     pub save_path: String,
+    /// Whether the layout changed since it was opened or last saved.
+    pub unsaved: bool,
+    /// Each category's colour (`#rrggbb`) in the bird's-eye view and the panels: the
+    /// layout's categories in name order take `palette(0, 1, ...)`, as in `compose`'s
+    /// `layout.png`; the library's other categories follow.
+    pub category_colours: std::collections::BTreeMap<String, String>,
 }
 
 /// GPU rendering state: the context and a renderer of the composed field as of `version`.
@@ -175,6 +181,8 @@ pub struct EditSession {
     layout: ResolvedLayout,
     composer: Composer,
     version: u64,
+    /// Whether anything changed since the session opened or last saved.
+    unsaved: bool,
     requests: u64,
     bev_cache: Option<(u64, bool, Vec<u8>)>,
     bev_columns: BevColumns,
@@ -339,6 +347,7 @@ impl EditSession {
             layout,
             composer,
             version: 0,
+            unsaved: false,
             requests: 0,
             bev_cache: None,
             bev_columns: BevColumns::default(),
@@ -381,6 +390,7 @@ impl EditSession {
         self.bev_columns.invalidate(self.composer.last_dirty());
         self.layout = layout;
         self.version += 1;
+        self.unsaved = true;
         Ok(())
     }
 
@@ -561,7 +571,7 @@ impl EditSession {
 
     /// Write the layout (start file plus edits) to [`Self::save_path`], atomically and
     /// durably (synced before it returns; see [`assetfield_core::fsx::write_durable`]).
-    pub fn save(&self) -> Result<PathBuf> {
+    pub fn save(&mut self) -> Result<PathBuf> {
         let text = self.saved_text()?;
         assetfield_core::fsx::write_durable(&self.save_path, text.as_bytes()).map_err(
             |source| EditorError::Io {
@@ -569,6 +579,7 @@ impl EditSession {
                 source,
             },
         )?;
+        self.unsaved = false;
         Ok(self.save_path.clone())
     }
 
@@ -678,6 +689,18 @@ impl EditSession {
         Ok(png)
     }
 
+    /// Each category's index into [`assetfield_core::canvas::palette`] (see
+    /// [`LayoutView::category_colours`]).
+    pub fn category_colour_indices(&self) -> std::collections::BTreeMap<String, usize> {
+        let mut order = self.layout.categories();
+        for c in &self.lib.index.categories {
+            if !order.contains(&c.name) {
+                order.push(c.name.clone());
+            }
+        }
+        order.into_iter().enumerate().map(|(k, name)| (name, k)).collect()
+    }
+
     /// The layout as the API describes it.
     pub fn view(&self) -> LayoutView {
         let keys: std::collections::HashMap<u32, &str> =
@@ -738,6 +761,15 @@ impl EditSession {
             can_redo: !self.redo.is_empty(),
             edits: self.edits_ron(),
             save_path: self.save_path.display().to_string(),
+            unsaved: self.unsaved,
+            category_colours: self
+                .category_colour_indices()
+                .into_iter()
+                .map(|(name, k)| {
+                    let [r, g, b, _] = assetfield_core::canvas::palette(k);
+                    (name, format!("#{r:02x}{g:02x}{b:02x}"))
+                })
+                .collect(),
         }
     }
 

@@ -204,15 +204,13 @@ impl ResolvedLayout {
     pub fn by_key(&self, key: &str) -> Option<&ResolvedInstance> {
         self.instances.iter().find(|i| i.key == key)
     }
-    /// Category names in order of first appearance.
+    /// The categories of the layout's objects, in name order: category `k` of this list is
+    /// drawn in `palette(k)` in every picture (`layout.png`, the editor), whatever order
+    /// edits leave the instances in.
     pub fn categories(&self) -> Vec<String> {
-        let mut out: Vec<String> = Vec::new();
-        for i in self.objects() {
-            if !out.contains(&i.category) {
-                out.push(i.category.clone());
-            }
-        }
-        out
+        let set: std::collections::BTreeSet<&str> =
+            self.objects().map(|i| i.category.as_str()).collect();
+        set.into_iter().map(str::to_string).collect()
     }
 }
 

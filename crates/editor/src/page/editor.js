@@ -5,8 +5,6 @@
 "use strict";
 
 const TOKEN = new URLSearchParams(location.search).get("token") || "";
-// the category colours of every picture the tool draws (assetfield_core::canvas::palette)
-const PALETTE = ["#e6194b", "#3cb44b", "#0082c8", "#f58230", "#911eb4", "#46c8c8", "#f032e6", "#aaaa1e", "#fa96aa", "#008080", "#aa6e28", "#800000"];
 const PREVIEW_SIDE = 128;
 const SNAP_DEG = 15;
 const SVG_NS = "http://www.w3.org/2000/svg";
@@ -37,11 +35,9 @@ function status(text, isError) {
   s.className = isError ? "error" : "";
 }
 
+// the server's colours, those of every picture the tool draws (compose's layout.png too)
 function categoryColour(name) {
-  const names = editor.layout ? editor.layout.categories.map((c) => c.name) : [];
-  let k = names.indexOf(name);
-  if (k < 0) k = names.length;
-  return PALETTE[k % PALETTE.length];
+  return (editor.layout && editor.layout.category_colours[name]) || "#888888";
 }
 
 // ---- edits -------------------------------------------------------------------------
@@ -112,7 +108,24 @@ async function redo() {
 
 async function save() {
   const r = await post("save", "save");
-  if (r) status("saved " + r.saved);
+  if (r) {
+    status("saved " + r.saved);
+    if (editor.layout && editor.layout.version === r.version) {
+      editor.layout.unsaved = false;
+      $("unsaved").hidden = true;
+    }
+  }
+}
+
+// the edit box's example names an instance of the layout (the selected one, else the first)
+let exampleEdit = "";
+function refreshExample() {
+  const box = $("edit-text");
+  const insts = editor.layout ? editor.layout.instances : [];
+  const key = editor.selected || (insts[0] && insts[0].key);
+  if (!key || (box.value && box.value !== exampleEdit)) return;
+  exampleEdit = `[Move(target: ${ronString(key)}, by: (0.5, 0.0))]`;
+  box.value = exampleEdit;
 }
 
 // ---- layout and the bird's-eye view ------------------------------------------------
@@ -126,6 +139,8 @@ function setLayout(l) {
   $("undo").disabled = !l.can_undo;
   $("redo").disabled = !l.can_redo;
   $("edit-log").textContent = l.edits.trim() || "(no edits yet)";
+  $("unsaved").hidden = !l.unsaved;
+  refreshExample();
   drawFootprints();
   drawPanels();
   if (changed) {
@@ -184,6 +199,7 @@ function drawFootprints() {
   const svg = $("bev-svg");
   svg.setAttribute("viewBox", `0 0 ${l.bev.width} ${l.bev.height}`);
   svg.replaceChildren();
+  const labels = [];
   for (const inst of l.instances) {
     const g = document.createElementNS(SVG_NS, "g");
     g.dataset.key = inst.key;
@@ -203,7 +219,9 @@ function drawFootprints() {
     label.setAttribute("y", py);
     label.setAttribute("text-anchor", "middle");
     label.textContent = inst.key;
+    label.dataset.key = inst.key;
     g.appendChild(label);
+    labels.push(label);
     if (inst.key === editor.selected) {
       // the turning handle, in front of the instance (its local +X)
       const a = (inst.yaw_deg * Math.PI) / 180;
@@ -220,6 +238,15 @@ function drawFootprints() {
     }
     svg.appendChild(g);
   }
+  // a label that would overprint one already shown is left out (the selected one first)
+  labels.sort((a, b) => (b.dataset.key === editor.selected) - (a.dataset.key === editor.selected));
+  const shown = [];
+  for (const label of labels) {
+    const r = label.getBBox();
+    const hit = shown.some((o) => r.x < o.x + o.width && o.x < r.x + r.width && r.y < o.y + o.height && o.y < r.y + r.height);
+    if (hit) label.remove();
+    else shown.push(r);
+  }
   const sel = l.instances.find((i) => i.key === editor.selected);
   $("selection").textContent = sel
     ? `${sel.key}: ${sel.asset} (${sel.category}) at (${sel.x.toFixed(3)}, ${sel.y.toFixed(3)}), yaw ${sel.yaw_deg.toFixed(1)}°, scale ${sel.scale.toFixed(2)}`
@@ -229,6 +256,7 @@ function drawFootprints() {
 
 function select(key) {
   editor.selected = key;
+  refreshExample();
   drawFootprints();
 }
 
@@ -391,14 +419,28 @@ function drawPanels() {
       o.textContent = m === c.name ? `template ${c.template}` : m;
       pick.appendChild(o);
     }
+    // the dropdowns show what the category's instances are drawn with now
+    const used = [...new Set(l.instances.filter((i) => i.category === c.name).map((i) => i.asset))];
+    if (used.length === 1 && [c.name, ...c.members].includes(used[0])) {
+      pick.value = used[0];
+    } else {
+      // drawn with several entries (as mined: each object its own), or recoloured
+      const o = Object.assign(document.createElement("option"), { value: "", textContent: used.length > 1 ? "each its own entry" : "recoloured" });
+      pick.prepend(o);
+      pick.value = "";
+    }
     pick.onchange = () => {
-      if (pick.value !== c.name) sendEdits(`[ReplaceAsset(category: ${ronString(c.name)}, with: ${ronString(pick.value)})]`);
+      if (pick.value) sendEdits(`[ReplaceAsset(category: ${ronString(c.name)}, with: ${ronString(pick.value)})]`);
     };
     const tint = document.createElement("select");
     tint.title = "recolour the category: its template's geometry with this entry's colours";
     tint.appendChild(Object.assign(document.createElement("option"), { value: "", textContent: "recolour from..." }));
     for (const a of l.assets.filter((a) => a.kind === "entry")) {
       tint.appendChild(Object.assign(document.createElement("option"), { value: a.name, textContent: `${a.name} (${a.category})` }));
+    }
+    if (used.length === 1 && used[0].startsWith(c.name + "~")) {
+      const from = used[0].slice(c.name.length + 1);
+      if ([...tint.options].some((o) => o.value === from)) tint.value = from;
     }
     tint.onchange = () => {
       if (tint.value) recolour(c.name, tint.value);
@@ -494,6 +536,12 @@ async function start() {
   view.addEventListener("pointercancel", onViewUp);
   view.addEventListener("wheel", onWheel, { passive: false });
   document.addEventListener("keydown", onKey);
+  window.addEventListener("beforeunload", (evt) => {
+    if (editor.layout && editor.layout.unsaved) {
+      evt.preventDefault();
+      evt.returnValue = "";
+    }
+  });
   $("undo").onclick = undo;
   $("redo").onclick = redo;
   $("save").onclick = save;
