@@ -374,6 +374,23 @@ fn the_api_answers_every_endpoint_and_guards_the_session() {
             i["yaw_deg"]
         );
     }
+    // each category has a thumbnail (its template from above) and can be given a name
+    let thumb = s.get(&format!("/api/thumbnail?category={cat}"));
+    assert_eq!(thumb.status, 200, "{}", String::from_utf8_lossy(&thumb.body));
+    let t = decode_png(&thumb.body);
+    assert!(t.width() >= 32 && t.height() >= 16, "{:?}", t.dimensions());
+    let (lo, hi) = t.pixels().fold((255u8, 0u8), |(lo, hi), p| (lo.min(p.0[1]), hi.max(p.0[1])));
+    assert!(hi > lo + 60, "the template shows on its thumbnail ({lo}..{hi})");
+    assert_eq!(s.get("/api/thumbnail?category=nope").status, 400);
+    let named =
+        s.post("/api/edits", &format!("[NameCategory(category: \"{cat}\", name: \"chairs\")]"));
+    assert_eq!(named.status, 200, "{}", String::from_utf8_lossy(&named.body));
+    let named = named.json();
+    let c =
+        named["categories"].as_array().unwrap().iter().find(|c| c["name"] == cat).unwrap().clone();
+    assert_eq!(c["label"], "chairs");
+    let r = s.post("/api/edits", &format!("[NameCategory(category: \"{cat}\", name: \" \")]"));
+    assert_eq!(r.status, 400, "an empty name");
     assert_eq!(s.post("/api/recolour?category=nope&from=obj000", "").status, 400);
     assert_eq!(s.post(&format!("/api/recolour?category={cat}&from=nope"), "").status, 400);
     assert_eq!(s.post("/api/recolour", "").status, 400, "missing query");
@@ -386,6 +403,7 @@ fn the_api_answers_every_endpoint_and_guards_the_session() {
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(text.contains("base: \"layout.ron\"") && text.contains("Add("), "{text}");
     assert!(text.contains("color_from") && text.contains("path: \".\""), "{text}");
+    assert!(text.contains("NameCategory(") && text.contains("\"chairs\""), "{text}");
     ok(lib, &["layout", "edited.ron"]);
     let view = ViewRequest {
         width: 80,
@@ -928,9 +946,23 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
         .map(|k| u8::from_str_radix(&hex[k..k + 2], 16).unwrap())
         .collect::<Vec<_>>();
     assert_eq!(panel[1], format!("rgb({}, {}, {})", rgb[0], rgb[1], rgb[2]), "{panel}");
+    // every category shows its thumbnail; Rename names it (the page asks with a prompt)
+    b.wait_for(
+        "[...document.querySelectorAll('#categories img.thumb')].every((i) => i.complete && i.naturalWidth > 0)",
+        "the category thumbnails",
+    );
+    b.script(&format!(
+        "window.prompt = () => 'tables'; [...document.querySelectorAll('#categories li[data-category=\"{cat}\"] button')].find((x) => x.textContent === 'Rename').click(); return true;"
+    ));
+    b.wait_for(
+        &format!("document.querySelector('#categories li[data-category=\"{cat}\"] .label').textContent.startsWith('tables')"),
+        "the renamed category",
+    );
+    b.wait_for(&full_render(7), "the layout after the rename");
+
     // the example edit applies as it stands
     b.script("document.getElementById('apply-text').click(); return true;");
-    b.wait_for(&full_render(7), "the render after the example edit");
+    b.wait_for(&full_render(8), "the render after the example edit");
     assert_eq!(b.script("return document.getElementById('edit-error').textContent;"), "");
 
     // a screenshot under the test's output

@@ -1,11 +1,12 @@
 //! The bird's-eye view: the composed scene's column opacity seen from above, enlarged to a
 //! comfortable size, with the instances' footprints outlined in their category's colour.
 
+use assetfield_core::{GroundTransform, Rect2};
 use assetfield_field::Field;
 use assetfield_field::pictures::{
     Picture, max_opacity_columns, max_opacity_columns_in, opacity_picture,
 };
-use assetfield_scene::TexelRect;
+use assetfield_scene::{AssetLibrary, Canvas, FeaturePatch, InstanceDraw, SceneError, TexelRect};
 use glam::Vec2;
 use serde::Serialize;
 
@@ -127,4 +128,22 @@ fn draw_line(pic: &mut Picture, a: Vec2, b: Vec2, colour: [u8; 3]) {
             }
         }
     }
+}
+
+/// Pixels on the longer side of a category thumbnail.
+pub const THUMBNAIL_SIDE: u32 = 64;
+
+/// A category's thumbnail: its template alone on empty ground, seen from above as the
+/// bird's-eye view shows it (column opacity through the colour ramp), enlarged to about
+/// [`THUMBNAIL_SIDE`] pixels.
+pub fn thumbnail(lib: &AssetLibrary, patch: &FeaturePatch) -> Result<Picture, SceneError> {
+    let draw = InstanceDraw::new(&GroundTransform::IDENTITY, patch);
+    let b = draw.world_bounds();
+    let m = lib.texel() * 2.0;
+    let mut comp = lib.composition(&Canvas::Empty { extent: Rect2::new(b.min - m, b.max + m) })?;
+    let full = comp.full_rect();
+    comp.rasterise(full, &[draw]);
+    let (cols, rows, values) = max_opacity_columns(&comp.field);
+    let side = cols.max(rows).max(1) as u32;
+    Ok(opacity_picture(cols, rows, &values).upscaled(THUMBNAIL_SIDE.div_ceil(side)))
 }

@@ -125,6 +125,7 @@ pub fn router(state: AppState) -> Router {
         .route("/bev", get(get_bev))
         .route("/save", post(post_save))
         .route("/recolour", post(post_recolour))
+        .route("/thumbnail", get(get_thumbnail))
         .layer(middleware::from_fn_with_state(state.clone(), require_token));
     Router::new()
         .route("/", get(|| async { html(INDEX_HTML) }))
@@ -315,6 +316,16 @@ struct BevQuery {
 
 async fn get_bev(State(s): State<AppState>, Query(q): Query<BevQuery>) -> Response {
     with_session(&s, move |s| Ok(png(s.bev_png(q.footprints.unwrap_or(true))?, s.version()))).await
+}
+
+/// Query of `GET /api/thumbnail`.
+#[derive(Debug, Deserialize)]
+struct ThumbnailQuery {
+    category: String,
+}
+
+async fn get_thumbnail(State(s): State<AppState>, Query(q): Query<ThumbnailQuery>) -> Response {
+    with_session(&s, move |s| Ok(png(s.thumbnail_png(&q.category)?, s.version()))).await
 }
 
 /// Query of `POST /api/recolour`.

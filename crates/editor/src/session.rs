@@ -118,6 +118,8 @@ pub struct InstanceView {
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct CategoryView {
     pub name: String,
+    /// The name people read (a `NameCategory` edit's), else `name`.
+    pub label: String,
     pub template: String,
     pub members: Vec<String>,
 }
@@ -186,6 +188,8 @@ pub struct EditSession {
     requests: u64,
     bev_cache: Option<(u64, bool, Vec<u8>)>,
     bev_columns: BevColumns,
+    /// Category thumbnails (PNG), by category.
+    thumbnails: std::collections::BTreeMap<String, Vec<u8>>,
     gpu: Option<Gpu>,
     /// Texels around each entry's mask that its patch covers.
     halo: usize,
@@ -351,6 +355,7 @@ impl EditSession {
             requests: 0,
             bev_cache: None,
             bev_columns: BevColumns::default(),
+            thumbnails: Default::default(),
             gpu,
             halo,
             render_budget: opts.render_budget.unwrap_or(DEFAULT_RENDER_BUDGET),
@@ -701,6 +706,31 @@ impl EditSession {
         order.into_iter().enumerate().map(|(k, name)| (name, k)).collect()
     }
 
+    /// A category's thumbnail as PNG bytes (see [`crate::bev::thumbnail`]), made once.
+    pub fn thumbnail_png(&mut self, category: &str) -> Result<Vec<u8>> {
+        if let Some(png) = self.thumbnails.get(category) {
+            return Ok(png.clone());
+        }
+        let Some(asset) = self
+            .assets
+            .assets
+            .get(category)
+            .filter(|_| self.lib.index.categories.iter().any(|c| c.name == category))
+        else {
+            let names: Vec<&str> =
+                self.lib.index.categories.iter().map(|c| c.name.as_str()).collect();
+            return Err(EditorError::BadRequest(format!(
+                "no category \"{category}\" (categories: {})",
+                names.join(", ")
+            )));
+        };
+        let pic = crate::bev::thumbnail(&self.lib, &asset.patch)
+            .map_err(scene_err(format!("drawing the thumbnail of {category}")))?;
+        let png = crate::png::encode_rgb8(pic.width, pic.height, &pic.pixels)?;
+        self.thumbnails.insert(category.to_string(), png.clone());
+        Ok(png)
+    }
+
     /// The layout as the API describes it.
     pub fn view(&self) -> LayoutView {
         let keys: std::collections::HashMap<u32, &str> =
@@ -727,6 +757,7 @@ impl EditSession {
             .iter()
             .map(|c| CategoryView {
                 name: c.name.clone(),
+                label: self.layout.category_names.get(&c.name).unwrap_or(&c.name).clone(),
                 template: c.template.clone(),
                 members: c.members.clone(),
             })

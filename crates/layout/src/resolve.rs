@@ -188,6 +188,8 @@ pub struct ResolvedLayout {
     pub instances: Vec<ResolvedInstance>,
     /// The ground region of interest.
     pub extent: Rect2,
+    /// Names people read, by category (`NameCategory` edits; the last one wins).
+    pub category_names: BTreeMap<String, String>,
 }
 
 impl ResolvedLayout {
@@ -258,7 +260,12 @@ pub fn resolve_with(
             e
         }
     };
-    Ok(ResolvedLayout { name: script.name.clone(), instances, extent })
+    Ok(ResolvedLayout {
+        name: script.name.clone(),
+        instances,
+        extent,
+        category_names: r.category_names,
+    })
 }
 
 /// The largest coordinate a resolved layout may hold (scene units, either sign): 2^24, where
@@ -333,6 +340,8 @@ struct Resolver<'a> {
     /// edit that moves something does it for all; later edits only for what they move).
     derived: bool,
     changes: Changes,
+    /// `NameCategory` edits so far.
+    category_names: BTreeMap<String, String>,
 }
 
 fn semantic(location: &Location, message: String) -> LayoutError {
@@ -501,6 +510,7 @@ impl<'a> Resolver<'a> {
             tries_left: limits.max_scatter_tries,
             derived: false,
             changes: Changes::default(),
+            category_names: BTreeMap::new(),
         }
     }
 
@@ -1152,6 +1162,9 @@ impl<'a> Resolver<'a> {
                 for k in self.with_dependents(&hits) {
                     self.removed[k] = true;
                 }
+            }
+            Edit::NameCategory { category, name } => {
+                self.category_names.insert(category.clone(), name.trim().to_string());
             }
             Edit::ReplaceAsset { category, with } => {
                 let src = &self.script.files[node.file];

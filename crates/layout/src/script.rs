@@ -493,6 +493,9 @@ pub enum Edit {
     RemoveCategory(String),
     /// Show every instance of `category` with asset `with` instead (same placement).
     ReplaceAsset { category: String, with: String },
+    /// Give a category a name people read (`cat2` -> "chairs"): the editor's panels show
+    /// it; edits still name the category by its own name.
+    NameCategory { category: String, name: String },
     /// Move to a world position, or by an offset.
     Move {
         target: String,
@@ -564,6 +567,7 @@ impl Edit {
             Edit::Remove(_) => "Remove",
             Edit::RemoveCategory(_) => "RemoveCategory",
             Edit::ReplaceAsset { .. } => "ReplaceAsset",
+            Edit::NameCategory { .. } => "NameCategory",
             Edit::Move { .. } => "Move",
             Edit::Rotate { .. } => "Rotate",
             Edit::Scale { .. } => "Scale",

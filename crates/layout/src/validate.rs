@@ -237,6 +237,10 @@ fn edit(edit: &Edit, location: &Location) -> Result<(), LayoutError> {
     let positive = |field: &str, v: &Option<f32>| v.map_or(Ok(()), |v| c.positive(field, v));
     match edit {
         Edit::Remove(_) | Edit::RemoveCategory(_) | Edit::ReplaceAsset { .. } => Ok(()),
+        Edit::NameCategory { name, .. } if name.trim().is_empty() => {
+            Err(c.fail("name", format!("{name:?}"), "a name with a visible character"))
+        }
+        Edit::NameCategory { .. } => Ok(()),
         Edit::Move { to, by, .. } => {
             point("to", to)?;
             point("by", by)

@@ -412,3 +412,16 @@ fn another_asset_of_the_category_keeps_the_object_s_orientation() {
     assert!(close(a.position.x, b.position.x) && close(a.position.y, b.position.y), "{a:?} {b:?}");
     assert!(close(a.yaw_deg, b.yaw_deg) && close(a.base, b.base), "{a:?} {b:?}");
 }
+
+#[test]
+fn categories_take_names_people_read() {
+    let l = ok(r#"layout: [Instance(asset: "chair", at: (0, 0), name: "c")],
+    edits: [NameCategory(category: "chair", name: "Dining chairs"), NameCategory(category: "chair", name: " Chairs ")]"#);
+    assert_eq!(
+        l.category_names.get("chair").map(String::as_str),
+        Some("Chairs"),
+        "the last one, trimmed"
+    );
+    let e = err(r#"layout: [], edits: [NameCategory(category: "chair", name: "")]"#);
+    assert!(e.contains("NameCategory") && e.contains("name"), "{e}");
+}

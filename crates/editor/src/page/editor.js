@@ -35,6 +35,12 @@ function status(text, isError) {
   s.className = isError ? "error" : "";
 }
 
+// the name people read (NameCategory), else the category's own
+function categoryLabel(name) {
+  const c = editor.layout && editor.layout.categories.find((k) => k.name === name);
+  return c ? c.label : name;
+}
+
 // the server's colours, those of every picture the tool draws (compose's layout.png too)
 function categoryColour(name) {
   return (editor.layout && editor.layout.category_colours[name]) || "#888888";
@@ -210,7 +216,7 @@ function drawFootprints() {
     poly.setAttribute("fill", categoryColour(inst.category));
     poly.dataset.key = inst.key;
     const title = document.createElementNS(SVG_NS, "title");
-    title.textContent = `${inst.key} (${inst.asset}, ${inst.category})`;
+    title.textContent = `${inst.key} (${inst.asset}, ${categoryLabel(inst.category)})`;
     poly.appendChild(title);
     g.appendChild(poly);
     const [px, py] = toPixel(inst.x, inst.y);
@@ -249,7 +255,7 @@ function drawFootprints() {
   }
   const sel = l.instances.find((i) => i.key === editor.selected);
   $("selection").textContent = sel
-    ? `${sel.key}: ${sel.asset} (${sel.category}) at (${sel.x.toFixed(3)}, ${sel.y.toFixed(3)}), yaw ${sel.yaw_deg.toFixed(1)}°, scale ${sel.scale.toFixed(2)}`
+    ? `${sel.key}: ${sel.asset} (${categoryLabel(sel.category)}) at (${sel.x.toFixed(3)}, ${sel.y.toFixed(3)}), yaw ${sel.yaw_deg.toFixed(1)}°, scale ${sel.scale.toFixed(2)}`
     : "nothing selected";
   $("use-asset").disabled = !(sel && editor.chosenAsset);
 }
@@ -392,7 +398,7 @@ function drawPanels() {
     sw.className = "swatch";
     sw.style.background = categoryColour(a.category);
     li.append(sw, `${a.name} `, Object.assign(document.createElement("small"), {
-      textContent: a.kind === "category" ? "(category template)" : `(${a.category})`,
+      textContent: a.kind === "category" ? `(${categoryLabel(a.name)}: category template)` : `(${categoryLabel(a.category)})`,
     }));
     li.onclick = () => {
       editor.chosenAsset = editor.chosenAsset === a.name ? null : a.name;
@@ -436,7 +442,7 @@ function drawPanels() {
     tint.title = "recolour the category: its template's geometry with this entry's colours";
     tint.appendChild(Object.assign(document.createElement("option"), { value: "", textContent: "recolour from..." }));
     for (const a of l.assets.filter((a) => a.kind === "entry")) {
-      tint.appendChild(Object.assign(document.createElement("option"), { value: a.name, textContent: `${a.name} (${a.category})` }));
+      tint.appendChild(Object.assign(document.createElement("option"), { value: a.name, textContent: `${a.name} (${categoryLabel(a.category)})` }));
     }
     if (used.length === 1 && used[0].startsWith(c.name + "~")) {
       const from = used[0].slice(c.name.length + 1);
@@ -445,13 +451,36 @@ function drawPanels() {
     tint.onchange = () => {
       if (tint.value) recolour(c.name, tint.value);
     };
+    const thumb = document.createElement("img");
+    thumb.className = "thumb";
+    thumb.alt = `${c.label}: its template seen from above`;
+    loadThumbnail(c.name, thumb);
+    const label = document.createElement("span");
+    label.className = "label";
+    label.textContent = c.label === c.name ? `${c.name} (${count})` : `${c.label} (${c.name}, ${count})`;
+    const rn = document.createElement("button");
+    rn.textContent = "Rename";
+    rn.title = "give the category a name (NameCategory; saved with the layout)";
+    rn.onclick = () => {
+      const n = window.prompt(`Name for ${c.name}:`, c.label);
+      if (n && n.trim() && n.trim() !== c.label) {
+        sendEdits(`[NameCategory(category: ${ronString(c.name)}, name: ${ronString(n.trim())})]`);
+      }
+    };
     const rm = document.createElement("button");
     rm.textContent = "Remove";
     rm.title = "remove every instance of the category (RemoveCategory)";
     rm.onclick = () => sendEdits(`[RemoveCategory(${ronString(c.name)})]`);
-    li.append(sw, `${c.name} (${count}) `, pick, tint, rm);
+    li.append(sw, thumb, label, pick, tint, rn, rm);
     cats.appendChild(li);
   }
+}
+
+// a category's thumbnail, fetched once per page
+const thumbnails = new Map();
+function loadThumbnail(category, img) {
+  if (!thumbnails.has(category)) thumbnails.set(category, fetchImage(`thumbnail?category=${encodeURIComponent(category)}`));
+  thumbnails.get(category).then((url) => { if (url) img.src = url; });
 }
 
 // ---- the 3D view -------------------------------------------------------------------
