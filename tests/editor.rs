@@ -591,6 +591,85 @@ fn signals_stop_the_editor_whatever_became_of_its_output() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Where an instance was removed, the scene is what the layout without it composes to, and
+/// the vacated ground looks like the container's empty floor around it.
+#[test]
+fn a_removed_instance_leaves_no_trace() {
+    let lib = library();
+    let dir = scratch("editor-residue");
+    let opts = |name: &str| SessionOptions { layout: Some(dir.join(name)), ..Default::default() };
+    let mut session = EditSession::open(lib, &opts("removed.ron"), None).unwrap();
+    let view = ViewRequest {
+        width: 96,
+        height: 72,
+        azimuth_deg: -50.0,
+        elevation_deg: 40.0,
+        radius: None,
+    };
+    let gone = session.layout().by_key("b1").expect("b1").clone();
+    session.apply("[Remove(\"b1\")]").unwrap();
+    let after = session.render(&view).unwrap();
+    session.save().unwrap();
+    let mut fresh = EditSession::open(lib, &opts("removed.ron"), None).unwrap();
+    assert!(
+        fresh.render(&view).unwrap() == after,
+        "a removal renders as the layout composed without it"
+    );
+
+    // the vacated footprint against a ring of empty floor around it: per column, the sum of
+    // the march's step opacities over the whole height (haze above an opaque floor adds to
+    // it, where the largest step opacity would not see it)
+    let comp = session.composer().composition();
+    let field = &comp.field;
+    let cfg = &field.config;
+    let [cols, rows, nz] = cfg.res;
+    let (a0, v) = (cfg.aabb().min, cfg.voxel_size());
+    let zs: Vec<f32> = (0..nz).map(|k| a0.z + k as f32 * v.z).collect();
+    let delta = cfg.step_size() * cfg.distance_scale;
+    let (mut scratch, mut sigma) = (Vec::new(), vec![0.0f32; nz]);
+    let mut opacity = vec![0.0f32; cols * rows];
+    for r in 0..rows {
+        for c in 0..cols {
+            let (x, y) = (a0.x + c as f32 * v.x, a0.y + r as f32 * v.y);
+            field.density_column(x, y, &zs, &mut scratch, &mut sigma);
+            opacity[r * cols + c] = sigma.iter().map(|s| 1.0 - (-s * delta).exp()).sum();
+        }
+    }
+    let g = comp.grid;
+    let b = gone.bev_aabb;
+    let (mut inside, mut ring) = (vec![], vec![]);
+    let margin = 3.0 * g.step.x.max(g.step.y);
+    for r in 0..rows {
+        for c in 0..cols {
+            let p = g.min + glam::Vec2::new(c as f32 * g.step.x, r as f32 * g.step.y);
+            let within = |m: f32| {
+                p.x >= b.min.x - m && p.x <= b.max.x + m && p.y >= b.min.y - m && p.y <= b.max.y + m
+            };
+            let near_other = session.layout().objects().any(|i| {
+                let o = i.bev_aabb;
+                p.x >= o.min.x - margin
+                    && p.x <= o.max.x + margin
+                    && p.y >= o.min.y - margin
+                    && p.y <= o.max.y + margin
+            });
+            if within(0.0) {
+                inside.push(opacity[r * cols + c]);
+            } else if within(2.0 * margin) && !within(margin) && !near_other {
+                ring.push(opacity[r * cols + c]);
+            }
+        }
+    }
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len().max(1) as f32;
+    assert!(!inside.is_empty() && !ring.is_empty());
+    let (a, f) = (mean(&inside), mean(&ring));
+    println!("vacated footprint: summed column opacity {a:.3}; empty floor around it {f:.3}");
+    assert!(
+        (a - f).abs() < 0.1 * f.max(0.1),
+        "the vacated footprint ({a:.3}) differs from the floor around it ({f:.3})"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 // ---- the page in headless Chromium --------------------------------------------------
 
 fn strict() -> bool {
