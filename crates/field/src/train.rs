@@ -229,6 +229,7 @@ fn resident_zeros(n: usize) -> Vec<f32> {
 /// of its 8192-float blocks), large enough that the flags cost nothing to clear. Divides
 /// [`REDUCE_BLOCK`].
 const TOUCH_BLOCK: usize = 256;
+const _: () = assert!(REDUCE_BLOCK.is_multiple_of(TOUCH_BLOCK));
 
 /// Iterations before the first occupancy grid: before that the density has not formed and
 /// a grid would mark the scene empty for good (short runs never use one).
