@@ -231,6 +231,90 @@ fn resident_zeros(n: usize) -> Vec<f32> {
 const TOUCH_BLOCK: usize = 256;
 const _: () = assert!(REDUCE_BLOCK.is_multiple_of(TOUCH_BLOCK));
 
+/// One tensor's part in [`Trainer::reduce_and_update`]: its range of the parameters, its
+/// Adam step size, its L1 factor (density grids, once L1 is on) and whether it is frozen.
+struct Segment {
+    start: usize,
+    end: usize,
+    alpha: f32,
+    l1: Option<f32>,
+    frozen: bool,
+}
+
+/// Per [`REDUCE_BLOCK`], every chunk's part of it with the chunk's touched flags there.
+type ChunkBlocks<'a> = Vec<Vec<(&'a mut [f32], &'a [bool])>>;
+
+/// The chunk buffers of `work` (each `len` floats) cut into [`REDUCE_BLOCK`]s, per block every
+/// chunk's part with its touched flags, and per [`TOUCH_BLOCK`] whether it is read whatever
+/// the flags say (everything outside the planes in `marked`).
+fn chunk_blocks(
+    work: &mut [(MarchWork, Vec<f32>)],
+    marked: impl Iterator<Item = std::ops::Range<usize>>,
+    len: usize,
+) -> (ChunkBlocks<'_>, Vec<bool>) {
+    let n_touch = len.div_ceil(TOUCH_BLOCK);
+    // blocks that lie wholly in a marked plane are read only where marked
+    let mut always = vec![true; n_touch];
+    for r in marked {
+        let (a, b) = (r.start.div_ceil(TOUCH_BLOCK), r.end / TOUCH_BLOCK);
+        always[a..b.max(a)].fill(false);
+    }
+    let per_block = REDUCE_BLOCK / TOUCH_BLOCK;
+    let mut blocks: ChunkBlocks<'_> =
+        (0..len.div_ceil(REDUCE_BLOCK)).map(|_| Vec::with_capacity(work.len())).collect();
+    for (w, buf) in work.iter_mut() {
+        let flags = w.touched.flags();
+        debug_assert!(flags.len() == n_touch, "every chunk tracks its blocks");
+        for ((b, f), srcs) in
+            buf.chunks_mut(REDUCE_BLOCK).zip(flags.chunks(per_block)).zip(&mut blocks)
+        {
+            srcs.push((b, f));
+        }
+    }
+    (blocks, always)
+}
+
+/// After the chunk buffers were summed: their flags cleared (in debug builds, a check that
+/// every buffer is zero again, i.e. that no backward pass wrote where it did not mark).
+fn chunks_read(work: &mut [(MarchWork, Vec<f32>)]) {
+    for (w, _) in work.iter_mut() {
+        w.touched.clear();
+    }
+    debug_assert!(
+        work.iter().all(|(_, g)| g.iter().all(|&v| v == 0.0)),
+        "a backward pass wrote to a plane block it did not mark"
+    );
+}
+
+/// `out` = the chunk buffers' blocks `srcs` summed in chunk order, [`TOUCH_BLOCK`] floats at a
+/// time: a chunk's part is read (and cleared) where `always` or the chunk's flags mark it, and
+/// a part no chunk wrote to is zero.
+fn sum_block(out: &mut [f32], srcs: &mut [(&mut [f32], &[bool])], always: &[bool]) {
+    for (s, out) in out.chunks_mut(TOUCH_BLOCK).enumerate() {
+        let r = s * TOUCH_BLOCK..s * TOUCH_BLOCK + out.len();
+        let mut first = true;
+        for (buf, flags) in srcs.iter_mut() {
+            if !(always[s] || flags[s]) {
+                continue;
+            }
+            let src = &mut buf[r.clone()];
+            if first {
+                out.copy_from_slice(src);
+                src.fill(0.0);
+                first = false;
+            } else {
+                for (o, v) in out.iter_mut().zip(src.iter_mut()) {
+                    *o += *v;
+                    *v = 0.0;
+                }
+            }
+        }
+        if first {
+            out.fill(0.0);
+        }
+    }
+}
+
 /// Iterations before the first occupancy grid: before that the density has not formed and
 /// a grid would mark the scene empty for good (short runs never use one).
 const MIN_ITERS_BEFORE_OCCUPANCY: u64 = 500;
@@ -458,8 +542,31 @@ impl Trainer {
         let t0 = Instant::now();
         let progress = self.progress();
         self.schedule(progress);
-        let mut stats = self.gradients();
-        self.apply_with(progress, stats.psnr);
+        let fused = self.config.tv_weight_density <= 0.0 && self.config.tv_weight_color <= 0.0;
+        self.step_as(fused, t0, progress)
+    }
+
+    /// [`Trainer::step`] with the gradient summed into one buffer, regularised and applied in
+    /// separate passes (as total variation and joint training need): the reference the fused
+    /// pass is tested against; the same field, bit for bit.
+    pub fn step_separately(&mut self) -> StepStats {
+        let t0 = Instant::now();
+        let progress = self.progress();
+        self.schedule(progress);
+        self.step_as(false, t0, progress)
+    }
+
+    fn step_as(&mut self, fused: bool, t0: Instant, progress: f64) -> StepStats {
+        let mut stats = if fused {
+            let stats = self.march_chunks();
+            self.reduce_and_update(progress);
+            self.count_iteration(stats.psnr);
+            stats
+        } else {
+            let stats = self.gradients();
+            self.apply_with(progress, stats.psnr);
+            stats
+        };
         stats.seconds = t0.elapsed().as_secs_f64();
         stats
     }
@@ -499,6 +606,21 @@ impl Trainer {
     /// A batch of random training rays, forward and backward: the gradient of the batch's
     /// loss (and the regularisers) in `self.grad`; the iteration's figures.
     pub(crate) fn gradients(&mut self) -> StepStats {
+        let stats = self.march_chunks();
+        self.reduce_chunk_gradients();
+        self.regularise();
+        if self.config.grid.frozen_shared {
+            for (_, r) in self.field.shared_ranges() {
+                self.grad[r].fill(0.0);
+            }
+        }
+        stats
+    }
+
+    /// A batch of random training rays, forward and backward, each chunk's gradient in its
+    /// own buffer (summed by [`Self::reduce_chunk_gradients`] or
+    /// [`Self::reduce_and_update`]); the iteration's figures.
+    fn march_chunks(&mut self) -> StepStats {
         let batch = self.config.batch;
         let (w, h) = (self.width as u64, self.height as u64);
         let n_views = self.views.len() as u64;
@@ -561,13 +683,6 @@ impl Trainer {
                 (sse, sem_sse, work.samples, work.color_samples)
             })
             .collect();
-        self.reduce_chunk_gradients();
-        self.regularise();
-        if self.config.grid.frozen_shared {
-            for (_, r) in self.field.shared_ranges() {
-                self.grad[r].fill(0.0);
-            }
-        }
         let sse: f32 = results.iter().map(|r| r.0).sum();
         let mse = sse / (batch as f32 * 3.0);
         let psnr = -10.0 * mse.max(1e-12).log10();
@@ -590,63 +705,16 @@ impl Trainer {
     /// planes, only the blocks a chunk's backward pass marked are read (see
     /// [`crate::touched`]); a block no chunk wrote to is zero in `self.grad`.
     fn reduce_chunk_gradients(&mut self) {
-        let n_touch = self.grad.len().div_ceil(TOUCH_BLOCK);
-        // blocks that lie wholly in a marked plane are read only where marked
-        let mut always = vec![true; n_touch];
-        for r in self.field.marked_plane_ranges() {
-            let (a, b) = (r.start.div_ceil(TOUCH_BLOCK), r.end / TOUCH_BLOCK);
-            always[a..b.max(a)].fill(false);
-        }
-        let per_block = REDUCE_BLOCK / TOUCH_BLOCK;
-        let mut blocks: Vec<Vec<(&mut [f32], &[bool])>> =
-            (0..self.grad.len().div_ceil(REDUCE_BLOCK))
-                .map(|_| Vec::with_capacity(self.work.len()))
-                .collect();
-        for (work, buf) in &mut self.work {
-            let flags = work.touched.flags();
-            debug_assert!(flags.len() == n_touch, "every chunk tracks its blocks");
-            for ((b, f), srcs) in
-                buf.chunks_mut(REDUCE_BLOCK).zip(flags.chunks(per_block)).zip(&mut blocks)
-            {
-                srcs.push((b, f));
-            }
-        }
+        let n = self.grad.len();
+        let (mut blocks, always) =
+            chunk_blocks(&mut self.work, self.field.marked_plane_ranges(), n);
         self.grad
             .par_chunks_mut(REDUCE_BLOCK)
             .zip(blocks.par_iter_mut())
-            .zip(always.par_chunks(per_block))
-            .for_each(|((out, srcs), always)| {
-                for (s, out) in out.chunks_mut(TOUCH_BLOCK).enumerate() {
-                    let r = s * TOUCH_BLOCK..s * TOUCH_BLOCK + out.len();
-                    let mut first = true;
-                    for (buf, flags) in srcs.iter_mut() {
-                        if !(always[s] || flags[s]) {
-                            continue;
-                        }
-                        let src = &mut buf[r.clone()];
-                        if first {
-                            out.copy_from_slice(src);
-                            src.fill(0.0);
-                            first = false;
-                        } else {
-                            for (o, v) in out.iter_mut().zip(src.iter_mut()) {
-                                *o += *v;
-                                *v = 0.0;
-                            }
-                        }
-                    }
-                    if first {
-                        out.fill(0.0);
-                    }
-                }
-            });
-        for (work, _) in &mut self.work {
-            work.touched.clear();
-        }
-        debug_assert!(
-            self.work.iter().all(|(_, g)| g.iter().all(|&v| v == 0.0)),
-            "a backward pass wrote to a plane block it did not mark"
-        );
+            .zip(always.par_chunks(REDUCE_BLOCK / TOUCH_BLOCK))
+            .for_each(|((out, srcs), always)| sum_block(out, srcs, always));
+        drop(blocks);
+        chunks_read(&mut self.work);
     }
 
     /// The Adam update with `self.grad` at `progress` (learning-rate decay); the iteration
@@ -660,10 +728,91 @@ impl Trainer {
             Group::Grid => lg,
             Group::Network => ln,
         });
+        self.count_iteration(psnr);
+    }
+
+    /// The iteration done: counted, its batch PSNR kept in the history.
+    fn count_iteration(&mut self, psnr: f32) {
         self.iter += 1;
         if self.iter.is_multiple_of(10) || self.iter == 1 {
             self.history.push((self.elapsed(), self.iter, psnr));
         }
+    }
+
+    /// [`Self::reduce_chunk_gradients`], the L1 regulariser, the frozen shared tensors and
+    /// the Adam update in one pass over the parameters, block by block: a block's gradient
+    /// is summed into a buffer that stays in cache and is spent there, instead of a 17 MB
+    /// gradient written, read back for L1 and read again for Adam. Every element sees the
+    /// same operations in the same order as the separate passes, so the result is the same,
+    /// bit for bit (tested); total variation (off by default) needs its neighbours' values
+    /// and keeps the separate passes. `self.grad` is not written.
+    fn reduce_and_update(&mut self, progress: f64) {
+        let step = self.adam.begin();
+        let (lg, ln) = (
+            self.learning_rate(Group::Grid, progress),
+            self.learning_rate(Group::Network, progress),
+        );
+        let l1 = self.config.l1_weight;
+        let l1_on =
+            l1 > 0.0 && (self.occupancy_done > 0 || self.iter >= MIN_ITERS_BEFORE_OCCUPANCY);
+        let frozen = self.config.grid.frozen_shared;
+        // per tensor: its range, step size, L1 factor (density grids) and whether it is frozen
+        let segments: Vec<Segment> = self
+            .field
+            .params
+            .specs
+            .iter()
+            .map(|spec| Segment {
+                start: spec.offset,
+                end: spec.offset + spec.len,
+                alpha: step.alpha(match spec.group {
+                    Group::Grid => lg,
+                    Group::Network => ln,
+                }),
+                l1: (l1_on && spec.name.starts_with("density.")).then(|| l1 / spec.len as f32),
+                frozen: frozen && !FieldConfig::is_plane_tensor(&spec.name),
+            })
+            .collect();
+        let n = self.field.params.data.len();
+        let (mut blocks, always) =
+            chunk_blocks(&mut self.work, self.field.marked_plane_ranges(), n);
+        let per_block = REDUCE_BLOCK / TOUCH_BLOCK;
+        let params = &mut self.field.params.data;
+        let (m, v) = self.adam.moments_mut();
+        params
+            .par_chunks_mut(REDUCE_BLOCK)
+            .zip(m.par_chunks_mut(REDUCE_BLOCK))
+            .zip(v.par_chunks_mut(REDUCE_BLOCK))
+            .zip(blocks.par_iter_mut())
+            .zip(always.par_chunks(per_block))
+            .enumerate()
+            .for_each_init(
+                || vec![0.0f32; REDUCE_BLOCK],
+                |g, (b, ((((p, m), v), srcs), always))| {
+                    let g = &mut g[..p.len()];
+                    sum_block(g, srcs, always);
+                    let base = b * REDUCE_BLOCK;
+                    for seg in &segments {
+                        let (lo, hi) = (seg.start.max(base), seg.end.min(base + p.len()));
+                        if lo >= hi {
+                            continue;
+                        }
+                        let r = lo - base..hi - base;
+                        let g = &mut g[r.clone()];
+                        if let Some(k) = seg.l1 {
+                            for (g, p) in g.iter_mut().zip(&p[r.clone()]) {
+                                *g += k * p.signum();
+                            }
+                        }
+                        if seg.frozen {
+                            g.fill(0.0);
+                        }
+                        step.update(seg.alpha, &mut p[r.clone()], g, &mut m[r.clone()], &mut v[r]);
+                    }
+                },
+            );
+        drop(blocks);
+        chunks_read(&mut self.work);
     }
 
     /// L1 on the density grids (sparsity) and total variation on the planes. L1 starts

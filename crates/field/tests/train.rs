@@ -126,6 +126,37 @@ fn training_is_deterministic_for_a_seed() {
     assert_eq!(run(), run());
 }
 
+/// The training step sums the chunks' gradients, adds L1, zeroes frozen tensors and runs
+/// Adam in one pass, block by block; the separate passes give the same field, bit for bit,
+/// over a schedule with a resolution step, an occupancy grid and L1, for S (and with frozen
+/// shared tensors) and I fields (L1 starts at iteration 500 when no scheduled grid came
+/// first).
+#[test]
+fn the_fused_update_is_the_separate_passes() {
+    let train = Dataset::load(dataset(), Split::Train, &LoadOptions::default()).unwrap();
+    for (kind, frozen) in
+        [(ModelKind::Standard, false), (ModelKind::Standard, true), (ModelKind::Integrated, false)]
+    {
+        let run = |fused: bool| {
+            let (mut cfg, fc) = tiny_configs(kind);
+            cfg.iters = 540;
+            cfg.batch = 256;
+            cfg.grid.frozen_shared = frozen;
+            let mut t = Trainer::new(&train, fc, cfg);
+            while !t.finished() {
+                if fused {
+                    t.step()
+                } else {
+                    t.step_separately()
+                };
+            }
+            t.field.params.data
+        };
+        let (a, b) = (run(true), run(false));
+        assert!(a == b, "{kind:?} frozen={frozen}: the fused and separate updates differ");
+    }
+}
+
 /// An iteration budget is a budget that means the same everywhere: the tiny schedule (a
 /// resolution step and an occupancy grid included) trained on one worker thread of an idle
 /// machine and on two workers while two other threads spin (a busy machine) gives the same
