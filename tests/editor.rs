@@ -672,6 +672,10 @@ fn a_removed_instance_leaves_no_trace() {
 
 // ---- the page in headless Chromium --------------------------------------------------
 
+/// WebDriver's key codes of the modifiers.
+const SHIFT: &str = "\u{E008}";
+const CONTROL: &str = "\u{E009}";
+
 fn strict() -> bool {
     std::env::var_os("ASSETFIELD_STRICT_TESTS").is_some_and(|v| v != "0")
 }
@@ -762,6 +766,15 @@ impl Browser {
 
     fn script(&self, js: &str) -> Value {
         self.cmd("POST", "execute/sync", Some(json!({"script": js, "args": []})))
+    }
+
+    /// Press `key` while holding `modifier` (a WebDriver key code: [`SHIFT`], [`CONTROL`]).
+    fn chord(&self, modifier: &str, key: &str) {
+        let keys = json!([
+            {"type": "keyDown", "value": modifier}, {"type": "keyDown", "value": key},
+            {"type": "keyUp", "value": key}, {"type": "keyUp", "value": modifier}]);
+        let actions = json!({"actions": [{"type": "key", "id": "keyboard", "actions": keys}]});
+        self.cmd("POST", "actions", Some(actions));
     }
 
     fn wait_for(&self, js: &str, what: &str) {
@@ -926,13 +939,7 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
 
     // Shift+Q turns the selected instance (b0, selected by the drag) to the next 15 degrees
     let yaw0 = instance(&s.get("/api/layout").json(), key)["yaw_deg"].as_f64().unwrap();
-    b.cmd(
-        "POST",
-        "actions",
-        Some(json!({"actions": [{"type": "key", "id": "keyboard", "actions": [
-            {"type": "keyDown", "value": "\u{E008}"}, {"type": "keyDown", "value": "q"},
-            {"type": "keyUp", "value": "q"}, {"type": "keyUp", "value": "\u{E008}"}]}]})),
-    );
+    b.chord(SHIFT, "q");
     b.wait_for(&full_render(3), "the render after the turn");
     let yaw1 = instance(&s.get("/api/layout").json(), key)["yaw_deg"].as_f64().unwrap();
     let want = ((yaw0 / 15.0).round() + 1.0) * 15.0;
@@ -942,13 +949,7 @@ fn the_page_drags_an_instance_and_undo_restores_the_view() {
     // Ctrl-D duplicates the selected instance (the page sends its key, never a pattern)
     let count = |l: &Value| l["instances"].as_array().unwrap().len();
     let n0 = count(&s.get("/api/layout").json());
-    b.cmd(
-        "POST",
-        "actions",
-        Some(json!({"actions": [{"type": "key", "id": "keyboard", "actions": [
-            {"type": "keyDown", "value": "\u{E009}"}, {"type": "keyDown", "value": "d"},
-            {"type": "keyUp", "value": "d"}, {"type": "keyUp", "value": "\u{E009}"}]}]})),
-    );
+    b.chord(CONTROL, "d");
     b.wait_for(&full_render(4), "the render after Ctrl-D");
     let duplicated = s.get("/api/layout").json();
     assert_eq!(count(&duplicated), n0 + 1, "Ctrl-D makes one copy");
