@@ -81,7 +81,7 @@ impl BevColumns {
     /// grid's size changed).
     pub fn update(&mut self, field: &Field) -> (usize, usize, &[f32]) {
         let [nx, ny, _] = field.config.res;
-        if (nx, ny) != (self.cols, self.rows) || self.values.len() != nx * ny {
+        if (nx, ny) != (self.cols, self.rows) {
             let (_, _, values) = max_opacity_columns(field);
             *self = BevColumns { cols: nx, rows: ny, values, pending: Vec::new() };
         } else {

@@ -222,11 +222,16 @@ async fn change(
     let snapshot = s.layout.clone();
     with_session(s, move |s| {
         f(s)?;
-        let json = layout_bytes(s);
-        *snapshot.lock().unwrap_or_else(|p| p.into_inner()) = json.clone();
-        Ok(json_response(json))
+        Ok(json_response(publish(&snapshot, s)))
     })
     .await
+}
+
+/// The session's layout serialised, kept as `GET /api/layout`'s answer, and returned.
+fn publish(snapshot: &Mutex<Bytes>, s: &EditSession) -> Bytes {
+    let json = layout_bytes(s);
+    *snapshot.lock().unwrap_or_else(|p| p.into_inner()) = json.clone();
+    json
 }
 
 /// The layout as `GET /api/layout` answers it, serialised.
@@ -343,7 +348,8 @@ async fn post_save(State(s): State<AppState>) -> Response {
     let snapshot = s.layout.clone();
     with_session(&s, move |s| {
         let path = s.save()?;
-        *snapshot.lock().unwrap_or_else(|p| p.into_inner()) = layout_bytes(s);
+        // the layout's `unsaved` changed
+        publish(&snapshot, s);
         let body = serde_json::json!({"saved": path.display().to_string(), "version": s.version()});
         Ok(axum::Json(body).into_response())
     })

@@ -1059,14 +1059,4 @@ impl Field {
     pub fn marked_plane_ranges(&self) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
         self.density.iter().chain(&self.color).map(|c| c.plane..c.plane + c.rows * c.cols * c.ch)
     }
-
-    /// Offsets and lengths of the density grid tensors (for L1 regularisation).
-    pub fn density_grid_ranges(&self) -> Vec<std::ops::Range<usize>> {
-        self.params
-            .specs
-            .iter()
-            .filter(|s| s.name.starts_with("density."))
-            .map(|s| s.offset..s.offset + s.len)
-            .collect()
-    }
 }

@@ -231,12 +231,14 @@ fn resident_zeros(n: usize) -> Vec<f32> {
 const TOUCH_BLOCK: usize = 256;
 const _: () = assert!(REDUCE_BLOCK.is_multiple_of(TOUCH_BLOCK));
 
-/// One tensor's part in [`Trainer::reduce_and_update`]: its range of the parameters, its
-/// Adam step size, its L1 factor (density grids, once L1 is on) and whether it is frozen.
+/// What the update does to one tensor's gradient before Adam: its range of the parameters,
+/// its learning-rate group, its L1 factor (density grids, once L1 is on) and whether it is
+/// frozen (zeroed). [`Trainer::segments`] gives them; the separate passes and the fused one
+/// both follow them.
 struct Segment {
     start: usize,
     end: usize,
-    alpha: f32,
+    group: Group,
     l1: Option<f32>,
     frozen: bool,
 }
@@ -539,24 +541,21 @@ impl Trainer {
 
     /// One iteration: a batch of random training rays, forward, backward, Adam.
     pub fn step(&mut self) -> StepStats {
-        let t0 = Instant::now();
-        let progress = self.progress();
-        self.schedule(progress);
         let fused = self.config.tv_weight_density <= 0.0 && self.config.tv_weight_color <= 0.0;
-        self.step_as(fused, t0, progress)
+        self.step_as(fused)
     }
 
     /// [`Trainer::step`] with the gradient summed into one buffer, regularised and applied in
     /// separate passes (as total variation and joint training need): the reference the fused
     /// pass is tested against; the same field, bit for bit.
     pub fn step_separately(&mut self) -> StepStats {
+        self.step_as(false)
+    }
+
+    fn step_as(&mut self, fused: bool) -> StepStats {
         let t0 = Instant::now();
         let progress = self.progress();
         self.schedule(progress);
-        self.step_as(false, t0, progress)
-    }
-
-    fn step_as(&mut self, fused: bool, t0: Instant, progress: f64) -> StepStats {
         let mut stats = if fused {
             let stats = self.march_chunks();
             self.reduce_and_update(progress);
@@ -609,12 +608,34 @@ impl Trainer {
         let stats = self.march_chunks();
         self.reduce_chunk_gradients();
         self.regularise();
-        if self.config.grid.frozen_shared {
-            for (_, r) in self.field.shared_ranges() {
-                self.grad[r].fill(0.0);
-            }
+        for seg in self.segments().iter().filter(|s| s.frozen) {
+            self.grad[seg.start..seg.end].fill(0.0);
         }
         stats
+    }
+
+    /// Per tensor, what the update does to its gradient before Adam (see [`Segment`]). L1
+    /// starts with the first scheduled occupancy grid (or after 500 iterations): from the
+    /// nearly transparent start, the density's data gradient is scaled by the softplus slope
+    /// (~5e-5) and, in large scenes where each texel sees few rays, L1 would outweigh it,
+    /// and Adam would keep the scene empty for good.
+    fn segments(&self) -> Vec<Segment> {
+        let l1 = self.config.l1_weight;
+        let l1_on =
+            l1 > 0.0 && (self.occupancy_done > 0 || self.iter >= MIN_ITERS_BEFORE_OCCUPANCY);
+        let frozen = self.config.grid.frozen_shared;
+        self.field
+            .params
+            .specs
+            .iter()
+            .map(|spec| Segment {
+                start: spec.offset,
+                end: spec.offset + spec.len,
+                group: spec.group,
+                l1: (l1_on && spec.name.starts_with("density.")).then(|| l1 / spec.len as f32),
+                frozen: frozen && !FieldConfig::is_plane_tensor(&spec.name),
+            })
+            .collect()
     }
 
     /// A batch of random training rays, forward and backward, each chunk's gradient in its
@@ -752,27 +773,7 @@ impl Trainer {
             self.learning_rate(Group::Grid, progress),
             self.learning_rate(Group::Network, progress),
         );
-        let l1 = self.config.l1_weight;
-        let l1_on =
-            l1 > 0.0 && (self.occupancy_done > 0 || self.iter >= MIN_ITERS_BEFORE_OCCUPANCY);
-        let frozen = self.config.grid.frozen_shared;
-        // per tensor: its range, step size, L1 factor (density grids) and whether it is frozen
-        let segments: Vec<Segment> = self
-            .field
-            .params
-            .specs
-            .iter()
-            .map(|spec| Segment {
-                start: spec.offset,
-                end: spec.offset + spec.len,
-                alpha: step.alpha(match spec.group {
-                    Group::Grid => lg,
-                    Group::Network => ln,
-                }),
-                l1: (l1_on && spec.name.starts_with("density.")).then(|| l1 / spec.len as f32),
-                frozen: frozen && !FieldConfig::is_plane_tensor(&spec.name),
-            })
-            .collect();
+        let segments = self.segments();
         let n = self.field.params.data.len();
         let (mut blocks, always) =
             chunk_blocks(&mut self.work, self.field.marked_plane_ranges(), n);
@@ -807,7 +808,11 @@ impl Trainer {
                         if seg.frozen {
                             g.fill(0.0);
                         }
-                        step.update(seg.alpha, &mut p[r.clone()], g, &mut m[r.clone()], &mut v[r]);
+                        let alpha = step.alpha(match seg.group {
+                            Group::Grid => lg,
+                            Group::Network => ln,
+                        });
+                        step.update(alpha, &mut p[r.clone()], g, &mut m[r.clone()], &mut v[r]);
                     }
                 },
             );
@@ -815,17 +820,12 @@ impl Trainer {
         chunks_read(&mut self.work);
     }
 
-    /// L1 on the density grids (sparsity) and total variation on the planes. L1 starts
-    /// with the first scheduled occupancy grid (or after 500 iterations): from the nearly
-    /// transparent start, the density's data gradient is scaled by the softplus slope
-    /// (~5e-5) and, in large scenes where each texel sees few rays, L1 would outweigh it,
-    /// and Adam would keep the scene empty for good.
+    /// L1 on the density grids (sparsity; when it starts: [`Self::segments`]) and total
+    /// variation on the planes.
     fn regularise(&mut self) {
-        let l1 = self.config.l1_weight;
-        let geometry_formed = self.occupancy_done > 0 || self.iter >= MIN_ITERS_BEFORE_OCCUPANCY;
-        if l1 > 0.0 && geometry_formed {
-            for r in self.field.density_grid_ranges() {
-                let k = l1 / r.len() as f32;
+        for seg in self.segments() {
+            if let Some(k) = seg.l1 {
+                let r = seg.start..seg.end;
                 let (g, p) = (&mut self.grad[r.clone()], &self.field.params.data[r]);
                 g.par_chunks_mut(REDUCE_BLOCK).zip(p.par_chunks(REDUCE_BLOCK)).for_each(
                     |(g, p)| {
