@@ -373,17 +373,8 @@ impl OpacityVolume {
     /// `max_k 1 - prod_{j = k .. k + window} (1 - o_j)`. A thin surface spread over a few
     /// levels reaches its full opacity; faint fog spread over the whole column does not.
     pub fn window_max_above(&self, from: usize, window: usize) -> Vec<f32> {
-        let w = window.max(1);
         (0..self.rows * self.cols)
-            .map(|i| {
-                let col = &self.data[i * self.nz..(i + 1) * self.nz];
-                let mut best = 0f32;
-                for k in from..self.nz {
-                    let t = col[k..(k + w).min(self.nz)].iter().fold(1f32, |t, &o| t * (1.0 - o));
-                    best = best.max(1.0 - t);
-                }
-                best
-            })
+            .map(|i| window_max(&self.data[i * self.nz..(i + 1) * self.nz], from, window))
             .collect()
     }
 
@@ -396,6 +387,18 @@ impl OpacityVolume {
             })
             .collect()
     }
+}
+
+/// The largest opacity of `window` consecutive levels of one column within `from..`
+/// (see [`OpacityVolume::window_max_above`]).
+pub fn window_max(col: &[f32], from: usize, window: usize) -> f32 {
+    let (w, nz) = (window.max(1), col.len());
+    let mut best = 0f32;
+    for k in from..nz {
+        let t = col[k..(k + w).min(nz)].iter().fold(1f32, |t, &o| t * (1.0 - o));
+        best = best.max(1.0 - t);
+    }
+    best
 }
 
 /// Test volumes: empty, then boxes of one opacity.

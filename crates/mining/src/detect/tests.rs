@@ -892,3 +892,81 @@ fn a_lamp_on_a_side_table_is_held_on_a_stem() {
     let lamp = only_child(&d);
     assert_eq!(lamp.rect, PixelRect::new(11, 11, 17, 17));
 }
+
+/// A thin table top (rows 10..40, columns 10..60, level 8) on four legs over the floor.
+fn thin_table(v: &mut OpacityVolume) {
+    fill(v, (10, 40), (10, 60), (8, 9), 0.95);
+    for (r, c) in [(10, 10), (10, 59), (39, 10), (39, 59)] {
+        fill(v, (r, r + 1), (c, c + 1), (2, 8), 0.95);
+    }
+}
+
+#[test]
+fn a_shadow_on_the_table_is_not_part_of_what_casts_it() {
+    // a box on the table (rows 20..26, columns 30..36) casting a soft shadow three texels
+    // wide all round: the shadow differs from the table's colour, but nothing rises there
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 24);
+    thin_table(&mut v);
+    fill(&mut v, (20, 26), (30, 36), (9, 16), 0.95);
+    let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+        let object = (20..26).contains(&r) && (30..36).contains(&c);
+        let shadow = (17..29).contains(&r) && (27..39).contains(&c);
+        if object {
+            [0.2, 0.2, 0.7][k]
+        } else if shadow {
+            [0.5, 0.5, 0.47][k]
+        } else {
+            [0.9, 0.9, 0.85][k]
+        }
+    })
+    .unwrap();
+    let d = detect_small(&v, &color);
+    let r = only_child(&d).rect;
+    assert!(within_a_texel(r, PixelRect::new(20, 30, 26, 36)), "{r:?}");
+    // the same band made of something lying flat on the table, one level over its top (a
+    // laptop's keyboard around its screen): part of the object
+    let mut v2 = floor_volume(rows, cols, 24);
+    thin_table(&mut v2);
+    fill(&mut v2, (17, 29), (27, 39), (9, 10), 0.95);
+    fill(&mut v2, (20, 26), (30, 36), (10, 16), 0.95);
+    let d2 = detect_small(&v2, &color);
+    let r2 = only_child(&d2).rect;
+    assert!(within_a_texel(r2, PixelRect::new(17, 27, 29, 39)), "{r2:?}");
+}
+
+#[test]
+fn what_the_colour_clusters_run_along_in_a_thin_strip_is_cut_off() {
+    // a box on the table with a strip two texels wide of its colour running from it across
+    // the table (the colour of a leg under the top, bled into the plane), rising a little
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 24);
+    thin_table(&mut v);
+    fill(&mut v, (20, 26), (30, 36), (9, 16), 0.95);
+    fill(&mut v, (26, 34), (31, 33), (9, 10), 0.3);
+    let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+        let object = (20..26).contains(&r) && (30..36).contains(&c);
+        let strip = (26..34).contains(&r) && (31..33).contains(&c);
+        if object || strip { [0.2, 0.2, 0.7][k] } else { [0.9, 0.9, 0.85][k] }
+    })
+    .unwrap();
+    let d = detect_small(&v, &color);
+    let r = only_child(&d).rect;
+    assert!(within_a_texel(r, PixelRect::new(20, 30, 26, 36)), "{r:?}");
+}
+
+#[test]
+fn a_bouquet_of_faint_leaves_on_a_desk_is_seeded_by_its_opacity_seen_from_above() {
+    // a solid desk (levels 2..=12) with flowers on it: leaves of opacity 0.3 per level over
+    // rows 20..28, columns 30..38, levels 13..=18 (no voxel of them occupied on its own,
+    // opaque seen from above) round a stem one texel wide
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 24);
+    fill(&mut v, (5, 45), (10, 60), (2, 13), 0.95);
+    fill(&mut v, (20, 28), (30, 38), (13, 19), 0.3);
+    fill(&mut v, (24, 25), (34, 35), (13, 17), 0.95);
+    let color = painted(rows, cols, (20..28, 30..38), [0.3, 0.6, 0.2], [0.9, 0.9, 0.85]);
+    let d = detect_small(&v, &color);
+    let r = only_child(&d).rect;
+    assert!(within_a_texel(r, PixelRect::new(20, 30, 28, 38)), "{r:?}");
+}
