@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use assetfield_core::{Aabb3, Camera};
 use assetfield_core::{Orbit, fitting_radius};
-use assetfield_gpu::{FieldRenderer, GpuContext};
+use assetfield_gpu::{GpuContext, GpuView, GpuViews};
 use assetfield_layout::source::{EditNode, SourceFile};
 use assetfield_layout::{
     AssetDef, Edit, LibraryRef, LoadedScript, ResolvedLayout, Script, resolve,
@@ -162,14 +162,6 @@ pub struct LayoutView {
     pub category_colours: std::collections::BTreeMap<String, String>,
 }
 
-/// GPU rendering state: the context and a renderer of the composed field as of `version`.
-struct Gpu {
-    ctx: GpuContext,
-    renderer: Option<(u64, FieldRenderer)>,
-    /// `auto`: fall back to the CPU when the device fails.
-    fallback: bool,
-}
-
 /// An editing session over one library.
 pub struct EditSession {
     lib: AssetLibrary,
@@ -190,7 +182,8 @@ pub struct EditSession {
     bev_columns: BevColumns,
     /// Category thumbnails (PNG), by category.
     thumbnails: std::collections::BTreeMap<String, Vec<u8>>,
-    gpu: Option<Gpu>,
+    /// The device and the composed field's renderer as of the version it last rendered.
+    gpu: Option<GpuViews>,
     /// Texels around each entry's mask that its patch covers.
     halo: usize,
     render_budget: std::time::Duration,
@@ -339,7 +332,7 @@ impl EditSession {
             .map_err(scene_err(format!("composing {}", start_path.display())))?;
         composer.update();
         composer.ensure_occupancy();
-        let gpu = gpu.map(|(ctx, fallback)| Gpu { ctx, renderer: None, fallback });
+        let gpu = gpu.map(|(ctx, fallback)| GpuViews::new(ctx, fallback));
         Ok(EditSession {
             lib,
             assets,
@@ -636,27 +629,13 @@ impl EditSession {
         let bg = self.lib.background;
         if let Some(gpu) = &mut self.gpu {
             let comp = self.composer.composition();
-            let stale = gpu.renderer.as_ref().is_none_or(|(at, _)| *at != self.version);
-            let fresh = if stale {
-                FieldRenderer::new(&gpu.ctx, &comp.field, comp.occupancy.as_ref())
-                    .map(|r| gpu.renderer = Some((self.version, r)))
-            } else {
-                Ok(())
-            };
-            let out = fresh.and_then(|()| match &gpu.renderer {
-                Some((_, r)) => r.render(&cam, bg),
-                None => unreachable_renderer(),
-            });
-            match out {
-                Ok(rgb) => return Ok(rgb),
-                Err(e) => {
-                    let e = gpu.ctx.explain(e);
-                    if !(gpu.fallback && e.cpu_can_do_it()) {
-                        return Err(EditorError::Gpu { source: e });
-                    }
-                    tracing::warn!("{}", assetfield_gpu::fallback_note(&e));
+            match gpu.render(&comp.field, comp.occupancy.as_ref(), self.version, &cam, bg) {
+                Ok(GpuView::Done(rgb)) => return Ok(rgb),
+                Ok(GpuView::FellBack { note }) => {
+                    tracing::warn!("{note}");
                     self.gpu = None;
                 }
+                Err(source) => return Err(EditorError::Gpu { source }),
             }
         }
         let started = std::time::Instant::now();
@@ -814,10 +793,6 @@ impl EditSession {
 pub fn footprint_corners(i: &assetfield_layout::ResolvedInstance) -> [Vec2; 4] {
     let (a, b) = (i.footprint.min, i.footprint.max);
     [a, Vec2::new(b.x, a.y), b, Vec2::new(a.x, b.y)].map(|p| i.transform.transform_point2(p))
-}
-
-fn unreachable_renderer() -> std::result::Result<Vec<f32>, assetfield_gpu::GpuError> {
-    Err(assetfield_gpu::GpuError::Unsupported("no renderer was built".into()))
 }
 
 #[cfg(test)]

@@ -9,6 +9,8 @@
 //! - [`FieldRenderer`]: a field's parameters, the shader's header, the padded networks and
 //!   the occupancy grid uploaded once; renders cameras (one or many per call) to RGB like
 //!   `render_view`, S-, I- and VM-fields with MLP or spherical-harmonics decoders.
+//! - [`GpuViews`]: views of a field that may change between them (re-uploaded per version),
+//!   deciding in one place when a device failure hands over to the CPU (`--backend auto`).
 //! - [`plan_upload`]: the checks and the layout of an upload without a device (fields too
 //!   large for the device's storage buffers, or too wide for the shader, are refused with a
 //!   [`GpuError`]).
@@ -44,6 +46,7 @@ mod context;
 mod error;
 mod raster;
 mod render;
+mod views;
 
 pub use context::{Backend, BackendChoice, GpuContext, fallback_note, select_backend};
 pub use error::GpuError;
@@ -52,6 +55,7 @@ pub use raster::{
     occupancy_pass_members, raster_struct_members,
 };
 pub use render::{FieldRenderer, HeaderField, UploadPlan, plan_upload};
+pub use views::{GpuView, GpuViews};
 /// The wgpu this crate is built with (for `Limits`, `AdapterInfo`).
 pub use wgpu;
 

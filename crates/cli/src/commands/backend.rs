@@ -3,9 +3,7 @@
 
 use anyhow::{Context, Result};
 use assetfield_core::Camera;
-use assetfield_gpu::{
-    Backend, BackendChoice, FieldRenderer, GpuContext, fallback_note, select_backend,
-};
+use assetfield_gpu::{Backend, BackendChoice, GpuContext, GpuView, GpuViews, select_backend};
 use assetfield_scene::Composition;
 use clap::ValueEnum;
 use glam::Vec3;
@@ -42,34 +40,35 @@ pub(crate) fn device(choice: BackendArg) -> Result<Option<GpuContext>> {
 /// Renders views of one composition on the `--backend` device: the GPU where there is one
 /// and the field uploads, else the CPU reference renderer. Under `auto`, a GPU failure the
 /// CPU can take over (out of memory, a lost device) moves this and every later view to the
-/// CPU, with one line saying why; any other failure is an error.
+/// CPU, with one line saying why; any other failure is an error ([`GpuViews`] decides).
 pub(crate) struct ViewRenderer {
-    ctx: Option<GpuContext>,
-    gpu: Option<FieldRenderer>,
-    auto: bool,
+    gpu: Option<GpuViews>,
+    device: Option<String>,
 }
+
+/// The one version of the composition a [`ViewRenderer`] renders.
+const VERSION: u64 = 0;
 
 impl ViewRenderer {
     /// The device for `choice`, with `comp`'s field uploaded to it.
     pub(crate) fn new(choice: BackendArg, comp: &Composition) -> Result<Self> {
         let ctx = device(choice)?;
-        let auto = choice == BackendArg::Auto;
-        let gpu = match &ctx {
-            None => None,
-            Some(c) => match FieldRenderer::new(c, &comp.field, comp.occupancy.as_ref()) {
-                Ok(r) => Some(r),
-                Err(e) => {
-                    let e = c.explain(e);
-                    if !(auto && e.cpu_can_do_it()) {
-                        return Err(anyhow::anyhow!(e))
-                            .context(format!("uploading to {}", c.describe()));
-                    }
-                    eprintln!("assetfield: {}", fallback_note(&e));
-                    None
+        let device = ctx.as_ref().map(|c| c.describe());
+        let mut gpu = ctx.map(|c| GpuViews::new(c, choice == BackendArg::Auto));
+        if let Some(views) = &mut gpu {
+            match views.prepare(&comp.field, comp.occupancy.as_ref(), VERSION) {
+                Ok(GpuView::Done(())) => {}
+                Ok(GpuView::FellBack { note }) => {
+                    eprintln!("assetfield: {note}");
+                    gpu = None;
                 }
-            },
-        };
-        Ok(ViewRenderer { ctx, gpu, auto })
+                Err(e) => {
+                    return Err(anyhow::anyhow!(e))
+                        .context(format!("uploading to {}", views.describe()));
+                }
+            }
+        }
+        Ok(ViewRenderer { gpu, device })
     }
 
     /// `gpu` or `cpu`: where the views render now.
@@ -79,7 +78,7 @@ impl ViewRenderer {
 
     /// The device's description, where there is a GPU context.
     pub(crate) fn device(&self) -> Option<String> {
-        self.ctx.as_ref().map(|c| c.describe())
+        self.device.clone()
     }
 
     /// One view of `comp` (the composition `new` uploaded) over `bg`: linear RGB, row-major.
@@ -89,17 +88,16 @@ impl ViewRenderer {
         cam: &Camera,
         bg: Vec3,
     ) -> Result<Vec<f32>> {
-        if let (Some(r), Some(c)) = (&self.gpu, &self.ctx) {
-            match r.render(cam, bg) {
-                Ok(rgb) => return Ok(rgb),
-                Err(e) => {
-                    let e = c.explain(e);
-                    if !(self.auto && e.cpu_can_do_it()) {
-                        return Err(anyhow::anyhow!(e))
-                            .context(format!("rendering on {}", c.describe()));
-                    }
-                    eprintln!("assetfield: {}", fallback_note(&e));
+        if let Some(views) = &mut self.gpu {
+            match views.render(&comp.field, comp.occupancy.as_ref(), VERSION, cam, bg) {
+                Ok(GpuView::Done(rgb)) => return Ok(rgb),
+                Ok(GpuView::FellBack { note }) => {
+                    eprintln!("assetfield: {note}");
                     self.gpu = None;
+                }
+                Err(e) => {
+                    return Err(anyhow::anyhow!(e))
+                        .context(format!("rendering on {}", views.describe()));
                 }
             }
         }
