@@ -231,3 +231,25 @@ pub fn moved_gt(
     }
     out
 }
+
+/// Per texel node of `field`'s ground grid (row-major, `res[1]` rows of `res[0]`), the sum
+/// of the march's step opacities over the whole height of its column: haze above an opaque
+/// floor adds to it, where the largest step opacity would not see it. What the residue
+/// measures compare (a vacated footprint against the ground around it).
+pub fn column_opacity(field: &assetfield_field::Field) -> Vec<f32> {
+    let cfg = &field.config;
+    let [cols, rows, nz] = cfg.res;
+    let (a0, v) = (cfg.aabb().min, cfg.voxel_size());
+    let zs: Vec<f32> = (0..nz).map(|k| a0.z + k as f32 * v.z).collect();
+    let delta = cfg.step_size() * cfg.distance_scale;
+    let (mut scratch, mut sigma) = (Vec::new(), vec![0.0f32; nz]);
+    let mut opacity = vec![0.0f32; cols * rows];
+    for r in 0..rows {
+        for c in 0..cols {
+            let (x, y) = (a0.x + c as f32 * v.x, a0.y + r as f32 * v.y);
+            field.density_column(x, y, &zs, &mut scratch, &mut sigma);
+            opacity[r * cols + c] = sigma.iter().map(|s| 1.0 - (-s * delta).exp()).sum();
+        }
+    }
+    opacity
+}

@@ -13,7 +13,7 @@
 use assetfield_editor::{EditSession, SessionOptions, ViewRequest};
 use assetfield_layout::resolve;
 use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, ScriptAssets};
-use assetfield_tests::{SCENE, assetfield_bin, ok, scratch};
+use assetfield_tests::{SCENE, assetfield_bin, column_opacity, ok, scratch};
 use serde_json::{Value, json};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -616,25 +616,10 @@ fn a_removed_instance_leaves_no_trace() {
         "a removal renders as the layout composed without it"
     );
 
-    // the vacated footprint against a ring of empty floor around it: per column, the sum of
-    // the march's step opacities over the whole height (haze above an opaque floor adds to
-    // it, where the largest step opacity would not see it)
+    // the vacated footprint against a ring of empty floor around it (summed column opacity)
     let comp = session.composer().composition();
-    let field = &comp.field;
-    let cfg = &field.config;
-    let [cols, rows, nz] = cfg.res;
-    let (a0, v) = (cfg.aabb().min, cfg.voxel_size());
-    let zs: Vec<f32> = (0..nz).map(|k| a0.z + k as f32 * v.z).collect();
-    let delta = cfg.step_size() * cfg.distance_scale;
-    let (mut scratch, mut sigma) = (Vec::new(), vec![0.0f32; nz]);
-    let mut opacity = vec![0.0f32; cols * rows];
-    for r in 0..rows {
-        for c in 0..cols {
-            let (x, y) = (a0.x + c as f32 * v.x, a0.y + r as f32 * v.y);
-            field.density_column(x, y, &zs, &mut scratch, &mut sigma);
-            opacity[r * cols + c] = sigma.iter().map(|s| 1.0 - (-s * delta).exp()).sum();
-        }
-    }
+    let [cols, rows, _] = comp.field.config.res;
+    let opacity = column_opacity(&comp.field);
     let g = comp.grid;
     let b = gone.bev_aabb;
     let (mut inside, mut ring) = (vec![], vec![]);

@@ -35,21 +35,8 @@ fn main() {
 fn measure(dir: &Path) -> Result<(), Box<dyn std::error::Error>> {
     let lib = AssetLibrary::open(dir)?;
     let comp = lib.composition(&lib.default_canvas())?;
-    let field = &comp.field;
-    let cfg = &field.config;
-    let [cols, rows, nz] = cfg.res;
-    let (a0, v) = (cfg.aabb().min, cfg.voxel_size());
-    let zs: Vec<f32> = (0..nz).map(|k| a0.z + k as f32 * v.z).collect();
-    let delta = cfg.step_size() * cfg.distance_scale;
-    let (mut scratch, mut sigma) = (Vec::new(), vec![0.0f32; nz]);
-    let mut opacity = vec![0.0f32; cols * rows];
-    for r in 0..rows {
-        for c in 0..cols {
-            let (x, y) = (a0.x + c as f32 * v.x, a0.y + r as f32 * v.y);
-            field.density_column(x, y, &zs, &mut scratch, &mut sigma);
-            opacity[r * cols + c] = sigma.iter().map(|s| 1.0 - (-s * delta).exp()).sum();
-        }
-    }
+    let [cols, rows, _] = comp.field.config.res;
+    let opacity = assetfield_tests::column_opacity(&comp.field);
     let g = comp.grid;
     let margin = RING_GAP * g.step.x.max(g.step.y);
     let boxes: Vec<[f32; 4]> = lib.index.entries.iter().map(|e| e.source_box).collect();
