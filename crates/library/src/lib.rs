@@ -31,6 +31,11 @@ mod index;
 mod merge;
 
 pub use check::validate;
+
+/// Default halo (texels) around an entry's mask that its patch covers when composed: the
+/// ring that `assetfield mine` fills in the container along with the entry's mask, so that
+/// an entry placed back where it was mined restores the trained planes.
+pub const DEFAULT_HALO: usize = 2;
 pub use error::{LibraryError, Result};
 pub use files::{
     Library, field_with_shared, open_library, shared_tensors, write_library_files,

@@ -267,95 +267,119 @@ pub fn fill_from_ring_median(
     class: Option<&[bool]>,
     ring: usize,
 ) -> Result<PlaneImage> {
-    let nearest = fill_from_background_by_class(plane, mask, class)?;
-    let (rows, cols, ch) = (plane.rows, plane.cols, plane.ch);
-    let n = rows * cols;
-    let neighbours = |i: usize| {
-        let (r, c) = (i / cols, i % cols);
-        [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)].into_iter().filter_map(move |(dr, dc)| {
-            let (nr, nc) = (r as isize + dr, c as isize + dc);
-            (nr >= 0 && nc >= 0 && nr < rows as isize && nc < cols as isize)
-                .then(|| nr as usize * cols + nc as usize)
-        })
-    };
-    // the masked regions (4-connected)
-    let mut region = vec![usize::MAX; n];
-    let mut regions = 0usize;
-    for start in 0..n {
-        if !mask.data[start] || region[start] != usize::MAX {
-            continue;
+    RingFill::new(mask, class, ring)?.apply(plane)
+}
+
+/// The regions of a mask and the texels of each region's ring by class, found once and
+/// applied to every plane of a field ([`fill_from_ring_median`]).
+#[derive(Debug)]
+pub struct RingFill<'a> {
+    mask: &'a Mask,
+    class: Option<&'a [bool]>,
+    /// Per texel, its region (masked texels) or the region whose ring it is in.
+    region: Vec<u32>,
+    /// Per region, the ring's texels of class 0 (empty space) and 1 (floor).
+    members: Vec<[Vec<usize>; 2]>,
+}
+
+impl<'a> RingFill<'a> {
+    /// The regions of `mask` (4-connected) and their rings of `ring` texels (4-connected
+    /// steps; a texel within reach of two regions joins the nearer).
+    pub fn new(mask: &'a Mask, class: Option<&'a [bool]>, ring: usize) -> Result<Self> {
+        let (rows, cols) = (mask.rows, mask.cols);
+        let n = rows * cols;
+        if let Some(cl) = class
+            && cl.len() != n
+        {
+            return Err(MiningError::SizeMismatch {
+                what: "fill classes vs mask (texels)",
+                left: cl.len(),
+                right: n,
+            });
         }
-        region[start] = regions;
-        let mut queue = VecDeque::from([start]);
+        let (mut region, sizes) = crate::contours::label_components_4(mask)?;
+        let mut dist = vec![usize::MAX; n];
+        let mut queue: VecDeque<usize> = (0..n).filter(|&i| mask.data[i]).collect();
+        for &i in &queue {
+            dist[i] = 0;
+        }
         while let Some(i) = queue.pop_front() {
-            for j in neighbours(i) {
-                if mask.data[j] && region[j] == usize::MAX {
-                    region[j] = regions;
+            if dist[i] >= ring {
+                continue;
+            }
+            let (r, c) = (i / cols, i % cols);
+            for (dr, dc) in [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)] {
+                let (nr, nc) = (r.wrapping_add_signed(dr), c.wrapping_add_signed(dc));
+                if nr >= rows || nc >= cols {
+                    continue;
+                }
+                let j = nr * cols + nc;
+                if dist[j] == usize::MAX {
+                    dist[j] = dist[i] + 1;
+                    region[j] = region[i];
                     queue.push_back(j);
                 }
             }
         }
-        regions += 1;
-    }
-    // each unmasked texel within `ring` steps of a region joins the nearest region's ring
-    let mut dist = vec![usize::MAX; n];
-    let mut queue = VecDeque::new();
-    for i in 0..n {
-        if mask.data[i] {
-            dist[i] = 0;
-            queue.push_back(i);
-        }
-    }
-    while let Some(i) = queue.pop_front() {
-        if dist[i] >= ring {
-            continue;
-        }
-        for j in neighbours(i) {
-            if dist[j] == usize::MAX {
-                dist[j] = dist[i] + 1;
-                region[j] = region[i];
-                queue.push_back(j);
+        let class_of = |i: usize| class.map_or(0usize, |cl| usize::from(cl[i]));
+        let mut members: Vec<[Vec<usize>; 2]> = vec![[Vec::new(), Vec::new()]; sizes.len()];
+        for i in 0..n {
+            if !mask.data[i] && region[i] != u32::MAX {
+                members[region[i] as usize][class_of(i)].push(i);
             }
         }
+        Ok(RingFill { mask, class, region, members })
     }
-    let class_of = |i: usize| class.map_or(0usize, |cl| usize::from(cl[i]));
-    let mut members: Vec<[Vec<usize>; 2]> = vec![[Vec::new(), Vec::new()]; regions];
-    for i in 0..n {
-        if !mask.data[i] && region[i] != usize::MAX {
-            members[region[i]][class_of(i)].push(i);
+
+    /// `plane` with the masked texels filled.
+    pub fn apply(&self, plane: &PlaneImage) -> Result<PlaneImage> {
+        let ch = plane.ch;
+        let median = |texels: &[usize]| -> Option<Vec<f32>> {
+            if texels.is_empty() {
+                return None;
+            }
+            let mut col = vec![0f32; texels.len()];
+            Some(
+                (0..ch)
+                    .map(|k| {
+                        for (v, &t) in col.iter_mut().zip(texels) {
+                            *v = plane.data[t * ch + k];
+                        }
+                        col.sort_unstable_by(f32::total_cmp);
+                        col[col.len() / 2]
+                    })
+                    .collect(),
+            )
+        };
+        let medians: Vec<[Option<Vec<f32>>; 2]> =
+            self.members.iter().map(|m| [median(&m[0]), median(&m[1])]).collect();
+        // the nearest texel only where a region's ring holds neither class
+        let mut out = if medians.iter().any(|m| m[0].is_none() && m[1].is_none()) {
+            fill_from_background_by_class(plane, self.mask, self.class)?
+        } else {
+            plane.validate()?;
+            if (self.mask.rows, self.mask.cols) != (plane.rows, plane.cols) {
+                return Err(MiningError::SizeMismatch {
+                    what: "fill mask vs plane (texels)",
+                    left: self.mask.rows * self.mask.cols,
+                    right: plane.texels(),
+                });
+            }
+            plane.clone()
+        };
+        for i in 0..self.region.len() {
+            if !self.mask.data[i] {
+                continue;
+            }
+            let [empty, floor] = &medians[self.region[i] as usize];
+            let on_floor = self.class.is_some_and(|cl| cl[i]);
+            let (own, other) = if on_floor { (floor, empty) } else { (empty, floor) };
+            if let Some(v) = own.as_ref().or(other.as_ref()) {
+                out.data[i * ch..(i + 1) * ch].copy_from_slice(v);
+            }
         }
+        Ok(out)
     }
-    let median = |texels: &[usize]| -> Option<Vec<f32>> {
-        if texels.is_empty() {
-            return None;
-        }
-        let mut col = vec![0f32; texels.len()];
-        Some(
-            (0..ch)
-                .map(|k| {
-                    for (v, &t) in col.iter_mut().zip(texels) {
-                        *v = plane.data[t * ch + k];
-                    }
-                    col.sort_unstable_by(f32::total_cmp);
-                    col[col.len() / 2]
-                })
-                .collect(),
-        )
-    };
-    let medians: Vec<[Option<Vec<f32>>; 2]> =
-        members.iter().map(|m| [median(&m[0]), median(&m[1])]).collect();
-    let mut out = nearest;
-    for i in 0..n {
-        if !mask.data[i] {
-            continue;
-        }
-        let [empty, floor] = &medians[region[i]];
-        let (own, other) = if class_of(i) == 1 { (floor, empty) } else { (empty, floor) };
-        if let Some(v) = own.as_ref().or(other.as_ref()) {
-            out.data[i * ch..(i + 1) * ch].copy_from_slice(v);
-        }
-    }
-    Ok(out)
 }
 
 /// Which texels hold the floor slab: opacity at least 0.5 at one of the floor's levels.
@@ -996,13 +1020,13 @@ fn build_library(
             }
         }
     }
-    // (the halo of two texels is the ring each entry's patch carries with it when composed:
-    // `assetfield_scene::DEFAULT_HALO`, so an entry placed back where it was mined restores
-    // the trained planes; the ring of samples is the field's blur)
-    let objects = dilate(&objects, 2)?;
+    // (the halo is the ring each entry's patch carries with it when composed, so an entry
+    // placed back where it was mined restores the trained planes; the ring of samples is the
+    // field's blur)
+    let objects = dilate(&objects, assetfield_library::DEFAULT_HALO)?;
     let ring = dets.blur_levels.max(1);
-    let dens = fill_from_ring_median(&planes.density, &objects, floor, ring)?;
-    let col = fill_from_ring_median(&planes.color, &objects, floor, ring)?;
+    let fill = RingFill::new(&objects, floor, ring)?;
+    let (dens, col) = (fill.apply(&planes.density)?, fill.apply(&planes.color)?);
     patches.insert_f32("container.density", &[rows, cols, dens.ch], dens.data);
     patches.insert_f32("container.color", &[rows, cols, col.ch], col.data);
     patches.insert_u8(

@@ -28,9 +28,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// Default halo (texels) around an entry's mask that its patch covers: the ring that
-/// `assetfield mine` fills with background in the container.
-pub const DEFAULT_HALO: usize = 2;
+pub use assetfield_library::DEFAULT_HALO;
 
 /// Most texels of an empty canvas (rows x cols): 64 million, 16 GiB of the default 16 + 48
 /// feature channels.

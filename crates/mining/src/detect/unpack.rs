@@ -14,7 +14,7 @@
 use super::context::Ctx;
 use super::evidence::kmeans_threshold;
 use super::shape::{Part, at_least, border_ring, fill_holes, more_than, or_into};
-use crate::contours::components;
+use crate::contours::{components, label_components};
 use crate::image::{Mask, PixelRect};
 use crate::morphology::{erode, open};
 use crate::planes::window_max;
@@ -487,26 +487,8 @@ fn seed_component(
             object.set(r, c, true);
         }
     }
-    let mut comp = Mask { rows: h, cols: w, data: vec![false; h * w] };
-    let mut stack: Vec<(usize, usize)> = seed_px.to_vec();
-    for &(r, c) in seed_px {
-        comp.set(r, c, true);
-    }
-    while let Some((r, c)) = stack.pop() {
-        for dr in -1isize..=1 {
-            for dc in -1isize..=1 {
-                let (nr, nc) = (r as isize + dr, c as isize + dc);
-                if nr < 0 || nc < 0 {
-                    continue;
-                }
-                let (nr, nc) = (nr as usize, nc as usize);
-                if win.contains(nr, nc) && object.get(nr, nc) && !comp.get(nr, nc) {
-                    comp.set(nr, nc, true);
-                    stack.push((nr, nc));
-                }
-            }
-        }
-    }
+    let object = Mask::from_fn(h, w, |r, c| object.get(r, c) && win.contains(r, c));
+    let comp = connected_to(&object, seed_px);
     let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && comp.get(r - 1, c - 1));
     match crate::morphology::close(&padded, 1) {
         Ok(m) => Mask::from_fn(h, w, |r, c| m.get(r + 1, c + 1) && win.contains(r, c)),
@@ -547,24 +529,14 @@ fn body_of(comp: &Mask, seed_px: &[(usize, usize)]) -> Mask {
     connected_to(&body, seed_px)
 }
 
-/// The texels of `m` connected (8-neighbours) to any of `seeds`.
+/// The texels of `m` connected (8-neighbours) to any of `seeds`: the components of `m`
+/// ([`label_components`]) that hold a seed.
 fn connected_to(m: &Mask, seeds: &[(usize, usize)]) -> Mask {
-    let (h, w) = (m.rows, m.cols);
-    let mut out = Mask { rows: h, cols: w, data: vec![false; h * w] };
-    let mut stack: Vec<(usize, usize)> =
-        seeds.iter().copied().filter(|&(r, c)| m.get(r, c)).collect();
-    for &(r, c) in &stack {
-        out.set(r, c, true);
-    }
-    while let Some((r, c)) = stack.pop() {
-        for nr in r.saturating_sub(1)..=(r + 1).min(h - 1) {
-            for nc in c.saturating_sub(1)..=(c + 1).min(w - 1) {
-                if m.get(nr, nc) && !out.get(nr, nc) {
-                    out.set(nr, nc, true);
-                    stack.push((nr, nc));
-                }
-            }
-        }
-    }
-    out
+    let Ok((labels, _)) = label_components(m) else {
+        return Mask::from_fn(m.rows, m.cols, |_, _| false);
+    };
+    let w = m.cols;
+    let held: std::collections::BTreeSet<u32> =
+        seeds.iter().map(|&(r, c)| labels[r * w + c]).filter(|&l| l != u32::MAX).collect();
+    Mask::from_fn(m.rows, w, |r, c| held.contains(&labels[r * w + c]))
 }
