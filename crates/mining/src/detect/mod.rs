@@ -222,11 +222,20 @@ fn parts_of_regions(cx: &Ctx, mask: &Mask, removed: &mut Vec<Removed>) -> Result
         }
         // thin bridges (haze, blur between neighbours) first, then overlaps in 3D, then
         // colours
-        let pieces = if p.stages.split_bridges {
-            split::split_bridges(cx, reg.bbox, &cols_mask)
-        } else {
-            vec![cols_mask]
-        };
+        // hollow objects in contact: one piece per enclosure
+        let holes = Mask::from_fn(reg.bbox.rows(), reg.bbox.cols(), |r, c| {
+            cols_mask.get(r, c) && !reg.pixels.get(r, c)
+        });
+        let pieces: Vec<Mask> = split::split_enclosures(cx, &cols_mask, &holes)
+            .into_iter()
+            .flat_map(|piece| {
+                if p.stages.split_bridges {
+                    split::split_bridges(cx, reg.bbox, &piece)
+                } else {
+                    vec![piece]
+                }
+            })
+            .collect();
         let mut split = Vec::new();
         for piece in &pieces {
             split.extend(split::split_region(cx, reg.bbox, piece));

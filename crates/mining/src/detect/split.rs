@@ -392,6 +392,152 @@ pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mas
     pieces
 }
 
+/// Cut the hollow objects out of a region holding several empty enclosures (hollow objects
+/// in contact: vans whose roofs the field left transparent, their sides fused where they
+/// touch). An empty hole of the region (`holes`, over its box, inside `region`) is the
+/// inside of a hollow object when it reaches farther from its edge than the object's walls
+/// are thick (its inradius, texels, at least the median distance from the texels around it
+/// to the outside of the region): gaps in a faint table top are narrow beside the top
+/// around them. Each such enclosure with its shell (the texels geodesically nearest to it,
+/// within its walls' thickness) is one piece; what the shells leave is a piece of its own
+/// where it has a body (an object touching them) and joins the nearest shell where it has
+/// none (strips of haze and wall). A region with fewer than two enclosures is returned
+/// whole.
+pub(super) fn split_enclosures(cx: &Ctx, region: &Mask, holes: &Mask) -> Vec<Mask> {
+    let (h, w) = (region.rows, region.cols);
+    let whole = || vec![region.clone()];
+    if holes.count() < 2 * cx.min_texels {
+        return whole();
+    }
+    let Ok((labels, sizes)) = crate::contours::label_components_4(holes) else {
+        return whole();
+    };
+    let out_dist = distance_to_outside(region);
+    let mut enclosures: Vec<(Mask, usize)> = Vec::new();
+    for l in (0..sizes.len()).filter(|&l| sizes[l] >= cx.min_texels) {
+        let hole = Mask { rows: h, cols: w, data: labels.iter().map(|&x| x == l as u32).collect() };
+        // the walls' thickness: the median distance to the outside around the hole
+        let mut around: Vec<usize> = (0..h * w)
+            .filter(|&i| {
+                region.data[i]
+                    && !holes.data[i]
+                    && neighbours8(i / w, i % w, h, w).any(|j| hole.data[j])
+            })
+            .map(|i| out_dist[i])
+            .collect();
+        around.sort_unstable();
+        let thickness = around.get(around.len() / 2).copied().unwrap_or(0);
+        let inradius = distance_to_outside(&hole).into_iter().max().unwrap_or(0);
+        tracing::trace!(texels = sizes[l], inradius, thickness, "empty hole");
+        if inradius >= thickness {
+            enclosures.push((hole, thickness));
+        }
+    }
+    if enclosures.len() < 2 {
+        return whole();
+    }
+    tracing::debug!(enclosures = enclosures.len(), "hollow objects in contact");
+    // multi-source breadth-first search from the enclosures, each within its thickness
+    let mut owner: Vec<Option<usize>> = vec![None; h * w];
+    let mut dist = vec![0usize; h * w];
+    let mut queue = VecDeque::new();
+    for (k, (hole, _)) in enclosures.iter().enumerate() {
+        for i in (0..h * w).filter(|&i| hole.data[i]) {
+            owner[i] = Some(k);
+            queue.push_back(i);
+        }
+    }
+    while let Some(i) = queue.pop_front() {
+        let k = owner[i].unwrap_or(0);
+        if dist[i] >= enclosures[k].1 {
+            continue;
+        }
+        for j in neighbours8(i / w, i % w, h, w) {
+            if region.data[j] && owner[j].is_none() {
+                owner[j] = Some(k);
+                dist[j] = dist[i] + 1;
+                queue.push_back(j);
+            }
+        }
+    }
+    // what the shells leave: a piece with a body (a core surviving the bridges' opening, as
+    // large as the smallest object) is an object touching the shells; the rest joins the
+    // nearest shell
+    let rest = Mask::from_fn(h, w, |r, c| region.get(r, c) && owner[r * w + c].is_none());
+    let mut seeds = enclosures.len();
+    if let Ok((rl, rs)) = crate::contours::label_components(&rest) {
+        let radius = cx.p.bridge_radius_texels.max(1);
+        for l in 0..rs.len() {
+            let m = Mask { rows: h, cols: w, data: rl.iter().map(|&x| x == l as u32).collect() };
+            if has_body(&m, radius, cx.min_texels) {
+                for i in (0..h * w).filter(|&i| m.data[i]) {
+                    owner[i] = Some(seeds);
+                }
+                seeds += 1;
+            }
+        }
+    }
+    let seeds: Vec<Mask> = (0..seeds)
+        .map(|k| Mask { rows: h, cols: w, data: owner.iter().map(|&o| o == Some(k)).collect() })
+        .collect();
+    let owner = geodesic_assign(region, &seeds);
+    (0..seeds.len())
+        .map(|k| Mask { rows: h, cols: w, data: owner.iter().map(|&o| o == Some(k)).collect() })
+        .filter(|m| m.count() > 0)
+        .collect()
+}
+
+/// Whether what survives an opening of `mask` by `radius` covers at least `min_texels`.
+fn has_body(mask: &Mask, radius: usize, min_texels: usize) -> bool {
+    let (h, w) = (mask.rows, mask.cols);
+    let padded = Mask::from_fn(h + 2 * radius, w + 2 * radius, |r, c| {
+        r >= radius && c >= radius && mask.get(r - radius, c - radius)
+    });
+    crate::morphology::open(&padded, radius).is_ok_and(|o| o.count() >= min_texels)
+}
+
+/// The 8-neighbours of `(r, c)` inside an `h x w` box, as flat indices.
+fn neighbours8(r: usize, c: usize, h: usize, w: usize) -> impl Iterator<Item = usize> {
+    (-1isize..=1)
+        .flat_map(move |dr| (-1isize..=1).map(move |dc| (dr, dc)))
+        .filter(|&d| d != (0, 0))
+        .filter_map(move |(dr, dc)| {
+            let (nr, nc) = (r as isize + dr, c as isize + dc);
+            (nr >= 0 && nc >= 0 && nr < h as isize && nc < w as isize)
+                .then(|| nr as usize * w + nc as usize)
+        })
+}
+
+/// Per texel of `mask`, its 8-connected distance in texels to the nearest texel outside it
+/// (the outside of the box counting as outside): 1 on its outline; 0 outside.
+fn distance_to_outside(mask: &Mask) -> Vec<usize> {
+    let (h, w) = (mask.rows, mask.cols);
+    let mut dist = vec![usize::MAX; h * w];
+    // the outside first, then the texels on the box's edge: the queue stays in distance order
+    let mut queue: VecDeque<usize> = (0..h * w).filter(|&i| !mask.data[i]).collect();
+    for &i in &queue {
+        dist[i] = 0;
+    }
+    for r in 0..h {
+        for c in 0..w {
+            let i = r * w + c;
+            if mask.data[i] && (r == 0 || c == 0 || r + 1 == h || c + 1 == w) {
+                dist[i] = 1;
+                queue.push_back(i);
+            }
+        }
+    }
+    while let Some(i) = queue.pop_front() {
+        for j in neighbours8(i / w, i % w, h, w) {
+            if dist[j] == usize::MAX {
+                dist[j] = dist[i] + 1;
+                queue.push_back(j);
+            }
+        }
+    }
+    dist
+}
+
 /// The lowest and highest level `>= start` occupied (`>= tau`) in the columns of `m` (over
 /// `rect`), `None` when none is.
 pub(super) fn level_range(

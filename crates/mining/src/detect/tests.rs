@@ -711,6 +711,40 @@ fn a_roofless_shell_is_one_object_and_the_room_s_walls_around_it_are_walls() {
 }
 
 #[test]
+fn hollow_shells_in_contact_are_one_object_each() {
+    // three long objects whose tops the field did not learn (walls three texels thick), the
+    // middle one touching both others with a side, end to end; a box against the left
+    // shell's side; and a flat table top, as wide, with narrow gaps in it (a faint top): the
+    // shells are one object each, the box stays a box, the gapped top stays one object
+    let (rows, cols) = (70, 110);
+    let mut v = floor_volume(rows, cols, 30);
+    let shell = |v: &mut OpacityVolume, r: (usize, usize), c: (usize, usize)| {
+        fill(v, r, c, (2, 16), 0.95);
+        fill(v, (r.0 + 3, r.1 - 3), (c.0 + 3, c.1 - 3), (2, 16), 0.0);
+    };
+    shell(&mut v, (5, 25), (5, 45));
+    shell(&mut v, (25, 45), (20, 60)); // touches the first along 25 texels
+    shell(&mut v, (5, 25), (45, 85)); // and the third
+    fill(&mut v, (10, 20), (1, 5), (2, 8), 0.95); // a box against the first shell
+    fill(&mut v, (52, 66), (10, 50), (2, 10), 0.95); // a table top
+    for c in [18, 26, 34] {
+        fill(&mut v, (56, 62), (c, c + 3), (2, 10), 0.0); // with gaps in it
+    }
+    let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
+    let boxes = rects(&d);
+    for want in [
+        PixelRect::new(5, 5, 25, 45),
+        PixelRect::new(25, 20, 45, 60),
+        PixelRect::new(5, 45, 25, 85),
+        PixelRect::new(10, 1, 20, 5),
+        PixelRect::new(52, 10, 66, 50),
+    ] {
+        assert!(boxes.iter().any(|&r| within_a_texel(r, want)), "{want:?} in {boxes:?}");
+    }
+    assert_eq!(boxes.len(), 5, "{boxes:?} removed {:?}", d.removed);
+}
+
+#[test]
 fn a_wall_corner_closed_off_by_a_streak_is_still_a_wall() {
     // walls along two sides (an L, two texels thick) and a one-texel streak of haze across
     // the corner: the streak closes an empty triangle, which is no hollow object, for most
