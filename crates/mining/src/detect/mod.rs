@@ -220,9 +220,9 @@ fn parts_of_regions(cx: &Ctx, mask: &Mask, removed: &mut Vec<Removed>) -> Result
             removed.push(Removed { world: grid.rect_to_world(reg.bbox), reason });
             continue;
         }
-        // thin bridges (haze, blur between neighbours) first, then overlaps in 3D, then
-        // colours
-        // hollow objects in contact: one piece per enclosure
+        // hollow objects in contact first (one piece per enclosure: the region's holes,
+        // without the regions nested in them), then thin bridges (haze, blur between
+        // neighbours), then overlaps in 3D, then colours
         let holes = Mask::from_fn(reg.bbox.rows(), reg.bbox.cols(), |r, c| {
             cols_mask.get(r, c) && !reg.pixels.get(r, c)
         });

@@ -317,14 +317,9 @@ pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mas
         (cx.vol, cx.start, cx.ground, cx.ground_tol, cx.tau);
     let (radius, min_texels) = (cx.p.bridge_radius_texels.max(1), cx.min_texels);
     let (h, w) = (region.rows, region.cols);
-    // pad so that the box edge does not protect texels from erosion
-    let padded = Mask::from_fn(h + 2 * radius, w + 2 * radius, |r, c| {
-        r >= radius && c >= radius && region.get(r - radius, c - radius)
-    });
-    let Ok(opened) = crate::morphology::open(&padded, radius) else {
+    let Some(core) = opened_in_box(region, radius) else {
         return vec![region.clone()];
     };
-    let core = Mask::from_fn(h, w, |r, c| opened.get(r + radius, c + radius));
     let Ok((labels, sizes)) = crate::contours::label_components(&core) else {
         return vec![region.clone()];
     };
@@ -392,10 +387,11 @@ pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mas
     pieces
 }
 
-/// Cut the hollow objects out of a region holding several empty enclosures (hollow objects
-/// in contact: vans whose roofs the field left transparent, their sides fused where they
-/// touch). An empty hole of the region (`holes`, over its box, inside `region`) is the
-/// inside of a hollow object when it reaches farther from its edge than the object's walls
+/// Cut the hollow objects out of a region holding several enclosures (hollow objects in
+/// contact: vans whose roofs the field left transparent, their sides fused where they
+/// touch). A hole of the region (`holes`, over its box, inside `region`: what it encloses,
+/// specks of haze there included, without the regions nested in it) is the inside of a
+/// hollow object when it reaches farther from its edge than the object's walls
 /// are thick (its inradius, texels, at least the median distance from the texels around it
 /// to the outside of the region): gaps in a faint table top are narrow beside the top
 /// around them. Each such enclosure with its shell (the texels geodesically nearest to it,
@@ -489,11 +485,18 @@ pub(super) fn split_enclosures(cx: &Ctx, region: &Mask, holes: &Mask) -> Vec<Mas
 
 /// Whether what survives an opening of `mask` by `radius` covers at least `min_texels`.
 fn has_body(mask: &Mask, radius: usize, min_texels: usize) -> bool {
+    opened_in_box(mask, radius).is_some_and(|o| o.count() >= min_texels)
+}
+
+/// `mask` opened by `radius`, padded first so that the box's edge does not protect texels
+/// from the erosion (`None` when the opening fails).
+fn opened_in_box(mask: &Mask, radius: usize) -> Option<Mask> {
     let (h, w) = (mask.rows, mask.cols);
     let padded = Mask::from_fn(h + 2 * radius, w + 2 * radius, |r, c| {
         r >= radius && c >= radius && mask.get(r - radius, c - radius)
     });
-    crate::morphology::open(&padded, radius).is_ok_and(|o| o.count() >= min_texels)
+    let opened = crate::morphology::open(&padded, radius).ok()?;
+    Some(Mask::from_fn(h, w, |r, c| opened.get(r + radius, c + radius)))
 }
 
 /// The 8-neighbours of `(r, c)` inside an `h x w` box, as flat indices.
