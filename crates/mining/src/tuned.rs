@@ -131,15 +131,6 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
         ),
         entry(
             OPTION,
-            "detect.low_support_levels",
-            Detection,
-            u(d.low_support_levels),
-            "levels",
-            "a surface this low carries objects over most of it (a pallet's deck); 0 lost \
-             the warehouse's crates (1.000 -> 0.900 on its three fields)",
-        ),
-        entry(
-            OPTION,
             "detect.colour.max_part_solidity",
             Detection,
             f64::from(d.colour.max_part_solidity),
@@ -169,9 +160,10 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "detect.unpack.free_share",
             Detection,
             f64::from(d.unpack.free_share),
-            "share of the footprint",
-            "a chair's seat under its back is no table; 0.5 mined living_room at 2000 \
-             (0.966 -> 0.929) and random_2 at 6000 (1.000 -> 0.970) worse",
+            "share of a solid body's footprint",
+            "an upholstered seat under its chair's back is no table (a thin slab is not \
+             judged); 0.5 mined living_room at 2000 (0.966 -> 0.929) and random_2 at 6000 \
+             (1.000 -> 0.970) worse",
         ),
         entry(
             OPTION,

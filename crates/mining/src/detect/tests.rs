@@ -18,7 +18,6 @@ fn params() -> DetectParams {
         blur_levels: 2,
         wall_half_thickness_texels: 2.0,
         bridge_radius_texels: 1,
-        low_support_levels: 5,
         ..Default::default()
     }
 }
@@ -409,13 +408,22 @@ fn objects_on_a_solid_body_unpack_but_specks_do_not() {
 }
 
 #[test]
-fn a_crate_covering_most_of_a_low_pallet_unpacks() {
+fn a_crate_covering_most_of_a_thin_slab_unpacks() {
     // a pallet: runners (levels 2..=3) under a deck (level 3), 1.0 x 1.2 m; a crate of
     // 0.8 x 0.8 m on it (levels 4..=19) covers 53% of it, with a 0.1 m margin
     let mut v = floor_volume(50, 50, 24);
     pallet(&mut v);
     fill(&mut v, (12, 28), (14, 30), (4, 20), 0.95);
     assert_the_crate_unpacks(&v);
+    // the same crate on a table of the pallet's size, its top (level 9) on four legs: a
+    // thin slab carries what stands on it however high it is
+    let mut t = floor_volume(50, 50, 24);
+    for (r, c) in [(10, 10), (10, 33), (29, 10), (29, 33)] {
+        fill(&mut t, (r, r + 1), (c, c + 1), (2, 9), 0.95);
+    }
+    fill(&mut t, (10, 30), (10, 34), (9, 10), 0.95);
+    fill(&mut t, (12, 28), (14, 30), (10, 20), 0.95);
+    assert_the_crate_unpacks(&t);
     // the same box standing on a tall solid body (a car's cabin on its body) stays one
     let mut v2 = floor_volume(50, 50, 24);
     fill(&mut v2, (10, 30), (10, 34), (2, 12), 0.95);

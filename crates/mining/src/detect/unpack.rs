@@ -1,15 +1,16 @@
 //! Stage 4: hierarchical unpacking (the paper's "repeat the clustering to unpack the scene",
 //! Fig. 4d). Inside every object, the top surface (a table top) is treated as background: if
-//! it is a slab (or a solid body's top) with something rising above it and enough of it
-//! free, every blob away from the rim that is opaque seen from above the surface's blur
+//! it is a thin slab (or a solid body's top with enough of it free) with something rising
+//! above it, every blob away from the rim that is opaque seen from above the surface's blur
 //! (the first round's evidence, with the surface as the floor) seeds a background
 //! subtraction of the colour features around it (K-means on the distances to the surface's
 //! median colour). What joins the seed must also rise off the surface (a shadow only
 //! differs in colour) and be a body, not a strip; the connected result, when enclosed by
 //! free surface, becomes a detection supported by the object (laptops on a table, a crate
-//! on a pallet, a lamp on a side table, flowers on a counter). A low support (a pallet's
-//! deck) may have little of it free, and so may a support with an object held above it on
-//! a stem (a lamp whose shade covers most of a side table: [`held_on_a_stem`]).
+//! on a pallet, a lamp on a side table, flowers on a counter). A thin slab may have little
+//! of it free (a crate fills its pallet's deck), and so may a solid support with an object
+//! held above it on a stem (a lamp whose shade covers most of a side table:
+//! [`held_on_a_stem`]).
 
 use super::context::Ctx;
 use super::evidence::kmeans_threshold;
@@ -162,17 +163,20 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     let judged = if s.solid { inner_footprint(f, up.rim_texels) } else { f.clone() };
     let free_n = (0..h * w).filter(|&i| judged.data[i] && !near_raised.data[i]).count();
     tracing::debug!(?rect, lo = s.lo, hi, kstar = s.kstar, solid = s.solid, free_n, n, "surface");
-    // a low support (a pallet's deck, within `low_support_levels` of the ground) carries an
-    // object over most of it: its free surface is a margin, too narrow to judge away from
-    // the object; the rim and ring checks below still apply
-    let low = low_level(cx, hi);
+    // a thin slab (a table top, a shelf, a pallet's deck over its runners) carries what
+    // stands on it however much of it that covers (a crate fills its pallet: the free
+    // surface is a margin, too narrow to judge away from the crate); the top of a solid body
+    // must show free surface, or what rises from it is the body's own shape (a canopy's
+    // tip, a car's cabin, a plant's leaves over its pot). The rim and ring checks below
+    // apply to both.
+    let slab = !s.solid;
     // an object held above the surface on a stem (a table lamp: its shade covers most of a
     // side table, leaving no free surface to judge)
     let waist = held_on_a_stem(&levels.area, hi, levels.thin, min_texels);
     if waist {
         tracing::debug!(?rect, "an object held on a stem above the slab");
     }
-    if !low && !waist && !at_least(free_n, up.free_share, n) {
+    if !slab && !waist && !at_least(free_n, up.free_share, n) {
         return (Vec::new(), Some(hi));
     }
     // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
@@ -243,12 +247,6 @@ impl Levels {
     }
 }
 
-/// Whether level `k` lies within `low_support_levels` of the evidence's first level (a
-/// pallet's deck).
-fn low_level(cx: &Ctx, k: usize) -> bool {
-    k.saturating_sub(cx.start) < cx.p.low_support_levels
-}
-
 /// The footprint `f` eroded by `rim` texels, the outside of its box counting as footprint
 /// (an object cut by the plane's border keeps its edge there).
 fn inner_footprint(f: &Mask, rim: usize) -> Mask {
@@ -278,7 +276,7 @@ struct Surface {
 /// The top surface: the highest window of levels covering at least `dense_window_share` of
 /// the densest one (ghost layers under a table top can be denser than the top itself), at
 /// its densest level (candidates: the top window of every run of such windows, highest
-/// first); a surface with nothing on it gives way to a low deck below it.
+/// first); a surface with nothing on it gives way to a dense surface below it.
 fn find_surface(cx: &Ctx, part: &Part, levels: &Levels) -> Option<Surface> {
     let (vol, start, tau) = (cx.vol, cx.start, cx.tau);
     let p = cx.p;
@@ -336,10 +334,11 @@ fn find_surface(cx: &Ctx, part: &Part, levels: &Levels) -> Option<Surface> {
                 seeds.data[r * w + c] = window_max(col, above, thin) >= tau;
             }
         }
-        // nothing stands on the highest surface, but a low deck lies below it: the lid of a
-        // hollow box (a crate whose walls cover a fifth of the footprint) on a pallet
-        if raised.count() == 0 && tops.get(i + 1).is_some_and(|&k| low_level(cx, k)) {
-            tracing::trace!(kw, "nothing on the surface: trying the low one below");
+        // nothing stands on the highest surface, but another dense surface lies below it:
+        // the lid of a hollow box (a crate whose walls cover a fifth of the footprint) on a
+        // pallet's deck
+        if raised.count() == 0 && tops.get(i + 1).is_some() {
+            tracing::trace!(kw, "nothing on the surface: trying the one below");
             continue;
         }
         return Some(Surface { kstar, hi, above, lo, solid, surface, raised, seeds });
