@@ -12,7 +12,7 @@
 
 use assetfield_editor::{EditSession, SessionOptions, ViewRequest};
 use assetfield_layout::resolve;
-use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, ScriptAssets};
+use assetfield_scene::{AssetLibrary, Composer, ScriptAssets};
 use assetfield_tests::{SCENE, assetfield_bin, column_opacity, ok, scratch};
 use serde_json::{Value, json};
 use std::io::{BufRead, BufReader, Read, Write};
@@ -415,7 +415,7 @@ fn the_api_answers_every_endpoint_and_guards_the_session() {
     let served = decode_png(&s.get("/api/render?width=80&height=60&azimuth=-40&elevation=30").body);
     let library = AssetLibrary::open(lib).unwrap();
     let script = assetfield_layout::load(&path).unwrap();
-    let assets = ScriptAssets::resolve(&script, &library, DEFAULT_HALO).unwrap();
+    let assets = ScriptAssets::resolve(&script, &library, library.halo()).unwrap();
     let resolved = resolve(&script, &assets).unwrap();
     let mut composer = Composer::new(library.composition(&library.default_canvas()).unwrap());
     assets.install(&mut composer).unwrap();

@@ -8,7 +8,7 @@ use assetfield_core::Camera;
 use assetfield_data::{Dataset, LoadOptions, Split};
 use assetfield_field::eval::load_field;
 use assetfield_layout::{AssetCatalog, PartsCatalog};
-use assetfield_scene::{AssetLibrary, DEFAULT_HALO};
+use assetfield_scene::AssetLibrary;
 use glam::{Mat4, Vec3};
 use std::path::{Path, PathBuf};
 
@@ -412,7 +412,7 @@ fn library_oracle(dir: &Path) -> Outcome {
         return Err(format!("accepted texel size {t}"));
     }
     let patches =
-        lib.patches(DEFAULT_HALO).map_err(|e| format!("accepted, yet a patch fails: {e}"))?;
+        lib.patches(lib.halo()).map_err(|e| format!("accepted, yet a patch fails: {e}"))?;
     for p in patches.values() {
         finite(&format!("density of patch {}", p.name), &p.density)?;
     }

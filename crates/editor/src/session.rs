@@ -16,7 +16,7 @@ use assetfield_layout::source::{EditNode, SourceFile};
 use assetfield_layout::{
     AssetDef, Edit, LibraryRef, LoadedScript, ResolvedLayout, Script, resolve,
 };
-use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, ScriptAssets};
+use assetfield_scene::{AssetLibrary, Composer, ScriptAssets};
 use glam::{Vec2, Vec3};
 use serde::Serialize;
 
@@ -46,7 +46,8 @@ pub struct SessionOptions {
     /// from it: an edit script (`Scene(base: ..., edits: [...])`) continues its edits; a
     /// whole layout script is edited in place (Save appends the session's edits to it).
     pub layout: Option<PathBuf>,
-    /// Texels around each entry's mask that its patch covers (default: the composer's).
+    /// Texels around each entry's mask that its patch covers (default: the library's,
+    /// [`AssetLibrary::halo`]).
     pub halo: Option<usize>,
     /// Time a CPU render may take before it is cancelled (default [`DEFAULT_RENDER_BUDGET`]).
     pub render_budget: Option<std::time::Duration>,
@@ -315,7 +316,7 @@ impl EditSession {
                 (save_as, batches)
             }
         };
-        let halo = opts.halo.unwrap_or(DEFAULT_HALO);
+        let halo = opts.halo.unwrap_or_else(|| lib.halo());
         let assets = ScriptAssets::resolve(&start, &lib, halo)
             .map_err(scene_err(format!("resolving the assets of {}", start_path.display())))?;
         let layout = resolve(&start, &assets)?;

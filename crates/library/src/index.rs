@@ -135,6 +135,16 @@ pub struct Container {
     /// World box of the planes `[xmin, ymin, xmax, ymax]` (texel cells).
     pub world: [f32; 4],
     pub source: usize,
+    /// Texels around each entry's mask that mining filled in this container, and so the
+    /// ring each entry's patch of this source covers when composed (an entry placed back
+    /// where it was mined restores the trained planes). Libraries written before it was
+    /// recorded filled [`crate::DEFAULT_HALO`].
+    #[serde(default = "default_halo")]
+    pub halo: usize,
+}
+
+fn default_halo() -> usize {
+    crate::DEFAULT_HALO
 }
 
 impl Container {
@@ -148,7 +158,13 @@ impl Container {
             size,
             world,
             source,
+            halo: crate::DEFAULT_HALO,
         }
+    }
+
+    /// The container with its patches' halo (texels).
+    pub fn with_halo(self, halo: usize) -> Self {
+        Container { halo, ..self }
     }
 }
 

@@ -32,9 +32,9 @@ mod merge;
 
 pub use check::validate;
 
-/// Default halo (texels) around an entry's mask that its patch covers when composed: the
-/// ring that `assetfield mine` fills in the container along with the entry's mask, so that
-/// an entry placed back where it was mined restores the trained planes.
+/// Halo (texels) around an entry's mask that its patch covers when composed, for libraries
+/// that do not record theirs ([`Container::halo`]): the ring that `assetfield mine` filled
+/// in the container along with the entry's mask before the halo followed the field's blur.
 pub const DEFAULT_HALO: usize = 2;
 pub use error::{LibraryError, Result};
 pub use files::{

@@ -42,6 +42,20 @@ fn index_round_trips_and_validates() {
     assert_eq!(again.entries[0].pivot, Some((0.05, 0.1)));
     let offset = again.entries[0].pivot_offset() - Vec2::new(0.05 - 0.15, 0.1 - 0.1);
     assert!(offset.length() < 1e-6, "{offset}");
+    // a container written before it recorded its halo read as the old default halo; a
+    // recorded halo round-trips
+    let container = lib.index.containers[0].clone();
+    assert_eq!(container.halo, assetfield_library::DEFAULT_HALO);
+    let mut index = lib.index.clone();
+    index.containers[0] = container.with_halo(6);
+    let text = index_to_ron(&index).unwrap();
+    assert!(text.contains("halo: 6"), "{text}");
+    let again = index_from_ron(&a.join(INDEX_FILE), &text).unwrap();
+    assert_eq!(again.containers[0].halo, 6);
+    let old = text.replace("halo: 6,", "").replace("halo: 6", "");
+    assert!(!old.contains("halo"), "{old}");
+    let again = index_from_ron(&a.join(INDEX_FILE), &old).unwrap();
+    assert_eq!(again.containers[0].halo, assetfield_library::DEFAULT_HALO);
     std::fs::remove_dir_all(&root).unwrap();
 }
 

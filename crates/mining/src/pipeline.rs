@@ -953,10 +953,18 @@ fn build_library(
     let mut patches = TensorFile::new();
     patches.set_meta("format", FORMAT);
     patches.set_meta("source", source);
+    // the ring each entry's patch carries and the container fills around each object: the
+    // field blurs an edge `blur_levels` texels to either side, so an object's blur reaches
+    // twice that past a footprint cut inside its blurred edge (with the 2 texels of the
+    // composer's old default, a faint ring of blur stayed in the container where objects
+    // were: `container_residue` on the basis's 6000-iteration libraries, 34 of 260
+    // footprints held less than the ground 3-6 texels out, 3 with this halo)
+    let halo = 2 * dets.blur_levels.max(1);
     let mut entries = Vec::with_capacity(dets.detections.len());
     for d in &dets.detections {
         let name = entry_name(d.id);
-        let p = PatchRect::around(d.rect, margin);
+        // the patch holds the ring around the mask (the box's margin at least the halo)
+        let p = PatchRect::around(d.rect, margin.max(halo));
         let dens = padded_crop(&planes.density, p)?;
         let col = padded_crop(&planes.color, p)?;
         let mask = mask_in_patch(d, &d.own, p);
@@ -1008,7 +1016,7 @@ fn build_library(
     // empty ground around it, the floor from the floor and empty space from empty space
     // (on the basis's 6000-iteration libraries, `container_residue`: 89 of 251 vacated
     // footprints held over 10% more column opacity than the ground around them when the
-    // fill copied the nearest texel, 25 with the median)
+    // fill copied the nearest texel, 25 with the median, with a halo of 2)
     let (rows, cols) = (grid.rows, grid.cols);
     let mut objects = Mask::empty(rows, cols)?;
     for d in &dets.detections {
@@ -1023,7 +1031,7 @@ fn build_library(
     // (the halo is the ring each entry's patch carries with it when composed, so an entry
     // placed back where it was mined restores the trained planes; the ring of samples is the
     // field's blur)
-    let objects = dilate(&objects, assetfield_library::DEFAULT_HALO)?;
+    let objects = dilate(&objects, halo)?;
     let ring = dets.blur_levels.max(1);
     let fill = RingFill::new(&objects, floor, ring)?;
     let (dens, col) = (fill.apply(&planes.density)?, fill.apply(&planes.color)?);
@@ -1049,12 +1057,10 @@ fn build_library(
         shared: SharedRef { file: SHARED_FILE.into(), hash: String::new(), tensors: Vec::new() },
         categories,
         entries,
-        containers: vec![Container::named(
-            "container",
-            (rows, cols),
-            grid.world_rect().to_array(),
-            0,
-        )],
+        containers: vec![
+            Container::named("container", (rows, cols), grid.world_rect().to_array(), 0)
+                .with_halo(halo),
+        ],
     };
     Ok((index, patches))
 }

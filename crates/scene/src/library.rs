@@ -218,6 +218,13 @@ impl AssetLibrary {
         self.index.entry(&c.template)
     }
 
+    /// The halo (texels) this library's patches cover when composed: the largest its
+    /// containers record (mining fills that ring in the container), [`DEFAULT_HALO`] for a
+    /// library without containers.
+    pub fn halo(&self) -> usize {
+        self.index.containers.iter().map(|c| c.halo).max().unwrap_or(DEFAULT_HALO)
+    }
+
     /// An entry as a feature patch: on its mask (its core) its whole density column, on the
     /// rest its density features minus the background (see [`DensityRule::Add`]), its colour
     /// features, its centre at the entry's pivot offset (see

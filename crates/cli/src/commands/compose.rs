@@ -11,7 +11,7 @@ use assetfield_data::{Dataset, Frame, LoadOptions, Split};
 use assetfield_field::eval::evaluate_with;
 use assetfield_field::pictures::{color_plane_name, density_picture, pca_picture};
 use assetfield_layout::{ResolvedLayout, resolve};
-use assetfield_scene::{AssetLibrary, Canvas, Composer, DEFAULT_HALO, ScriptAssets};
+use assetfield_scene::{AssetLibrary, Canvas, Composer, ScriptAssets};
 use clap::Args;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -67,10 +67,10 @@ pub struct ComposeArgs {
     /// extent) [default: the library's first container, else empty].
     #[arg(long, value_name = "NAME|empty")]
     pub canvas: Option<String>,
-    /// Texels around each entry's mask that its patch covers (the ring `mine` fills in the
-    /// container).
-    #[arg(long, default_value_t = DEFAULT_HALO, value_name = "TEXELS")]
-    pub halo: usize,
+    /// Texels around each entry's mask that its patch covers [default: the ring `mine`
+    /// filled in the library's container, as its index records]
+    #[arg(long, value_name = "TEXELS")]
+    pub halo: Option<usize>,
     /// Where to render: gpu (wgpu; an error without an adapter), cpu (the reference
     /// renderer), or auto: the GPU when a wgpu adapter exists, else the CPU with one line
     /// saying so (also when the GPU fails mid-run).
@@ -173,7 +173,7 @@ pub fn compose(a: ComposeArgs) -> Result<()> {
     for e in &a.edits {
         assetfield_layout::append_edits(&mut script, e)?;
     }
-    let assets = ScriptAssets::resolve(&script, &lib, a.halo)?;
+    let assets = ScriptAssets::resolve(&script, &lib, a.halo.unwrap_or_else(|| lib.halo()))?;
     let layout = resolve(&script, &assets)?;
     let canvas = canvas(&a, &lib, &layout);
     let composition = lib.composition(&canvas)?;

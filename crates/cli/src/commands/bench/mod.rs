@@ -16,7 +16,7 @@ use assetfield_core::Camera;
 use assetfield_gpu::bench_scene::{BenchScene, SplitMix};
 use assetfield_gpu::{GpuComposer, GpuContext, GpuError, Layout, fallback_note};
 use assetfield_scene::world::ComposedPlanes;
-use assetfield_scene::{AssetLibrary, Composer, DEFAULT_HALO, InstanceOf};
+use assetfield_scene::{AssetLibrary, Composer, InstanceOf};
 use clap::{Args, Subcommand};
 use indicatif::ProgressBar;
 use serde_json::{Value, json};
@@ -132,7 +132,7 @@ fn library_scene(dir: &Path) -> Result<BenchScene> {
     let mut templates = Vec::new();
     let mut names = Vec::new();
     for c in &lib.index.categories {
-        templates.push(lib.patch(&c.template, DEFAULT_HALO)?);
+        templates.push(lib.patch(&c.template, lib.halo())?);
         names.push(c.name.clone());
     }
     if templates.is_empty() {
