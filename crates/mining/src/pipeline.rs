@@ -286,6 +286,29 @@ impl<'a> RingFill<'a> {
     /// The regions of `mask` (4-connected) and their rings of `ring` texels (4-connected
     /// steps; a texel within reach of two regions joins the nearer).
     pub fn new(mask: &'a Mask, class: Option<&'a [bool]>, ring: usize) -> Result<Self> {
+        Self::build(mask, None, class, ring)
+    }
+
+    /// [`RingFill::new`] with one region per object: `mask` holds the objects (`objects`,
+    /// 4-connected) and their halos, and each masked texel belongs to the nearest object
+    /// (4-connected steps inside `mask`), so that objects whose halos touch (a row of trees
+    /// along a kerb) are each filled from the ground around them, not from one median of
+    /// the whole row's ring.
+    pub fn around_objects(
+        mask: &'a Mask,
+        objects: &Mask,
+        class: Option<&'a [bool]>,
+        ring: usize,
+    ) -> Result<Self> {
+        Self::build(mask, Some(objects), class, ring)
+    }
+
+    fn build(
+        mask: &'a Mask,
+        objects: Option<&Mask>,
+        class: Option<&'a [bool]>,
+        ring: usize,
+    ) -> Result<Self> {
         let (rows, cols) = (mask.rows, mask.cols);
         let n = rows * cols;
         if let Some(cl) = class
@@ -297,7 +320,10 @@ impl<'a> RingFill<'a> {
                 right: n,
             });
         }
-        let (mut region, sizes) = crate::contours::label_components_4(mask)?;
+        let (mut region, sizes) = match objects {
+            Some(o) => nearest_object(mask, o)?,
+            None => crate::contours::label_components_4(mask)?,
+        };
         let mut dist = vec![usize::MAX; n];
         let mut queue: VecDeque<usize> = (0..n).filter(|&i| mask.data[i]).collect();
         for &i in &queue {
@@ -380,6 +406,44 @@ impl<'a> RingFill<'a> {
         }
         Ok(out)
     }
+}
+
+/// Per texel of `mask`, the nearest object of `objects` (its 4-connected components inside
+/// `mask`, by 4-connected steps inside `mask`), as labels and sizes like
+/// [`crate::contours::label_components_4`]'s; masked texels no object reaches form regions
+/// of their own.
+fn nearest_object(mask: &Mask, objects: &Mask) -> Result<(Vec<u32>, Vec<usize>)> {
+    let (rows, cols) = (mask.rows, mask.cols);
+    let inside = Mask::from_fn(rows, cols, |r, c| mask.get(r, c) && objects.get(r, c));
+    let (mut label, mut sizes) = crate::contours::label_components_4(&inside)?;
+    let mut queue: VecDeque<usize> = (0..rows * cols).filter(|&i| label[i] != u32::MAX).collect();
+    while let Some(i) = queue.pop_front() {
+        let (r, c) = (i / cols, i % cols);
+        for (dr, dc) in [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)] {
+            let (nr, nc) = (r.wrapping_add_signed(dr), c.wrapping_add_signed(dc));
+            if nr >= rows || nc >= cols {
+                continue;
+            }
+            let j = nr * cols + nc;
+            if mask.data[j] && label[j] == u32::MAX {
+                label[j] = label[i];
+                sizes[label[i] as usize] += 1;
+                queue.push_back(j);
+            }
+        }
+    }
+    let left = Mask::from_fn(rows, cols, |r, c| mask.get(r, c) && label[r * cols + c] == u32::MAX);
+    if left.count() > 0 {
+        let (extra, extra_sizes) = crate::contours::label_components_4(&left)?;
+        let base = sizes.len() as u32;
+        for (l, e) in label.iter_mut().zip(&extra) {
+            if *e != u32::MAX {
+                *l = base + e;
+            }
+        }
+        sizes.extend(extra_sizes);
+    }
+    Ok((label, sizes))
 }
 
 /// Which texels hold the floor slab: opacity at least 0.5 at one of the floor's levels.
@@ -1031,16 +1095,16 @@ fn build_library(
     // (the halo is the ring each entry's patch carries with it when composed, so an entry
     // placed back where it was mined restores the trained planes; the ring of samples is the
     // field's blur)
-    let objects = dilate(&objects, halo)?;
+    let zone = dilate(&objects, halo)?;
     let ring = dets.blur_levels.max(1);
-    let fill = RingFill::new(&objects, floor, ring)?;
+    let fill = RingFill::around_objects(&zone, &objects, floor, ring)?;
     let (dens, col) = (fill.apply(&planes.density)?, fill.apply(&planes.color)?);
     patches.insert_f32("container.density", &[rows, cols, dens.ch], dens.data);
     patches.insert_f32("container.color", &[rows, cols, col.ch], col.data);
     patches.insert_u8(
         "container.mask",
         &[rows, cols],
-        objects.data.iter().map(|&b| u8::from(b)).collect(),
+        zone.data.iter().map(|&b| u8::from(b)).collect(),
     );
     let index = LibraryIndex {
         format: FORMAT.into(),
@@ -1142,6 +1206,33 @@ mod tests {
         let f = fill_from_ring_median(&plane, &mask, Some(&class), 2).unwrap();
         let row = &f.channel(0).unwrap()[..12];
         assert_eq!((row[2], row[6], row[9]), (1.0, 0.0, 0.0));
+    }
+
+    #[test]
+    fn objects_whose_halos_touch_are_filled_from_their_own_ground() {
+        // ground of value 1 on the left half and 3 on the right; two objects (columns 4 and
+        // 7, value 9) whose halos of 1 join into one region across the boundary
+        let plane = PlaneImage::from_fn(5, 12, 1, |r, c, _| {
+            if r == 2 && (c == 4 || c == 7) {
+                9.0
+            } else if c < 6 {
+                1.0
+            } else {
+                3.0
+            }
+        })
+        .unwrap();
+        let objects = Mask::from_fn(5, 12, |r, c| r == 2 && (c == 4 || c == 7));
+        let zone = Mask::from_fn(5, 12, |r, c| (1..=3).contains(&r) && (3..=8).contains(&c));
+        let v = |f: &PlaneImage, r: usize, c: usize| f.channel(0).unwrap()[r * 12 + c];
+        // one region: both objects take the median of the whole ring (left and right ground)
+        let one = RingFill::new(&zone, None, 2).unwrap().apply(&plane).unwrap();
+        assert_eq!(v(&one, 2, 4), v(&one, 2, 7));
+        // one region per object: each takes its own side's ground
+        let own =
+            RingFill::around_objects(&zone, &objects, None, 2).unwrap().apply(&plane).unwrap();
+        assert_eq!((v(&own, 2, 4), v(&own, 2, 7)), (1.0, 3.0));
+        assert_eq!((v(&own, 1, 3), v(&own, 3, 8)), (1.0, 3.0));
     }
 
     #[test]
