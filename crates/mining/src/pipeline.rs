@@ -333,13 +333,7 @@ impl<'a> RingFill<'a> {
             if dist[i] >= ring {
                 continue;
             }
-            let (r, c) = (i / cols, i % cols);
-            for (dr, dc) in [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)] {
-                let (nr, nc) = (r.wrapping_add_signed(dr), c.wrapping_add_signed(dc));
-                if nr >= rows || nc >= cols {
-                    continue;
-                }
-                let j = nr * cols + nc;
+            for j in neighbours4(i, rows, cols) {
                 if dist[j] == usize::MAX {
                     dist[j] = dist[i] + 1;
                     region[j] = region[i];
@@ -408,6 +402,15 @@ impl<'a> RingFill<'a> {
     }
 }
 
+/// The 4-neighbours of flat index `i` inside a `rows x cols` grid, as flat indices.
+fn neighbours4(i: usize, rows: usize, cols: usize) -> impl Iterator<Item = usize> {
+    let (r, c) = (i / cols, i % cols);
+    [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)].into_iter().filter_map(move |(dr, dc)| {
+        let (nr, nc) = (r.wrapping_add_signed(dr), c.wrapping_add_signed(dc));
+        (nr < rows && nc < cols).then_some(nr * cols + nc)
+    })
+}
+
 /// Per texel of `mask`, the nearest object of `objects` (its 4-connected components inside
 /// `mask`, by 4-connected steps inside `mask`), as labels and sizes like
 /// [`crate::contours::label_components_4`]'s; masked texels no object reaches form regions
@@ -418,13 +421,7 @@ fn nearest_object(mask: &Mask, objects: &Mask) -> Result<(Vec<u32>, Vec<usize>)>
     let (mut label, mut sizes) = crate::contours::label_components_4(&inside)?;
     let mut queue: VecDeque<usize> = (0..rows * cols).filter(|&i| label[i] != u32::MAX).collect();
     while let Some(i) = queue.pop_front() {
-        let (r, c) = (i / cols, i % cols);
-        for (dr, dc) in [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)] {
-            let (nr, nc) = (r.wrapping_add_signed(dr), c.wrapping_add_signed(dc));
-            if nr >= rows || nc >= cols {
-                continue;
-            }
-            let j = nr * cols + nc;
+        for j in neighbours4(i, rows, cols) {
             if mask.data[j] && label[j] == u32::MAX {
                 label[j] = label[i];
                 sizes[label[i] as usize] += 1;
