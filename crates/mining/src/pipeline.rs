@@ -407,7 +407,7 @@ fn neighbours4(i: usize, rows: usize, cols: usize) -> impl Iterator<Item = usize
     let (r, c) = (i / cols, i % cols);
     [(0isize, 1isize), (0, -1), (1, 0), (-1, 0)].into_iter().filter_map(move |(dr, dc)| {
         let (nr, nc) = (r.wrapping_add_signed(dr), c.wrapping_add_signed(dc));
-        (nr < rows && nc < cols).then_some(nr * cols + nc)
+        (nr < rows && nc < cols).then(|| nr * cols + nc)
     })
 }
 
