@@ -88,7 +88,7 @@ fn mine_compose_round_trip_and_edit_fidelity() {
     let own = dir.join("own.ron");
     std::fs::write(&own, format!("Scene(layout: [\n{items}])\n")).unwrap();
     let script = assetfield_layout::load(&own).unwrap();
-    let assets = ScriptAssets::resolve(&script, &lib, lib.halo()).unwrap();
+    let assets = ScriptAssets::resolve(&script, &lib, None).unwrap();
     let layout = resolve(&script, &assets).unwrap();
     let mut composer = Composer::new(lib.composition(&lib.default_canvas()).unwrap());
     assets.install(&mut composer).unwrap();
@@ -172,7 +172,7 @@ fn mine_compose_round_trip_and_edit_fidelity() {
     assert!(cats.len() >= 2, "two categories: {cats:?}");
     let (c0, c1) = (&cats[0], &cats[1]);
     let mined_script = assetfield_layout::load(&dir.join("lib/layout.ron")).unwrap();
-    let mined_assets = ScriptAssets::resolve(&mined_script, &lib, lib.halo()).unwrap();
+    let mined_assets = ScriptAssets::resolve(&mined_script, &lib, None).unwrap();
     let mined_layout = resolve(&mined_script, &mined_assets).unwrap();
     let first = mined_layout.objects().find(|i| i.category == c0.name).unwrap().key.clone();
     let gone = mined_layout.objects().filter(|i| i.category == c1.name).count();

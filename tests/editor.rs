@@ -415,7 +415,7 @@ fn the_api_answers_every_endpoint_and_guards_the_session() {
     let served = decode_png(&s.get("/api/render?width=80&height=60&azimuth=-40&elevation=30").body);
     let library = AssetLibrary::open(lib).unwrap();
     let script = assetfield_layout::load(&path).unwrap();
-    let assets = ScriptAssets::resolve(&script, &library, library.halo()).unwrap();
+    let assets = ScriptAssets::resolve(&script, &library, None).unwrap();
     let resolved = resolve(&script, &assets).unwrap();
     let mut composer = Composer::new(library.composition(&library.default_canvas()).unwrap());
     assets.install(&mut composer).unwrap();

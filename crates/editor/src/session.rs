@@ -46,8 +46,8 @@ pub struct SessionOptions {
     /// from it: an edit script (`Scene(base: ..., edits: [...])`) continues its edits; a
     /// whole layout script is edited in place (Save appends the session's edits to it).
     pub layout: Option<PathBuf>,
-    /// Texels around each entry's mask that its patch covers (default: the library's,
-    /// [`AssetLibrary::halo`]).
+    /// Texels around each entry's mask that its patch covers (default: its source scene's,
+    /// [`AssetLibrary::source_halo`]).
     pub halo: Option<usize>,
     /// Time a CPU render may take before it is cancelled (default [`DEFAULT_RENDER_BUDGET`]).
     pub render_budget: Option<std::time::Duration>,
@@ -185,8 +185,8 @@ pub struct EditSession {
     thumbnails: std::collections::BTreeMap<String, Vec<u8>>,
     /// The device and the composed field's renderer as of the version it last rendered.
     gpu: Option<GpuViews>,
-    /// Texels around each entry's mask that its patch covers.
-    halo: usize,
+    /// Texels around each entry's mask that its patch covers (`None`: its source scene's).
+    halo: Option<usize>,
     render_budget: std::time::Duration,
     /// Assets the session defined (recoloured categories), by name: Save writes them into
     /// the script's `assets`, with the library path relative to the saved file.
@@ -316,7 +316,7 @@ impl EditSession {
                 (save_as, batches)
             }
         };
-        let halo = opts.halo.unwrap_or_else(|| lib.halo());
+        let halo = opts.halo;
         let assets = ScriptAssets::resolve(&start, &lib, halo)
             .map_err(scene_err(format!("resolving the assets of {}", start_path.display())))?;
         let layout = resolve(&start, &assets)?;

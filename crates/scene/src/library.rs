@@ -218,33 +218,39 @@ impl AssetLibrary {
         self.index.entry(&c.template)
     }
 
-    /// The halo (texels) this library's patches cover when composed: the largest its
-    /// containers record (mining fills that ring in the container), [`DEFAULT_HALO`] for a
-    /// library without containers.
-    pub fn halo(&self) -> usize {
-        self.index.containers.iter().map(|c| c.halo).max().unwrap_or(DEFAULT_HALO)
+    /// The halo (texels) the patches of source scene `source` cover when composed: the ring
+    /// mining filled in that scene's container ([`assetfield_library::Container::halo`]),
+    /// [`DEFAULT_HALO`] for a source without a container.
+    pub fn source_halo(&self, source: usize) -> usize {
+        self.index.containers.iter().find(|c| c.source == source).map_or(DEFAULT_HALO, |c| c.halo)
     }
 
     /// An entry as a feature patch: on its mask (its core) its whole density column, on the
     /// rest its density features minus the background (see [`DensityRule::Add`]), its colour
     /// features, its centre at the entry's pivot offset (see
     /// [`FeaturePatch::origin`]), and weight 1 on the texels it owns: its
-    /// mask, plus the texels within `halo` of it that are nearer to it than to any other
+    /// mask, plus the texels within the halo of it that are nearer to it than to any other
     /// object of its source scene (so that neighbours' patches never cover the same texel,
     /// and every object placed back where it was mined restores its source planes exactly).
-    pub fn patch(&self, entry: &str, halo: usize) -> Result<FeaturePatch, SceneError> {
-        let owner = match self.entry(entry) {
-            Some(e) => self.ownership(e.source, halo)?,
-            None => None,
+    /// The halo is `halo` when given, else its source scene's ([`AssetLibrary::source_halo`]).
+    pub fn patch(&self, entry: &str, halo: Option<usize>) -> Result<FeaturePatch, SceneError> {
+        let Some(e) = self.entry(entry) else {
+            return self.patch_with(entry, halo.unwrap_or(DEFAULT_HALO), None);
         };
+        let halo = halo.unwrap_or_else(|| self.source_halo(e.source));
+        let owner = self.ownership(e.source, halo)?;
         self.patch_with(entry, halo, owner.as_ref())
     }
 
     /// Every entry's patch (see [`AssetLibrary::patch`]), by entry name.
-    pub fn patches(&self, halo: usize) -> Result<BTreeMap<String, FeaturePatch>, SceneError> {
+    pub fn patches(
+        &self,
+        halo: Option<usize>,
+    ) -> Result<BTreeMap<String, FeaturePatch>, SceneError> {
         let mut owners = BTreeMap::new();
         let mut out = BTreeMap::new();
         for e in &self.index.entries {
+            let halo = halo.unwrap_or_else(|| self.source_halo(e.source));
             let owner = match owners.entry(e.source) {
                 std::collections::btree_map::Entry::Occupied(o) => o.into_mut(),
                 std::collections::btree_map::Entry::Vacant(v) => {
@@ -448,11 +454,12 @@ impl ScriptAssets {
     /// Resolve the assets of `script` against `main` (and the libraries its assets name,
     /// which must share `main`'s axes and decoders). Assets made only of primitives or meshes
     /// cannot be composed and are an error naming their place in the script, as is a library
-    /// asset whose entry does not exist.
+    /// asset whose entry does not exist. Each patch covers its source scene's halo unless
+    /// `halo` overrides it.
     pub fn resolve(
         script: &LoadedScript,
         main: &AssetLibrary,
-        halo: usize,
+        halo: Option<usize>,
     ) -> Result<Self, SceneError> {
         let mut out = Self::library_names(main, halo)?;
         // the script's own definitions win over the library's names
@@ -506,7 +513,7 @@ impl ScriptAssets {
 
     /// The names `main` offers: its categories (drawn with their templates), then its
     /// entries (each with its own patch).
-    fn library_names(main: &AssetLibrary, halo: usize) -> Result<Self, SceneError> {
+    fn library_names(main: &AssetLibrary, halo: Option<usize>) -> Result<Self, SceneError> {
         let mut out = ScriptAssets::default();
         let main_patches = main.patches(halo)?;
         let take = |name: &str| -> Result<Arc<FeaturePatch>, SceneError> {
@@ -570,7 +577,7 @@ impl LibraryAsset<'_> {
         lib: &AssetLibrary,
         main: &AssetLibrary,
         parts: &PartsCatalog,
-        halo: usize,
+        halo: Option<usize>,
     ) -> Result<ResolvedAsset, SceneError> {
         let (name, lref, dir) = (self.name, self.lref, self.dir);
         if lib.shared_hash() != main.shared_hash() {

@@ -91,7 +91,7 @@ fn compose(dir: &Path) -> Result<(), String> {
     let lib = AssetLibrary::open(dir).map_err(|e| e.to_string())?;
     lib.composition(&Canvas::Empty { extent: Rect2::new(Vec2::ZERO, Vec2::splat(0.6)) })
         .map_err(|e| e.to_string())?;
-    lib.patches(lib.halo()).map_err(|e| e.to_string())?;
+    lib.patches(None).map_err(|e| e.to_string())?;
     let script_path = dir.join("../compose-script.ron");
     let template = lib.index.categories[0].template.clone();
     std::fs::write(
@@ -100,7 +100,7 @@ fn compose(dir: &Path) -> Result<(), String> {
     )
     .unwrap();
     let script = assetfield_layout::load(&script_path).map_err(|e| e.to_string())?;
-    let assets = ScriptAssets::resolve(&script, &lib, lib.halo()).map_err(|e| e.to_string())?;
+    let assets = ScriptAssets::resolve(&script, &lib, None).map_err(|e| e.to_string())?;
     let layout = assetfield_layout::resolve(&script, &assets).map_err(|e| e.to_string())?;
     let comp = lib.composition(&lib.default_canvas()).map_err(|e| e.to_string())?;
     let mut composer = Composer::new(comp);

@@ -20,7 +20,7 @@ fn refiner(lib: &AssetLibrary) -> TemplateRefiner {
     let cam = assetfield_core::Orbit::around(&lib.config.aabb(), 1, 8).cameras()[0];
     TemplateRefiner::new(
         lib,
-        &lib.patches(lib.halo()).unwrap(),
+        &lib.patches(None).unwrap(),
         vec![(cam, vec![0.5; 8 * 8 * 3])],
         Vec3::ONE,
         RefineOptions::default(),

@@ -68,7 +68,7 @@ pub struct ComposeArgs {
     #[arg(long, value_name = "NAME|empty")]
     pub canvas: Option<String>,
     /// Texels around each entry's mask that its patch covers [default: the ring `mine`
-    /// filled in the library's container, as its index records]
+    /// filled in the container of the entry's scene, as the library's index records]
     #[arg(long, value_name = "TEXELS")]
     pub halo: Option<usize>,
     /// Where to render: gpu (wgpu; an error without an adapter), cpu (the reference
@@ -173,7 +173,7 @@ pub fn compose(a: ComposeArgs) -> Result<()> {
     for e in &a.edits {
         assetfield_layout::append_edits(&mut script, e)?;
     }
-    let assets = ScriptAssets::resolve(&script, &lib, a.halo.unwrap_or_else(|| lib.halo()))?;
+    let assets = ScriptAssets::resolve(&script, &lib, a.halo)?;
     let layout = resolve(&script, &assets)?;
     let canvas = canvas(&a, &lib, &layout);
     let composition = lib.composition(&canvas)?;

@@ -118,7 +118,7 @@ pub fn refine(a: RefineArgs) -> Result<()> {
     let (train, test) = load_views(&a, &lib)?;
 
     // before: the mined layout (own patches) and the templates-only layout
-    let patches = lib.patches(lib.halo())?;
+    let patches = lib.patches(None)?;
     let own = own_poses(&lib.index)
         .into_iter()
         .map(|(name, t)| {

@@ -243,7 +243,7 @@ fn load_neural_scene(
         .context("no library asset")?;
     let lib = assetfield_scene::AssetLibrary::open(&dir)
         .with_context(|| format!("opening the asset library {}", dir.display()))?;
-    let assets = assetfield_scene::ScriptAssets::resolve(&script, &lib, lib.halo())?;
+    let assets = assetfield_scene::ScriptAssets::resolve(&script, &lib, None)?;
     let layout = assetfield_layout::resolve(&script, &assets)?;
     Ok((script, layout))
 }

@@ -132,7 +132,7 @@ fn library_scene(dir: &Path) -> Result<BenchScene> {
     let mut templates = Vec::new();
     let mut names = Vec::new();
     for c in &lib.index.categories {
-        templates.push(lib.patch(&c.template, lib.halo())?);
+        templates.push(lib.patch(&c.template, None)?);
         names.push(c.name.clone());
     }
     if templates.is_empty() {
