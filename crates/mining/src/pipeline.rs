@@ -254,24 +254,15 @@ pub fn fill_from_background_by_class(
     Ok(out)
 }
 
-/// Fill every connected region of `mask` with the per-channel median of the unmasked texels
-/// within `ring` texels of it, of the masked texel's own class where `class` is given (the
-/// floor from the floor, empty space from empty space; the other class, then the nearest
-/// texel ([`fill_from_background_by_class`]) where a region's ring holds none of it). A
-/// median, not the nearest texel: the nearest copies whatever touches the region's edge (a
-/// kerb, a neighbour's blur, the object's own haze) across it in streaks, which is the
-/// object-shaped mark a vacated footprint must not keep.
-pub fn fill_from_ring_median(
-    plane: &PlaneImage,
-    mask: &Mask,
-    class: Option<&[bool]>,
-    ring: usize,
-) -> Result<PlaneImage> {
-    RingFill::new(mask, class, ring)?.apply(plane)
-}
-
-/// The regions of a mask and the texels of each region's ring by class, found once and
-/// applied to every plane of a field ([`fill_from_ring_median`]).
+/// The fill of the container: every object's region of `mask` (the objects and their
+/// halos) takes the per-channel median of the unmasked texels within `ring` texels of it, of
+/// the masked texel's own class where `class` is given (the floor from the floor, empty space
+/// from empty space; the other class, then the nearest texel
+/// ([`fill_from_background_by_class`]) where a region's ring holds none of it). A median,
+/// not the nearest texel: the nearest copies whatever touches the region's edge (a kerb, a
+/// neighbour's blur, the object's own haze) across it in streaks, which is the
+/// object-shaped mark a vacated footprint must not keep. The regions and rings are found
+/// once and applied to every plane of a field.
 #[derive(Debug)]
 pub struct RingFill<'a> {
     mask: &'a Mask,
@@ -283,29 +274,15 @@ pub struct RingFill<'a> {
 }
 
 impl<'a> RingFill<'a> {
-    /// The regions of `mask` (4-connected) and their rings of `ring` texels (4-connected
-    /// steps; a texel within reach of two regions joins the nearer).
-    pub fn new(mask: &'a Mask, class: Option<&'a [bool]>, ring: usize) -> Result<Self> {
-        Self::build(mask, None, class, ring)
-    }
-
-    /// [`RingFill::new`] with one region per object: `mask` holds the objects (`objects`,
-    /// 4-connected) and their halos, and each masked texel belongs to the nearest object
-    /// (4-connected steps inside `mask`), so that objects whose halos touch (a row of trees
-    /// along a kerb) are each filled from the ground around them, not from one median of
-    /// the whole row's ring.
+    /// One region per object: `mask` holds the objects (`objects`, 4-connected) and their
+    /// halos, and each masked texel belongs to the nearest object (4-connected steps inside
+    /// `mask`), so that objects whose halos touch (a row of trees along a kerb) are each
+    /// filled from the ground around them, not from one median of the whole row's ring; each
+    /// region's ring is the unmasked texels within `ring` 4-connected steps of it (a texel
+    /// within reach of two regions joins the nearer).
     pub fn around_objects(
         mask: &'a Mask,
         objects: &Mask,
-        class: Option<&'a [bool]>,
-        ring: usize,
-    ) -> Result<Self> {
-        Self::build(mask, Some(objects), class, ring)
-    }
-
-    fn build(
-        mask: &'a Mask,
-        objects: Option<&Mask>,
         class: Option<&'a [bool]>,
         ring: usize,
     ) -> Result<Self> {
@@ -320,10 +297,7 @@ impl<'a> RingFill<'a> {
                 right: n,
             });
         }
-        let (mut region, sizes) = match objects {
-            Some(o) => nearest_object(mask, o)?,
-            None => crate::contours::label_components_4(mask)?,
-        };
+        let (mut region, sizes) = nearest_object(mask, objects)?;
         let mut dist = vec![usize::MAX; n];
         let mut queue: VecDeque<usize> = (0..n).filter(|&i| mask.data[i]).collect();
         for &i in &queue {
@@ -1187,7 +1161,10 @@ mod tests {
         // the nearest texel carries the kerb across the footprint in a streak
         let nearest = fill_from_background(&plane, &mask).unwrap();
         assert_eq!(nearest.channel(0).unwrap()[5 * 12 + 4], 9.0);
-        let f = fill_from_ring_median(&plane, &mask, None, 3).unwrap();
+        let fill = |plane: &PlaneImage, mask: &Mask, class: Option<&[bool]>, ring: usize| {
+            RingFill::around_objects(mask, mask, class, ring).unwrap().apply(plane).unwrap()
+        };
+        let f = fill(&plane, &mask, None, 3);
         let v = f.channel(0).unwrap();
         for r in 4..8 {
             for c in 4..8 {
@@ -1200,7 +1177,7 @@ mod tests {
         let plane = PlaneImage::from_fn(4, 12, 1, |_, c, _| if c < 6 { 1.0 } else { 0.0 }).unwrap();
         let mask = Mask::from_fn(4, 12, |_, c| c == 2 || c == 6 || c == 9);
         let class: Vec<bool> = (0..48).map(|i| i % 12 < 6).collect();
-        let f = fill_from_ring_median(&plane, &mask, Some(&class), 2).unwrap();
+        let f = fill(&plane, &mask, Some(&class), 2);
         let row = &f.channel(0).unwrap()[..12];
         assert_eq!((row[2], row[6], row[9]), (1.0, 0.0, 0.0));
     }
@@ -1222,8 +1199,9 @@ mod tests {
         let objects = Mask::from_fn(5, 12, |r, c| r == 2 && (c == 4 || c == 7));
         let zone = Mask::from_fn(5, 12, |r, c| (1..=3).contains(&r) && (3..=8).contains(&c));
         let v = |f: &PlaneImage, r: usize, c: usize| f.channel(0).unwrap()[r * 12 + c];
-        // one region: both objects take the median of the whole ring (left and right ground)
-        let one = RingFill::new(&zone, None, 2).unwrap().apply(&plane).unwrap();
+        // one region (the zone as one object): both objects take the median of the whole ring
+        // (left and right ground)
+        let one = RingFill::around_objects(&zone, &zone, None, 2).unwrap().apply(&plane).unwrap();
         assert_eq!(v(&one, 2, 4), v(&one, 2, 7));
         // one region per object: each takes its own side's ground
         let own =

@@ -130,8 +130,19 @@ pub(super) fn blobs(
 /// Assign every pixel of `region` to the geodesically nearest seed (multi-source BFS inside
 /// the region, 8-connected); pixels no seed reaches get none.
 pub(super) fn geodesic_assign(region: &Mask, seeds: &[Mask]) -> Vec<Option<usize>> {
+    geodesic_assign_within(region, seeds, None)
+}
+
+/// [`geodesic_assign`], seed `s` reaching at most `limits[s]` steps from its own pixels
+/// when `limits` is given.
+fn geodesic_assign_within(
+    region: &Mask,
+    seeds: &[Mask],
+    limits: Option<&[usize]>,
+) -> Vec<Option<usize>> {
     let (rows, cols) = (region.rows, region.cols);
     let mut owner: Vec<Option<usize>> = vec![None; rows * cols];
+    let mut dist = vec![0usize; rows * cols];
     let mut queue = VecDeque::new();
     for (s, m) in seeds.iter().enumerate() {
         for i in 0..rows * cols {
@@ -142,18 +153,15 @@ pub(super) fn geodesic_assign(region: &Mask, seeds: &[Mask]) -> Vec<Option<usize
         }
     }
     while let Some(i) = queue.pop_front() {
-        let (r, c) = (i / cols, i % cols);
-        for dr in -1isize..=1 {
-            for dc in -1isize..=1 {
-                let (nr, nc) = (r as isize + dr, c as isize + dc);
-                if nr < 0 || nc < 0 || nr >= rows as isize || nc >= cols as isize {
-                    continue;
-                }
-                let j = nr as usize * cols + nc as usize;
-                if region.data[j] && owner[j].is_none() {
-                    owner[j] = owner[i];
-                    queue.push_back(j);
-                }
+        let s = owner[i].unwrap_or(0);
+        if limits.is_some_and(|l| dist[i] >= l[s]) {
+            continue;
+        }
+        for j in neighbours8(i / cols, i % cols, rows, cols) {
+            if region.data[j] && owner[j].is_none() {
+                owner[j] = owner[i];
+                dist[j] = dist[i] + 1;
+                queue.push_back(j);
             }
         }
     }
@@ -433,34 +441,14 @@ pub(super) fn split_enclosures(cx: &Ctx, region: &Mask, holes: &Mask) -> Vec<Mas
         return whole();
     }
     tracing::debug!(enclosures = enclosures.len(), "hollow objects in contact");
-    // multi-source breadth-first search from the enclosures, each within its thickness
-    let mut owner: Vec<Option<usize>> = vec![None; h * w];
-    let mut dist = vec![0usize; h * w];
-    let mut queue = VecDeque::new();
-    for (k, (hole, _)) in enclosures.iter().enumerate() {
-        for i in (0..h * w).filter(|&i| hole.data[i]) {
-            owner[i] = Some(k);
-            queue.push_back(i);
-        }
-    }
-    while let Some(i) = queue.pop_front() {
-        let k = owner[i].unwrap_or(0);
-        if dist[i] >= enclosures[k].1 {
-            continue;
-        }
-        for j in neighbours8(i / w, i % w, h, w) {
-            if region.data[j] && owner[j].is_none() {
-                owner[j] = Some(k);
-                dist[j] = dist[i] + 1;
-                queue.push_back(j);
-            }
-        }
-    }
+    // the shells: each enclosure's texels within its walls' thickness
+    let (holes, thickness): (Vec<Mask>, Vec<usize>) = enclosures.into_iter().unzip();
+    let mut owner = geodesic_assign_within(region, &holes, Some(&thickness));
     // what the shells leave: a piece with a body (a core surviving the bridges' opening, as
     // large as the smallest object) is an object touching the shells; the rest joins the
     // nearest shell
     let rest = Mask::from_fn(h, w, |r, c| region.get(r, c) && owner[r * w + c].is_none());
-    let mut seeds = enclosures.len();
+    let mut seeds = holes.len();
     if let Ok((rl, rs)) = crate::contours::label_components(&rest) {
         let radius = cx.p.bridge_radius_texels.max(1);
         for l in 0..rs.len() {
