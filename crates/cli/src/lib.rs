@@ -113,8 +113,10 @@ pub enum Command {
     /// Describe a dataset: views, resolution, focal length, camera bounds, plus a picture of
     /// the camera positions seen from above.
     ///
-    /// Reads NeRF-synthetic (transforms_{train,val,test}.json) and nerfstudio / instant-ngp
-    /// (transforms.json) folders. Images are checked for existence and size.
+    /// Reads NeRF-synthetic (transforms_{train,val,test}.json), nerfstudio / instant-ngp
+    /// (transforms.json) and COLMAP folders (a sparse model in sparse/0/ or nerfstudio's
+    /// colmap/sparse/0/, binary or text, photos in images/). Images are checked for existence
+    /// and size.
     Inspect(InspectArgs),
     /// Check a layout script without rendering: resolve it and list every instance with its
     /// id, key, category and world transform; optionally draw it from above.

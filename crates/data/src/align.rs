@@ -35,7 +35,58 @@ pub struct GroundAlignment {
     /// cameras circle the scene upright; small when the plane of the camera positions is not
     /// the ground (a forward-facing arc, say), a hint that the fit is not to be trusted.
     pub up_cosine: f32,
+    /// How the ground was found: `pca` (the plane of the camera positions) or `floor` (the
+    /// dominant horizontal surface of a capture's sparse points). Absent in fields levelled
+    /// before the floor fit existed: `pca`.
+    #[serde(default)]
+    pub method: AlignMethod,
+    /// With `floor`: the share of the sparse points lying on the fitted floor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor_share: Option<f32>,
 }
+
+/// How a [`GroundAlignment`] was fitted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AlignMethod {
+    /// A plane through the camera positions ([`GroundAlignment::fit_pca`]).
+    #[default]
+    Pca,
+    /// The dominant horizontal surface of the sparse points ([`GroundAlignment::fit_floor`]).
+    Floor,
+}
+
+impl std::fmt::Display for AlignMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            AlignMethod::Pca => "pca",
+            AlignMethod::Floor => "floor",
+        })
+    }
+}
+
+/// A floor point lies within this share of the sparse points' robust extent (the diagonal
+/// of their 2nd-98th percentile box) of the floor plane: 1%, a few centimetres in a room,
+/// about the scatter of a textured floor's points in a COLMAP model; scale-free, so a
+/// capture in any unit fits the same.
+pub const FLOOR_TOLERANCE_SHARE: f32 = 0.01;
+
+/// A candidate floor's normal is within this angle of the cameras' mean up vector, degrees
+/// (45: photos are taken roughly upright; a wall is 90 degrees off, a floor seen by a
+/// camera tilted down still well within).
+pub const FLOOR_MAX_TILT_DEG: f32 = 45.0;
+
+/// Planes tried by the floor fit's random sampling (a fixed seed: the same fit every run):
+/// three points of a floor holding 10% of the points are drawn together at least once with
+/// probability 1 - (1 - 0.1^3)^4096 = 98%; at 20%, certainly. Each try counts every point,
+/// well under a second for the 10^5 points of a large model.
+const FLOOR_TRIALS: usize = 4096;
+
+/// Percentiles of the sparse points that bound the scene box (outliers beyond them are
+/// stray matches), and the padding added on every side as a share of the extent.
+pub const BOX_PERCENTILES: (f32, f32) = (0.02, 0.98);
+/// See [`BOX_PERCENTILES`].
+pub const BOX_PAD_SHARE: f32 = 0.05;
 
 /// Above this [`GroundAlignment::flatness`] the plane normal is too poorly defined to use.
 pub const MAX_FLATNESS: f32 = 0.8;
@@ -50,6 +101,8 @@ impl GroundAlignment {
             look_at: [0.0; 3],
             flatness: 0.0,
             up_cosine: 1.0,
+            method: AlignMethod::Pca,
+            floor_share: None,
         }
     }
 
@@ -66,7 +119,7 @@ impl GroundAlignment {
     /// Errors when there are fewer than three cameras, all at one place or on a line, or
     /// spread evenly in every direction (no plane stands out).
     pub fn fit_pca(cameras: &[Camera]) -> Result<Self, DataError> {
-        let err = |m: String| Err(DataError::Alignment(m));
+        let err = |m: String| Err(DataError::Alignment(format!("pca: {m}")));
         if cameras.len() < 3 {
             return err(format!(
                 "{} camera(s): at least 3 are needed to fit a plane",
@@ -134,6 +187,161 @@ impl GroundAlignment {
             look_at: look_at.to_array(),
             flatness,
             up_cosine: along_up.abs(),
+            method: AlignMethod::Pca,
+            floor_share: None,
+        })
+    }
+
+    /// Level a capture on its floor: the dominant horizontal surface of its sparse points.
+    ///
+    /// Planes through three random points are tried (a fixed seed); a plane counts the
+    /// points within [`FLOOR_TOLERANCE_SHARE`] of the points' robust extent of it, and is a
+    /// candidate only when its normal is within [`FLOOR_MAX_TILT_DEG`] of the cameras' mean
+    /// up vector (camera +Y) and most cameras are above it (walls and a ceiling are not
+    /// floors). The candidate with the most points is refitted to its points (least squares:
+    /// PCA of the inliers) and levelled: its normal, signed toward the cameras, becomes +Z;
+    /// the floor point under the points' median becomes the origin, so the floor is z = 0.
+    /// Unlike [`GroundAlignment::fit_pca`] this holds when every camera is at head height
+    /// (a walk through a room: the camera positions are a line or a flat blob with no clear
+    /// normal).
+    ///
+    /// Errors when there are fewer than 20 points or no horizontal plane holds 5% of them.
+    pub fn fit_floor(points: &[Vec3], cameras: &[Camera]) -> Result<Self, DataError> {
+        let err = |m: String| Err(DataError::Alignment(format!("floor: {m}")));
+        const MIN_POINTS: usize = 20; // fixed: fewer cannot show a surface
+        const MIN_SHARE: f32 = 0.05; // fixed: a floor seen in a capture holds more
+        if points.len() < MIN_POINTS {
+            return err(format!(
+                "{} sparse point(s): at least {MIN_POINTS} are needed to find the floor",
+                points.len()
+            ));
+        }
+        if cameras.is_empty() {
+            return err("no cameras".into());
+        }
+        let up: Vec3 = cameras
+            .iter()
+            .map(|c| Vec3::from(c.c2w.matrix3.y_axis).normalize_or_zero())
+            .sum::<Vec3>()
+            .normalize_or_zero();
+        if up == Vec3::ZERO {
+            return err("the cameras' up vectors cancel out: no up direction".into());
+        }
+        let (lo, hi) = percentile_box(points, BOX_PERCENTILES.0, BOX_PERCENTILES.1);
+        let extent = (hi - lo).length();
+        if extent <= 0.0 || !extent.is_finite() {
+            return err("the sparse points are all at one place".into());
+        }
+        let tol = FLOOR_TOLERANCE_SHARE * extent;
+        let min_cos = FLOOR_MAX_TILT_DEG.to_radians().cos();
+        let centres: Vec<Vec3> = cameras.iter().map(|c| c.position()).collect();
+        let mut rng = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = |n: usize| {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng % n as u64) as usize
+        };
+        let count =
+            |n: Vec3, d: f32| points.iter().filter(|p| (n.dot(**p) - d).abs() <= tol).count();
+        let mut best: Option<(usize, Vec3, f32)> = None;
+        for _ in 0..FLOOR_TRIALS {
+            let (a, b, c) = (
+                points[next(points.len())],
+                points[next(points.len())],
+                points[next(points.len())],
+            );
+            let n = (b - a).cross(c - a);
+            if n.length_squared() <= 1e-12 * extent.powi(4) {
+                continue;
+            }
+            let mut n = n.normalize();
+            if n.dot(up) < 0.0 {
+                n = -n;
+            }
+            if n.dot(up) < min_cos {
+                continue;
+            }
+            let d = n.dot(a);
+            let above = centres.iter().filter(|p| n.dot(**p) - d > 0.0).count();
+            if above * 2 <= centres.len() {
+                continue;
+            }
+            let k = count(n, d);
+            if best.is_none_or(|(bk, _, _)| k > bk) {
+                best = Some((k, n, d));
+            }
+        }
+        let Some((k, n0, d0)) = best else {
+            return err(format!(
+                "no plane through the sparse points is within {FLOOR_MAX_TILT_DEG} degrees of                  the cameras' up with the cameras above it"
+            ));
+        };
+        if (k as f32) < MIN_SHARE * points.len() as f32 {
+            return err(format!(
+                "the best horizontal plane holds {k} of {} sparse points (under {:.0}%): no                  floor stands out",
+                points.len(),
+                MIN_SHARE * 100.0
+            ));
+        }
+        // refit to the inliers (the normal of least variance), three times with a tolerance
+        // halved each time but kept over three median residuals: the points of walls and
+        // legs standing on the floor, within the first tolerance of it, drop out
+        let (mut normal, mut d, mut t) = (n0, d0, tol);
+        let mut centroid = DVec3::ZERO;
+        let mut kept = 0usize;
+        for _ in 0..3 {
+            let inl: Vec<DVec3> = points
+                .iter()
+                .filter(|p| (normal.dot(**p) - d).abs() <= t)
+                .map(|p| p.as_dvec3())
+                .collect();
+            if inl.len() < 3 {
+                break;
+            }
+            let m = inl.len() as f64;
+            centroid = inl.iter().copied().sum::<DVec3>() / m;
+            let mut cov = [[0.0f64; 3]; 3];
+            for p in &inl {
+                let q = *p - centroid;
+                for r in 0..3 {
+                    for c in 0..3 {
+                        cov[r][c] += q[r] * q[c] / m;
+                    }
+                }
+            }
+            let (values, vectors) = symmetric_eigen(cov);
+            let kmin = (0..3).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
+            let v = vectors[kmin];
+            let mut n = Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32).normalize_or(normal);
+            if n.dot(n0) < 0.0 {
+                n = -n;
+            }
+            normal = n;
+            d = normal.dot(centroid.as_vec3());
+            kept = inl.len();
+            let mut res: Vec<f32> =
+                inl.iter().map(|p| (normal.dot(p.as_vec3()) - d).abs()).collect();
+            res.sort_unstable_by(f32::total_cmp);
+            t = (0.5 * t).max(3.0 * res[res.len() / 2]);
+        }
+        let c = centroid.as_vec3();
+        // the origin: the floor point under the points' median
+        let med = median_point(points);
+        let origin = med - normal * normal.dot(med - c);
+        let q = Quat::from_rotation_arc(normal, Vec3::Z);
+        let r = Mat3::from_quat(q);
+        let t = -(r * origin);
+        let rows = [r.row(0).to_array(), r.row(1).to_array(), r.row(2).to_array()];
+        Ok(GroundAlignment {
+            rotation: rows,
+            translation: t.to_array(),
+            normal: normal.to_array(),
+            look_at: origin.to_array(),
+            flatness: 0.0,
+            up_cosine: normal.dot(up).abs(),
+            method: AlignMethod::Floor,
+            floor_share: Some(kept as f32 / points.len() as f32),
         })
     }
 
@@ -187,6 +395,9 @@ impl GroundAlignment {
         for v in &mut cams.views {
             v.camera = self.transform_camera(&v.camera);
         }
+        for p in &mut cams.points {
+            *p = self.transform_point(*p);
+        }
     }
 }
 
@@ -229,6 +440,53 @@ fn symmetric_eigen(m: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
     let values = [a[0][0], a[1][1], a[2][2]];
     let vectors = std::array::from_fn(|k| [v[0][k], v[1][k], v[2][k]]);
     (values, vectors)
+}
+
+/// The box between per-axis percentiles `lo` and `hi` (shares, 0..1) of `points`.
+pub fn percentile_box(points: &[Vec3], lo: f32, hi: f32) -> (Vec3, Vec3) {
+    let mut a = Vec3::ZERO;
+    let mut b = Vec3::ZERO;
+    let mut col: Vec<f32> = Vec::with_capacity(points.len());
+    for axis in 0..3 {
+        col.clear();
+        col.extend(points.iter().map(|p| p[axis]).filter(|v| v.is_finite()));
+        if col.is_empty() {
+            continue;
+        }
+        col.sort_unstable_by(f32::total_cmp);
+        let at = |q: f32| col[((q.clamp(0.0, 1.0) * (col.len() - 1) as f32).round()) as usize];
+        a[axis] = at(lo);
+        b[axis] = at(hi);
+    }
+    (a, b)
+}
+
+fn median_point(points: &[Vec3]) -> Vec3 {
+    let (m, _) = percentile_box(points, 0.5, 0.5);
+    m
+}
+
+/// The scene box of a capture with sparse points (already in the levelled frame, +Z up):
+/// the box between their [`BOX_PERCENTILES`] across, and up from the low percentile of their
+/// heights (the floor) to the high percentile of the heights of the points off the floor
+/// (more than [`FLOOR_TOLERANCE_SHARE`] of the extent above it: a floor holds most points of
+/// a capture, and the percentile of all heights would cut the furniture's tops); padded by
+/// [`BOX_PAD_SHARE`] of its extent on every side. `None` with fewer than 20 points.
+pub fn bounds_from_points(points: &[Vec3]) -> Option<Aabb3> {
+    if points.len() < 20 {
+        return None;
+    }
+    let (mut lo, mut hi) = percentile_box(points, BOX_PERCENTILES.0, BOX_PERCENTILES.1);
+    let tol = FLOOR_TOLERANCE_SHARE * (hi - lo).length();
+    let off: Vec<Vec3> = points.iter().copied().filter(|p| p.z > lo.z + tol).collect();
+    if !off.is_empty() {
+        let (_, top) = percentile_box(&off, BOX_PERCENTILES.0, BOX_PERCENTILES.1);
+        hi.z = hi.z.max(top.z);
+    }
+    lo.z = lo.z.min(hi.z);
+    let pad = (hi - lo).max(Vec3::ZERO) * BOX_PAD_SHARE;
+    let b = Aabb3::new(lo - pad, hi + pad);
+    (b.extent().min_element() > 0.0).then_some(b)
 }
 
 /// The scene box when nothing better is known: the region the cameras look at.
@@ -425,5 +683,116 @@ mod tests {
         let b = bounds_from_cameras(&fwd).unwrap();
         assert!(b.center().y > 0.5 && !b.is_empty(), "{b:?}");
         assert!(bounds_from_cameras(&[]).is_none());
+    }
+
+    /// A room of sparse points (a textured floor, two walls, a table top, stray matches)
+    /// seen by cameras walking a line at head height, turned by `rot` and scaled by `scale`.
+    fn walk_through_a_room(rot: Quat, scale: f32) -> (Vec<Vec3>, Vec<Camera>) {
+        let mut rng = 12345u64;
+        let mut u = || {
+            rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((rng >> 33) as f32) / (1u64 << 31) as f32
+        };
+        let mut pts = Vec::new();
+        let noise = 0.004; // points scatter by a few millimetres in a 5 m room
+        for _ in 0..600 {
+            pts.push(Vec3::new(u() * 5.0, u() * 4.0, (u() - 0.5) * noise));
+        }
+        for _ in 0..500 {
+            // a wall at y = 4 and one at x = 0, richer in texture than the floor
+            pts.push(Vec3::new(u() * 5.0, 4.0 + (u() - 0.5) * noise, u() * 2.6));
+            pts.push(Vec3::new((u() - 0.5) * noise, u() * 4.0, u() * 2.6));
+        }
+        for _ in 0..300 {
+            pts.push(Vec3::new(2.0 + u(), 1.5 + u() * 0.8, 0.75 + (u() - 0.5) * noise));
+        }
+        // stray matches: 2% of the points, anywhere
+        for _ in 0..40 {
+            pts.push(Vec3::new(u() * 40.0 - 20.0, u() * 40.0 - 20.0, u() * 20.0 - 10.0));
+        }
+        let cams: Vec<Camera> = (0..30)
+            .map(|k| {
+                let eye = Vec3::new(0.5 + 4.0 * k as f32 / 29.0, 0.8, 1.6 + 0.02 * (k % 3) as f32);
+                Camera::look_at(intrinsics(), eye, eye + Vec3::new(0.2, 1.0, -0.4), Vec3::Z)
+            })
+            .collect();
+        let m = Affine3A::from_scale_rotation_translation(
+            Vec3::splat(scale),
+            rot,
+            Vec3::new(3.0, -1.0, 7.0),
+        );
+        let pts = pts.into_iter().map(|p| m.transform_point3(p)).collect();
+        let cams = cams
+            .into_iter()
+            .map(|c| {
+                let mut c2w = m * c.c2w;
+                c2w.matrix3 = Mat3::from_quat(rot).into();
+                c2w.matrix3 *= c.c2w.matrix3;
+                Camera { intrinsics: c.intrinsics, c2w }
+            })
+            .collect();
+        (pts, cams)
+    }
+
+    #[test]
+    fn the_floor_of_sparse_points_levels_a_walk_at_head_height() {
+        for (rot, scale) in [
+            (Quat::IDENTITY, 1.0),
+            (Quat::from_euler(glam::EulerRot::XYZ, 1.9, -0.4, 0.7), 1.0),
+            (Quat::from_euler(glam::EulerRot::XYZ, -1.2, 0.3, 2.5), 37.0),
+            (Quat::from_euler(glam::EulerRot::XYZ, 0.2, 2.9, -1.0), 0.02),
+        ] {
+            let (pts, cams) = walk_through_a_room(rot, scale);
+            let g = GroundAlignment::fit_floor(&pts, &cams).unwrap();
+            let up = rot * Vec3::Z;
+            let angle = Vec3::from(g.normal).angle_between(up).to_degrees();
+            assert!(angle < 0.5, "normal {:?} is {angle} degrees off {up}", g.normal);
+            assert_eq!(g.method, AlignMethod::Floor);
+            // the floor lands on z = 0 with the cameras 1.6 units (scaled) above it
+            let m = Affine3A::from_scale_rotation_translation(
+                Vec3::splat(scale),
+                rot,
+                Vec3::new(3.0, -1.0, 7.0),
+            );
+            let floor = g.transform_point(m.transform_point3(Vec3::new(2.5, 2.0, 0.0)));
+            assert!(floor.z.abs() < 0.01 * scale, "floor at z = {}", floor.z);
+            let eye = g.transform_point(cams[0].position());
+            assert!((eye.z - 1.6 * scale).abs() < 0.02 * scale, "camera at z = {}", eye.z);
+            let share = g.floor_share.unwrap();
+            assert!((0.25..0.4).contains(&share), "floor share {share}");
+            // the box of the levelled points: the room (turned about +Z: its plan's box is at
+            // most its diagonal, 6.4, wide), not the stray matches
+            let lev: Vec<Vec3> = pts.iter().map(|p| g.transform_point(*p)).collect();
+            let b = bounds_from_points(&lev).unwrap();
+            let e = b.extent() / scale;
+            assert!(e.x < 7.1 && e.y < 7.1 && e.x.min(e.y) > 3.9, "box extent {e}");
+            assert!(e.z > 2.6 && e.z < 3.2, "box extent {e}");
+            assert!(b.min.z < 0.0 && b.min.z > -0.5 * scale, "box floor {}", b.min.z);
+        }
+        // a plane through the cameras' positions is what pca fits: a walk gives no normal
+        let (_, cams) = walk_through_a_room(Quat::IDENTITY, 1.0);
+        let pca = GroundAlignment::fit_pca(&cams);
+        assert!(
+            pca.is_err()
+                || Vec3::from(pca.unwrap().normal).angle_between(Vec3::Z).to_degrees() > 5.0
+        );
+    }
+
+    #[test]
+    fn no_floor_is_said_plainly() {
+        let cams = ring(Vec3::ZERO, Vec3::Z, 3.0, 1.0, 12);
+        let few = vec![Vec3::ZERO; 5];
+        assert!(
+            GroundAlignment::fit_floor(&few, &cams)
+                .unwrap_err()
+                .to_string()
+                .contains("at least 20")
+        );
+        // points on a vertical wall only
+        let wall: Vec<Vec3> = (0..200)
+            .map(|k| Vec3::new((k % 20) as f32 * 0.1, 2.0, (k / 20) as f32 * 0.1))
+            .collect();
+        let e = GroundAlignment::fit_floor(&wall, &cams).unwrap_err().to_string();
+        assert!(e.contains("no plane") || e.contains("no floor"), "{e}");
     }
 }

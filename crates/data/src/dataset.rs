@@ -18,6 +18,9 @@ pub enum Format {
     NerfSynthetic,
     /// A single `transforms.json` (nerfstudio / instant-ngp), split by holdout.
     Nerfstudio,
+    /// A COLMAP sparse model (`sparse/0/` or nerfstudio's `colmap/sparse/0/`, binary or text)
+    /// with its photos in `images/`, split by holdout like a single `transforms.json`.
+    Colmap,
 }
 
 impl std::fmt::Display for Format {
@@ -25,6 +28,7 @@ impl std::fmt::Display for Format {
         f.write_str(match self {
             Format::NerfSynthetic => "NeRF-synthetic (transforms_{train,val,test}.json)",
             Format::Nerfstudio => "nerfstudio / instant-ngp (transforms.json)",
+            Format::Colmap => "COLMAP sparse model (cameras, images, points3D) with images/",
         })
     }
 }
@@ -134,6 +138,9 @@ pub struct DatasetCameras {
     /// The scene box the dataset records (`scene_aabb` of `synth.json`), checked (see
     /// [`crate::validate::read_scene_box`]).
     pub scene_box: Option<assetfield_core::Aabb3>,
+    /// The capture's sparse points (a COLMAP model's `points3D`), in the cameras' frame;
+    /// empty for the other formats.
+    pub points: Vec<glam::Vec3>,
 }
 
 /// One posed image.
@@ -202,8 +209,13 @@ fn detect(root: &Path, split: Split) -> Result<(Format, Vec<Source>), DataError>
     if single.is_file() {
         return Ok((Format::Nerfstudio, vec![(single, None)]));
     }
+    if let Some(model) = crate::colmap::find_model(root) {
+        return Ok((Format::Colmap, vec![(model, None)]));
+    }
     let mut looked_for: Vec<String> = SPLITS.iter().map(|s| split_file_name(*s)).collect();
     looked_for.push(SINGLE_FILE.into());
+    looked_for.push("sparse/0/images.{bin,txt} (COLMAP)".into());
+    looked_for.push("colmap/sparse/0/images.{bin,txt} (nerfstudio's COLMAP)".into());
     Err(DataError::NoDataset { dir: root.to_path_buf(), looked_for })
 }
 
@@ -364,6 +376,59 @@ struct Pending {
     matrix: Mat4,
     spec: IntrinsicsSpec,
     distortion: Option<Distortion>,
+}
+
+/// The frames of `split` in the COLMAP model in `model_dir`: its registered images in name
+/// order (the order nerfstudio's `ns-process-data` lists them), every `holdout_every`-th a
+/// test view; each image's name is looked up under `images/`.
+fn colmap_frames(
+    root: &Path,
+    model_dir: &Path,
+    split: Split,
+    opts: &LoadOptions,
+) -> Result<(Vec<Pending>, Vec<glam::Vec3>), DataError> {
+    let model = crate::ColmapModel::read(model_dir)?;
+    let points = model.points.iter().map(|p| glam::DVec3::from(p.xyz).as_vec3()).collect();
+    let images_file = model.images_file();
+    let mut images = model.images.clone();
+    images.sort_by(|a, b| a.name.cmp(&b.name).then(a.id.cmp(&b.id)));
+    let folder = crate::colmap::image_dir(root);
+    let prefix = folder.strip_prefix(root).unwrap_or(&folder).to_string_lossy().into_owned();
+    let mut pending = Vec::new();
+    for (index, img) in images.iter().enumerate() {
+        let label = if opts.holdout_every > 0 && index % opts.holdout_every as usize == 0 {
+            Split::Test
+        } else {
+            Split::Train
+        };
+        let wanted = match split {
+            Split::All => true,
+            Split::Val => label == Split::Test,
+            s => label == s,
+        };
+        if !wanted {
+            continue;
+        }
+        let cam = &model.cameras[&img.camera_id];
+        let k = cam.intrinsics();
+        let file_path = format!("{prefix}/{}", img.name);
+        let frame = FrameRef::colmap(&images_file, img.id, &file_path);
+        pending.push(Pending {
+            frame,
+            split: label,
+            matrix: img.c2w(),
+            spec: IntrinsicsSpec::Focal {
+                fx: k.fx,
+                fy: k.fy,
+                cx: Some(k.cx),
+                cy: Some(k.cy),
+                w: Some(k.width),
+                h: Some(k.height),
+            },
+            distortion: k.distortion,
+        });
+    }
+    Ok((pending, points))
 }
 
 /// The frames of `split` in the transforms files `files` (each checked whole, all frames),
@@ -579,7 +644,16 @@ impl Dataset {
             }
         }
         let scene_box = crate::validate::read_scene_box(&root)?;
-        let (mut pending, aabb_scale) = pending_frames(&files, split, opts)?;
+        let (mut pending, aabb_scale, points) = match format {
+            Format::Colmap => {
+                let (pending, points) = colmap_frames(&root, &files[0].0, split, opts)?;
+                (pending, None, points)
+            }
+            _ => {
+                let (pending, aabb_scale) = pending_frames(&files, split, opts)?;
+                (pending, aabb_scale, Vec::new())
+            }
+        };
         if let Some(n) = opts.max_frames {
             pending.truncate(n);
         }
@@ -587,7 +661,7 @@ impl Dataset {
             let path = if files.len() == 1 { files[0].0.clone() } else { root.clone() };
             let why = if opts.max_frames == Some(0) {
                 "max_frames is 0".to_owned()
-            } else if format == Format::Nerfstudio
+            } else if format != Format::NerfSynthetic
                 && opts.holdout_every == 0
                 && split != Split::Train
             {
@@ -600,7 +674,7 @@ impl Dataset {
             return Err(DataError::NoFrames { path, why });
         }
         let (views, source_size) = posed_views(&root, pending, opts.downscale)?;
-        Ok(DatasetCameras { root, format, views, aabb_scale, source_size, scene_box })
+        Ok(DatasetCameras { root, format, views, aabb_scale, source_size, scene_box, points })
     }
 
     /// Number of frames.

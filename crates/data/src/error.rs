@@ -10,24 +10,32 @@ use std::path::{Path, PathBuf};
 /// the frame's `file_path` as written there.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct FrameRef {
-    /// The `transforms*.json` file listing the frame.
+    /// The `transforms*.json` file listing the frame (a COLMAP model's `images.{bin,txt}`).
     pub json: PathBuf,
-    /// Index of the frame in the file's `frames` array.
+    /// Index of the frame in the file's `frames` array (a COLMAP image's id).
     pub index: usize,
-    /// The frame's `file_path`, verbatim.
+    /// The frame's `file_path`, verbatim (a COLMAP image's name).
     pub file_path: String,
+    /// Whether `index` is a COLMAP image id rather than a position in `frames`.
+    pub colmap: bool,
 }
 
 impl FrameRef {
     /// A reference to frame `index` of `json`.
     pub fn new(json: &Path, index: usize, file_path: &str) -> Self {
-        FrameRef { json: json.to_path_buf(), index, file_path: file_path.to_owned() }
+        FrameRef { json: json.to_path_buf(), index, file_path: file_path.to_owned(), colmap: false }
+    }
+
+    /// A reference to the image with id `id` and name `name` of a COLMAP `images` file.
+    pub fn colmap(images: &Path, id: u32, name: &str) -> Self {
+        FrameRef { colmap: true, ..FrameRef::new(images, id as usize, name) }
     }
 }
 
 impl std::fmt::Display for FrameRef {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}: frame {} ({})", self.json.display(), self.index, self.file_path)
+        let unit = if self.colmap { "image id" } else { "frame" };
+        write!(f, "{}: {unit} {} ({})", self.json.display(), self.index, self.file_path)
     }
 }
 
@@ -166,6 +174,35 @@ pub enum DataError {
         model: String,
     },
 
+    /// A COLMAP model file is malformed: the file, where in it (a line of the text form, a
+    /// byte offset of the binary form, and the camera or image id) and what is wrong.
+    #[error("{}{}: {what}", path.display(), at.as_ref().map(|a| format!(" ({a})")).unwrap_or_default())]
+    Colmap {
+        /// The model file (`cameras`, `images` or `points3D`, `.bin` or `.txt`).
+        path: PathBuf,
+        /// Where in the file, when known: `line N`, `byte N`, with `camera id N` / `image id N`.
+        at: Option<String>,
+        /// What is wrong.
+        what: String,
+    },
+
+    /// A COLMAP camera uses a model other than those read (see
+    /// [`crate::colmap::SUPPORTED_MODELS`]).
+    #[error(
+        "{}: camera id {camera_id} uses camera model {model}{}, which is not supported (supported: {}); undistort the images to a pinhole camera first (colmap image_undistorter)",
+        path.display(), if *known { "" } else { " (not a COLMAP model name)" }, crate::colmap::SUPPORTED_MODELS.join(", ")
+    )]
+    ColmapCameraModel {
+        /// The cameras file.
+        path: PathBuf,
+        /// The camera's id.
+        camera_id: u32,
+        /// The model named there.
+        model: String,
+        /// Whether COLMAP knows the model (a fisheye, say) or the name is no model at all.
+        known: bool,
+    },
+
     /// No `transforms*.json` in a folder.
     #[error("{}: no dataset found (looked for {})", dir.display(), looked_for.join(", "))]
     NoDataset {
@@ -223,8 +260,9 @@ pub enum DataError {
     #[error("invalid load option: {0}")]
     InvalidOption(String),
 
-    /// The cameras cannot be levelled (too few, degenerate positions).
-    #[error("cannot level the cameras (--align-ground pca): {0}")]
+    /// The capture cannot be levelled (too few cameras or points, degenerate positions, no
+    /// floor among the sparse points).
+    #[error("cannot level the capture (--align-ground): {0}")]
     Alignment(String),
 
     /// An error from the core layer (writing files, pictures).

@@ -7,6 +7,7 @@
 //! levels captures whose up axis is unknown and guesses scene bounds from cameras.
 
 pub mod align;
+pub mod colmap;
 pub mod dataset;
 pub mod error;
 pub mod features;
@@ -17,7 +18,8 @@ pub mod schema;
 pub mod summary;
 pub mod validate;
 
-pub use align::{GroundAlignment, bounds_from_cameras};
+pub use align::{AlignMethod, GroundAlignment, bounds_from_cameras, bounds_from_points};
+pub use colmap::ColmapModel;
 pub use dataset::{Dataset, DatasetCameras, Format, Frame, LoadOptions, Split, View};
 pub use error::{DataError, FrameRef, InvalidValue};
 pub use features::FeatureMap;

@@ -212,6 +212,17 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
         println!("{}", summary.to_json_pretty());
     } else {
         println!("{summary}");
+        if !cams.points.is_empty() {
+            println!("sparse points    {}", cams.points.len());
+            match assetfield_data::GroundAlignment::fit_floor(&cams.points, &cams.cameras()) {
+                Ok(g) => println!(
+                    "floor            holds {:.0}% of the points, {:.1} degrees from the cameras' mean up (train --align-ground floor, the default for a capture, levels on it)",
+                    100.0 * g.floor_share.unwrap_or(0.0),
+                    g.up_cosine.clamp(0.0, 1.0).acos().to_degrees()
+                ),
+                Err(e) => println!("floor            not found: {e}"),
+            }
+        }
         println!("camera map: {}", picture.display());
     }
     Ok(())

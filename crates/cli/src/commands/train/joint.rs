@@ -96,6 +96,7 @@ fn check_joint_options(a: &TrainArgs) -> Result<ModelKind> {
     for (given, flag) in [
         (a.aabb.is_some(), "--aabb"),
         (a.align_ground == AlignArg::Pca, "--align-ground pca"),
+        (a.align_ground == AlignArg::Floor, "--align-ground floor"),
         (a.features.is_some(), "--features"),
         (a.val_every.is_some(), "--val-every"),
     ] {
@@ -192,6 +193,12 @@ fn load_scene(
     let opts = LoadOptions { background: bg, downscale, ..LoadOptions::default() };
     let cams = Dataset::load_cameras_only(&s.data, Split::All, &opts)
         .with_context(|| format!("reading dataset {}", s.data.display()))?;
+    if !cams.points.is_empty() {
+        bail!(
+            "{} is a capture with sparse points (COLMAP), which is levelled on its floor before training; joint training takes Z-up datasets only: train it alone",
+            s.data.display()
+        );
+    }
     let t0 = Instant::now();
     let mut data = Dataset::load(&s.data, Split::Train, &opts)
         .with_context(|| format!("loading the training views of {}", s.data.display()))?;
@@ -210,7 +217,7 @@ fn load_scene(
         t0.elapsed().as_secs_f64(),
         if channels > 0 { format!(", {channels}-channel feature maps") } else { String::new() }
     );
-    let (aabb, source) = scene_bounds(cams.scene_box, data.format, &cams.cameras(), None)?;
+    let (aabb, source) = scene_bounds(cams.scene_box, data.format, &cams.cameras(), &[], None)?;
     s.info = match stored {
         Some(i) => FieldInfo { history: None, val_history: None, ..i },
         None => FieldInfo {

@@ -71,16 +71,22 @@ pub enum DecoderArg {
 /// How to find the ground plane when the data's up axis is unknown.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum AlignArg {
+    /// floor for a capture with sparse points (a COLMAP model), none otherwise.
+    Auto,
+    /// Find the floor in the capture's sparse points (the dominant horizontal surface) and
+    /// make it z = 0 with +Z up.
+    Floor,
     /// Fit a plane to the camera positions (PCA) and make its normal +Z.
     Pca,
-    /// Use the poses as they are (the default; world Z is up).
+    /// Use the poses as they are (world Z is up).
     None,
 }
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
-    /// The dataset folder (NeRF-synthetic transforms_{train,test}.json, or nerfstudio /
-    /// instant-ngp transforms.json), e.g. one written by `assetfield synth`. Several folders
+    /// The dataset folder (NeRF-synthetic transforms_{train,test}.json, nerfstudio /
+    /// instant-ngp transforms.json, or a COLMAP project: sparse/0/ or colmap/sparse/0/ with
+    /// photos in images/), e.g. one written by `assetfield synth`. Several folders
     /// train together (paper Sec. 3.4): one field per scene, written as
     /// OUT/<folder name>.safetensors, whose vertical axes, colour basis, decoders (and
     /// I-AssetField's guidance MLPs) are one set, bit-identical in every file; each scene
@@ -152,11 +158,17 @@ pub struct TrainArgs {
     /// tan(half the field of view), grown to hold each axis's closest approach to that point.
     #[arg(long, allow_hyphen_values = true, value_name = "X0,Y0,Z0,X1,Y1,Z1")]
     pub aabb: Option<String>,
-    /// Level data whose up axis is unknown: pca fits a plane to the camera positions (normal =
-    /// the direction of least variance, signed along the mean camera up vector), rotates it to
-    /// +Z and moves the look-at point to the origin. The transform is stored in the field file
-    /// and re-applied by eval and render.
-    #[arg(long, value_enum, default_value = "none")]
+    /// Level data whose up axis is unknown. floor (for captures with sparse points: COLMAP)
+    /// finds the dominant horizontal surface of the points (random planes within 45 degrees
+    /// of the cameras' mean up, the one holding most points within 1% of their extent, the
+    /// cameras above it, refitted to its points) and makes it z = 0, +Z up: it holds for a
+    /// walk at head height, where the cameras' own plane says nothing. pca fits a plane to the
+    /// camera positions (normal = the direction of least variance, signed along the mean
+    /// camera up vector), rotates it to +Z and moves the look-at point to the origin. auto:
+    /// floor where the dataset has sparse points, none otherwise (synthetic and
+    /// transforms.json data are Z-up). The transform is stored in the field file and
+    /// re-applied by eval and render.
+    #[arg(long, value_enum, default_value = "auto")]
     pub align_ground: AlignArg,
     /// Background that transparent pixels are composited onto, also used behind the field:
     /// white, black, grey or R,G,B in [0, 1]. Stored in the field file.
@@ -212,6 +224,7 @@ pub(crate) fn scene_bounds(
     recorded: Option<Aabb3>,
     format: Format,
     cameras: &[assetfield_core::Camera],
+    points: &[Vec3],
     align: Option<&GroundAlignment>,
 ) -> Result<(Aabb3, String)> {
     let moved = |b: Aabb3, what: &str| match align {
@@ -225,6 +238,19 @@ pub(crate) fn scene_bounds(
     if format == Format::NerfSynthetic {
         let b = Aabb3::new(Vec3::splat(-1.5), Vec3::splat(1.5));
         return Ok(moved(b, "NeRF-synthetic default cube [-1.5, 1.5]^3"));
+    }
+    if let Some(b) = assetfield_data::bounds_from_points(points) {
+        let (lo, hi) = assetfield_data::align::BOX_PERCENTILES;
+        let pad = assetfield_data::align::BOX_PAD_SHARE;
+        return Ok((
+            b,
+            format!(
+                "the sparse points' {:.0}%-{:.0}% percentiles, padded by {:.0}%",
+                lo * 100.0,
+                hi * 100.0,
+                pad * 100.0
+            ),
+        ));
     }
     let b = bounds_from_cameras(cameras)
         .ok_or_else(|| anyhow!("no cameras to derive the scene box from; pass --aabb"))?;
@@ -579,7 +605,19 @@ impl Inputs {
             Some(s) => s.ground_transform,
             None => match a.align_ground {
                 AlignArg::Pca => Some(GroundAlignment::fit_pca(&all_cams.cameras())?),
-                AlignArg::None => None,
+                AlignArg::Floor => {
+                    if all_cams.points.is_empty() {
+                        bail!(
+                            "--align-ground floor needs a capture's sparse points (a COLMAP model's points3D); {} has none: use --align-ground pca",
+                            data_path.display()
+                        );
+                    }
+                    Some(GroundAlignment::fit_floor(&all_cams.points, &all_cams.cameras())?)
+                }
+                AlignArg::Auto if !all_cams.points.is_empty() => {
+                    Some(GroundAlignment::fit_floor(&all_cams.points, &all_cams.cameras())?)
+                }
+                AlignArg::Auto | AlignArg::None => None,
             },
         };
         let t_load = Instant::now();
@@ -647,6 +685,16 @@ fn load_features(
 
 /// What `--align-ground pca` found, and a warning when it is unlikely to be the ground.
 fn report_alignment(g: &GroundAlignment) {
+    if g.method == assetfield_data::AlignMethod::Floor {
+        eprintln!(
+            "ground alignment (floor): the floor holds {:.0}% of the sparse points; its normal {} -> +Z, the point {} -> origin ({:.0} degrees from the cameras' mean up)",
+            100.0 * g.floor_share.unwrap_or(0.0),
+            fmt_vec(g.normal),
+            fmt_vec(g.look_at),
+            g.up_cosine.clamp(0.0, 1.0).acos().to_degrees()
+        );
+        return;
+    }
     eprintln!(
         "ground alignment (pca): normal {} -> +Z, look-at {} -> origin (flatness {:.3})",
         fmt_vec(g.normal),
@@ -740,7 +788,13 @@ fn start_trainer(
             if let Some(g) = &alignment {
                 g.apply_to_cameras(&mut cams);
             }
-            scene_bounds(cams.scene_box, data.format, &cams.cameras(), alignment.as_ref())?
+            scene_bounds(
+                cams.scene_box,
+                data.format,
+                &cams.cameras(),
+                &cams.points,
+                alignment.as_ref(),
+            )?
         }
     };
     eprintln!(
