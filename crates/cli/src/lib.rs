@@ -141,6 +141,9 @@ pub enum Command {
     /// Writes DIR/metrics.json (mean psnr and ssim, per-view values, seconds per view, model,
     /// resolution), DIR/render/r_K.png and DIR/error/r_K.png (absolute error, dark = exact,
     /// yellow >= 0.25). SSIM as TensoRF / mip-NeRF: 11x11 Gaussian window, sigma 1.5.
+    /// Photos whose exposure varies are also scored as NeRF-W scores them: an affine colour
+    /// map (12 numbers) fitted by least squares on each view's left half, PSNR and SSIM on
+    /// its right half (psnr_fitted, ssim_fitted).
     Eval(EvalArgs),
     /// Render a trained field from a dataset's cameras or on a turntable into PNGs.
     Render(RenderArgs),

@@ -199,8 +199,9 @@ impl GroundAlignment {
     /// candidate only when its normal is within [`FLOOR_MAX_TILT_DEG`] of the cameras' mean
     /// up vector (camera +Y) and most cameras are above it (walls and a ceiling are not
     /// floors). The candidate with the most points is refitted to its points (least squares:
-    /// PCA of the inliers) and levelled: its normal, signed toward the cameras, becomes +Z;
-    /// the floor point under the points' median becomes the origin, so the floor is z = 0.
+    /// PCA of the inliers) and levelled: its normal, signed toward the cameras, becomes +Z,
+    /// its points' principal axes x and y (a rectangular floor lies square to the axes); the
+    /// floor point under the points' median becomes the origin, so the floor is z = 0.
     /// Unlike [`GroundAlignment::fit_pca`] this holds when every camera is at head height
     /// (a walk through a room: the camera positions are a line or a flat blob with no clear
     /// normal).
@@ -329,13 +330,25 @@ impl GroundAlignment {
         // the origin: the floor point under the points' median
         let med = median_point(points);
         let origin = med - normal * normal.dot(med - c);
-        let q = Quat::from_rotation_arc(normal, Vec3::Z);
-        let r = Mat3::from_quat(q);
-        let t = -(r * origin);
+        let level = Mat3::from_quat(Quat::from_rotation_arc(normal, Vec3::Z));
+        // the heading: the floor's principal axes along x and y (a room's floor, a street's
+        // carriageway are rectangles: the scene box then fits them, and mined objects stand
+        // square to the axes as they stand square to the walls)
+        let (mut sxx, mut sxy, mut syy) = (0.0f64, 0.0f64, 0.0f64);
+        for p in points.iter().filter(|p| (normal.dot(**p) - d).abs() <= t) {
+            let q = level * (*p - c);
+            let (x, y) = (q.x as f64, q.y as f64);
+            sxx += x * x;
+            sxy += x * y;
+            syy += y * y;
+        }
+        let heading = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+        let r = Mat3::from_rotation_z(-heading as f32) * level;
+        let tr = -(r * origin);
         let rows = [r.row(0).to_array(), r.row(1).to_array(), r.row(2).to_array()];
         Ok(GroundAlignment {
             rotation: rows,
-            translation: t.to_array(),
+            translation: tr.to_array(),
             normal: normal.to_array(),
             look_at: origin.to_array(),
             flatness: 0.0,
@@ -760,12 +773,13 @@ mod tests {
             assert!((eye.z - 1.6 * scale).abs() < 0.02 * scale, "camera at z = {}", eye.z);
             let share = g.floor_share.unwrap();
             assert!((0.25..0.4).contains(&share), "floor share {share}");
-            // the box of the levelled points: the room (turned about +Z: its plan's box is at
-            // most its diagonal, 6.4, wide), not the stray matches
+            // the box of the levelled points: the 5 x 4 room square to the axes (its floor's
+            // principal axes), not the stray matches
             let lev: Vec<Vec3> = pts.iter().map(|p| g.transform_point(*p)).collect();
             let b = bounds_from_points(&lev).unwrap();
             let e = b.extent() / scale;
-            assert!(e.x < 7.1 && e.y < 7.1 && e.x.min(e.y) > 3.9, "box extent {e}");
+            let (long, short) = (e.x.max(e.y), e.x.min(e.y));
+            assert!((5.0..5.8).contains(&long) && (4.0..4.7).contains(&short), "box extent {e}");
             assert!(e.z > 2.6 && e.z < 3.2, "box extent {e}");
             assert!(b.min.z < 0.0 && b.min.z > -0.5 * scale, "box floor {}", b.min.z);
         }

@@ -4,6 +4,7 @@
 //! kernels, training and CPU rendering.
 
 pub mod adam;
+pub mod appearance;
 pub mod config;
 pub mod interp;
 pub mod io;

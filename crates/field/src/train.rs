@@ -4,6 +4,7 @@
 //! space, L1 and TV regularisers.
 
 use crate::adam::Adam;
+use crate::appearance;
 use crate::config::{FieldConfig, MIN_VERTICAL_RES, ModelKind};
 use crate::io::FieldError;
 use crate::march::{self, MarchSettings, MarchWork};
@@ -76,7 +77,24 @@ pub struct TrainConfig {
     /// (scenes trained together or against a frozen shared set; see [`GridRule`]).
     #[serde(default)]
     pub grid: GridRule,
+    /// Learn a colour transform per training photo ([`crate::appearance`]: a capture's
+    /// exposure and white balance), pulled toward the identity with this weight; `None`: the
+    /// photos' colours are taken as they are (renders).
+    #[serde(default)]
+    pub appearance_weight: Option<f32>,
 }
+
+/// The default pull of the per-photo colour transforms toward the identity
+/// ([`TrainConfig::appearance_weight`]): 0.01 of the mean squared colour error per unit of
+/// squared deviation. A real exposure change (a 20% gain: a squared deviation of 0.12 over
+/// the matrix's diagonal) costs 0.001, a tenth of the error of a 20 dB fit, so the maps take
+/// it; a global colour cast shared by every photo stays in the field, where it costs nothing.
+pub const DEFAULT_APPEARANCE_WEIGHT: f32 = 0.01;
+
+/// Adam's learning rate of the per-photo colour transforms, decayed like the others: the
+/// grids' (0.02), not the networks' (0.001), which would move a gain by at most 0.4 in the
+/// first 400 iterations and leave a short run's exposures in the field.
+pub const APPEARANCE_LR: f32 = 0.02;
 
 /// How a run's plane resolution schedule becomes grid sizes, and what it trains. The default
 /// is a scene trained alone: `plane_res` texels along the longer side of its own box, the
@@ -154,6 +172,7 @@ impl TrainConfig {
             color_grad_weight: DEFAULT_COLOR_GRAD_WEIGHT,
             density_grad_alpha: DEFAULT_DENSITY_GRAD_ALPHA,
             grid: GridRule::default(),
+            appearance_weight: None,
         }
     }
 }
@@ -366,6 +385,31 @@ pub struct Trainer {
     occupancy_done: usize,
     /// Mean samples per ray of the last iteration.
     samples_per_ray: f32,
+    /// The per-photo colour transforms ([`crate::appearance`]; `None` unless
+    /// [`TrainConfig::appearance_weight`] is set).
+    pub appearance: Option<Appearance>,
+}
+
+/// The learned colour transforms of a run's training views, with their optimiser.
+#[derive(Debug, Clone)]
+pub struct Appearance {
+    /// [`crate::appearance::PER_VIEW`] numbers per training view, in the dataset's order.
+    pub params: Vec<f32>,
+    adam: Adam,
+    grad: Vec<f32>,
+}
+
+impl Appearance {
+    fn identity(views: usize) -> Self {
+        let params: Vec<f32> = (0..views).flat_map(|_| appearance::IDENTITY).collect();
+        let n = params.len();
+        Appearance { params, adam: Adam::new(n), grad: vec![0.0; n] }
+    }
+
+    /// The map of view `v`.
+    pub fn of(&self, v: usize) -> &[f32] {
+        &self.params[v * appearance::PER_VIEW..][..appearance::PER_VIEW]
+    }
 }
 
 /// `batch` random training pixels: (view, column, row, jitter in [0, 1)) over `views` views
@@ -449,7 +493,16 @@ impl Trainer {
             upsampled: 0,
             occupancy_done: 0,
             samples_per_ray: 0.0,
+            appearance: None,
         }
+        .with_appearance()
+    }
+
+    fn with_appearance(mut self) -> Self {
+        if self.config.appearance_weight.is_some() {
+            self.appearance = Some(Appearance::identity(self.views.len()));
+        }
+        self
     }
 
     /// Seconds of training so far (across resumes).
@@ -655,10 +708,12 @@ impl Trainer {
         };
         let scale = 2.0 / (batch as f32 * 3.0);
         let (field, occ, views) = (&self.field, self.occupancy.as_ref(), &self.views);
+        let looks = self.appearance.as_ref();
+        let na = looks.map_or(0, |a| a.params.len());
         let nc = field.config.semantic_dim();
         let semantic = nc > 0 && views.iter().all(|v| v.features.is_some());
         let sem_scale = 2.0 * self.config.semantic_weight / (batch * nc.max(1)) as f32;
-        let results: Vec<(f32, f32, usize, usize)> = self
+        let results: Vec<(f32, f32, usize, usize, Vec<f32>)> = self
             .work
             .par_iter_mut()
             .zip(picks.par_chunks(chunk))
@@ -688,7 +743,31 @@ impl Trainer {
                 work.want_semantic = semantic;
                 work.touched.track(grad.len(), TOUCH_BLOCK);
                 march::forward(field, occ, &rays, Some(&jitter), bg, &settings, work);
-                let (sse, d) = colour_error(&work.rgb, &targets, scale);
+                // each photo's colour transform over the rendered colour, and its gradient
+                let mut look_grad = vec![0.0f32; na];
+                let seen: Vec<Vec3> = match looks {
+                    Some(a) => picks
+                        .iter()
+                        .zip(&work.rgb)
+                        .map(|(p, c)| appearance::apply(a.of(p.0 as usize), *c))
+                        .collect(),
+                    None => Vec::new(),
+                };
+                let (sse, mut d) = match looks {
+                    Some(_) => colour_error(&seen, &targets, scale),
+                    None => colour_error(&work.rgb, &targets, scale),
+                };
+                if let Some(a) = looks {
+                    for ((p, c), d) in picks.iter().zip(&work.rgb).zip(d.iter_mut()) {
+                        let v = p.0 as usize * appearance::PER_VIEW;
+                        *d = appearance::backward(
+                            a.of(p.0 as usize),
+                            *c,
+                            *d,
+                            &mut look_grad[v..v + appearance::PER_VIEW],
+                        );
+                    }
+                }
                 let mut sem_sse = 0.0;
                 let d_sem: Option<Vec<f32>> = semantic.then(|| {
                     work.semantic
@@ -701,9 +780,25 @@ impl Trainer {
                         .collect()
                 });
                 march::backward(field, bg, &d, d_sem.as_deref(), work, grad);
-                (sse, sem_sse, work.samples, work.color_samples)
+                (sse, sem_sse, work.samples, work.color_samples, look_grad)
             })
             .collect();
+        let look_lr = APPEARANCE_LR * self.config.lr_decay_target.powf(self.progress() as f32);
+        if let Some(a) = self.appearance.as_mut() {
+            // the chunks' gradients summed in chunk order (deterministic), then the pull
+            // toward the identity, then Adam at the networks' learning rate
+            a.grad.fill(0.0);
+            for r in &results {
+                for (g, x) in a.grad.iter_mut().zip(&r.4) {
+                    *g += x;
+                }
+            }
+            let weight = self.config.appearance_weight.unwrap_or(DEFAULT_APPEARANCE_WEIGHT);
+            appearance::regularise(&a.params, weight, &mut a.grad);
+            let step = a.adam.begin();
+            let (m, v) = a.adam.moments_mut();
+            step.update(step.alpha(look_lr), &mut a.params, &a.grad, m, v);
+        }
         let sse: f32 = results.iter().map(|r| r.0).sum();
         let mse = sse / (batch as f32 * 3.0);
         let psnr = -10.0 * mse.max(1e-12).log10();
@@ -888,6 +983,9 @@ struct TrainState {
     history: Vec<(f64, u64, f32)>,
     #[serde(default)]
     samples_per_ray: f32,
+    /// Adam's step count of the colour transforms (0 without them).
+    #[serde(default)]
+    appearance_t: u32,
 }
 
 impl Trainer {
@@ -898,7 +996,17 @@ impl Trainer {
         let (m, v, t) = self.adam.state();
         f.insert_f32("train.adam_m", &[m.len()], m.to_vec());
         f.insert_f32("train.adam_v", &[v.len()], v.to_vec());
+        let mut appearance_t = 0;
+        if let Some(a) = &self.appearance {
+            let (m, v, t) = a.adam.state();
+            let n = a.params.len();
+            f.insert_f32("train.appearance", &[n], a.params.clone());
+            f.insert_f32("train.appearance_m", &[n], m.to_vec());
+            f.insert_f32("train.appearance_v", &[n], v.to_vec());
+            appearance_t = t;
+        }
         let state = TrainState {
+            appearance_t,
             config: self.config.clone(),
             iter: self.iter,
             elapsed: self.elapsed(),
@@ -955,6 +1063,17 @@ impl Trainer {
         t.occupancy_done = state.occupancy_done;
         t.history = state.history;
         t.samples_per_ray = state.samples_per_ray;
+        if let Some(a) = t.appearance.as_mut() {
+            let n = a.params.len();
+            for name in ["train.appearance", "train.appearance_m", "train.appearance_v"] {
+                file.get_f32(name, &[n])?;
+                file.check_finite(name).map_err(FieldError::from_core)?;
+            }
+            a.params = file.take_f32("train.appearance", &[n])?;
+            let m = file.take_f32("train.appearance_m", &[n])?;
+            let v = file.take_f32("train.appearance_v", &[n])?;
+            a.adam.set_state(m, v, state.appearance_t);
+        }
         if let Some(i) = iters {
             t.config.iters = i;
         }

@@ -97,6 +97,7 @@ fn check_joint_options(a: &TrainArgs) -> Result<ModelKind> {
         (a.aabb.is_some(), "--aabb"),
         (a.align_ground == AlignArg::Pca, "--align-ground pca"),
         (a.align_ground == AlignArg::Floor, "--align-ground floor"),
+        (a.appearance == super::AppearanceArg::On, "--appearance on"),
         (a.features.is_some(), "--features"),
         (a.val_every.is_some(), "--val-every"),
     ] {

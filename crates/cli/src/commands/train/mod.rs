@@ -68,6 +68,15 @@ pub enum DecoderArg {
     Sh,
 }
 
+/// Whether to learn a colour transform per training photo.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum AppearanceArg {
+    /// on for a capture with sparse points (COLMAP), off otherwise.
+    Auto,
+    On,
+    Off,
+}
+
 /// How to find the ground plane when the data's up axis is unknown.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum AlignArg {
@@ -170,6 +179,13 @@ pub struct TrainArgs {
     /// re-applied by eval and render.
     #[arg(long, value_enum, default_value = "auto")]
     pub align_ground: AlignArg,
+    /// Learn an affine colour transform per training photo (3x3 + offset, pulled toward the
+    /// identity), so that a capture's auto-exposure and white balance, which differ from
+    /// photo to photo, do not become haze or blotches in the field. auto: on for a capture
+    /// with sparse points (COLMAP), off for renders. Score such a field with `eval`'s
+    /// psnr_fitted (a map fitted on each test view's left half, scored on its right half).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub appearance: AppearanceArg,
     /// Background that transparent pixels are composited onto, also used behind the field:
     /// white, black, grey or R,G,B in [0, 1]. Stored in the field file.
     #[arg(long, default_value = "white")]
@@ -817,6 +833,13 @@ fn start_trainer(
     fc.validate(&a.out).context("the field these options describe cannot be trained")?;
     let mut tc = train_config(a, kind, res, inputs.background);
     tc.grid = grid;
+    let capture = !inputs.all_cams.points.is_empty();
+    if a.appearance == AppearanceArg::On || (a.appearance == AppearanceArg::Auto && capture) {
+        tc.appearance_weight = Some(assetfield_field::train::DEFAULT_APPEARANCE_WEIGHT);
+        eprintln!(
+            "learning a colour transform per training photo (exposure, white balance; --appearance off to take the photos' colours as they are)"
+        );
+    }
     let info = FieldInfo {
         dataset: Some(data.root.clone()),
         aabb: Some([aabb.min.to_array(), aabb.max.to_array()]),
