@@ -194,6 +194,18 @@ fn the_cli_inspects_and_trains_a_colmap_project() {
     )
     .unwrap();
     assert_eq!(info.ground_transform.unwrap().method, AlignMethod::Floor);
+    // a capture learns its photos' colour maps and what lies beyond its box by default, and
+    // eval renders over that background
+    assert!(
+        err.contains("colour transform per training photo") && err.contains("background map"),
+        "{err}"
+    );
+    let file = assetfield_core::TensorFile::load(&field).unwrap();
+    assert_eq!(file.shape_of("background.map"), Some(&[32usize, 64, 3][..]));
+    let ev = dir.join("ev");
+    let out =
+        ok(&dir, &["eval", field.to_str().unwrap(), "--out", ev.to_str().unwrap(), "--views", "1"]);
+    assert!(out.contains("right halves after a colour map"), "{out}");
     // an image the model names is missing: the file, the image id and the name
     let name = "train_r_5.png";
     std::fs::remove_file(p.join("images").join(name)).unwrap();

@@ -133,6 +133,25 @@ pub struct LoadedField {
     pub info: FieldInfo,
     /// Whether the file is a training checkpoint (it holds optimiser state too).
     pub is_checkpoint: bool,
+    /// The learned background beyond the box, if the field has one (`train --background
+    /// map`): render with [`crate::render_view_map`].
+    pub background_map: Option<crate::BackgroundMap>,
+}
+
+impl LoadedField {
+    /// Render `camera`'s view as the field was trained: over its background map, or over
+    /// its background colour.
+    pub fn render(&self, camera: &assetfield_core::Camera) -> Vec<f32> {
+        match &self.background_map {
+            Some(m) => crate::render_view_map(&self.field, self.occupancy.as_ref(), camera, m),
+            None => render_view(
+                &self.field,
+                self.occupancy.as_ref(),
+                camera,
+                self.info.background_or_white(),
+            ),
+        }
+    }
 }
 
 /// Load a field file (or a training checkpoint) with its [`FieldInfo`].
@@ -144,8 +163,9 @@ pub fn load_field(path: &Path) -> Result<LoadedField, FieldError> {
         _ => FieldInfo::default(),
     };
     let is_checkpoint = file.meta(keys::TRAIN_STATE).is_some();
+    let background_map = crate::BackgroundMap::read(&file, &path.display().to_string())?;
     let (field, occupancy) = Field::from_tensor_file(&mut file)?;
-    Ok(LoadedField { field, occupancy, info, is_checkpoint })
+    Ok(LoadedField { field, occupancy, info, is_checkpoint, background_map })
 }
 
 /// Quality of one rendered view.

@@ -5,6 +5,7 @@
 
 pub mod adam;
 pub mod appearance;
+pub mod background;
 pub mod config;
 pub mod interp;
 pub mod io;
@@ -17,6 +18,7 @@ pub mod params;
 pub mod touched;
 pub mod train;
 
+pub use background::BackgroundMap;
 pub use config::{DecoderKind, FieldConfig, ModelKind};
 pub use io::FieldError;
 pub use joint::{JointTrainer, joint_configs, share_config};
@@ -25,7 +27,7 @@ pub use model::Field;
 pub use occupancy::Occupancy;
 pub use train::{
     Clock, GridRule, StepStats, TrainConfig, Trainer, process_cpu_seconds, render_semantic_view,
-    render_view, render_view_unless,
+    render_view, render_view_map, render_view_unless,
 };
 pub mod eval;
 pub mod pictures;

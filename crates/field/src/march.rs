@@ -51,6 +51,10 @@ impl Default for MarchSettings {
 /// Per-chunk buffers, reused across chunks: structure of arrays over samples.
 #[derive(Debug, Default, Clone)]
 pub struct MarchWork {
+    /// A background colour per ray (a [`crate::background::BackgroundMap`] sampled in each
+    /// ray's direction), set by the caller before [`forward`]; empty: the `background`
+    /// argument for every ray. [`backward`] reads the same colours.
+    pub ray_bg: Vec<Vec3>,
     s_pos: Vec<Vec3>,
     s_feat: Vec<f32>,
     s_alpha: Vec<f32>,
@@ -273,7 +277,7 @@ pub fn forward(
             depth += wt * (w.s_pos[i] - ray.origin).length();
         }
         let end = w.ray_end_t[r];
-        w.rgb.push(c + end * background);
+        w.rgb.push(c + end * w.ray_bg.get(r).copied().unwrap_or(background));
         if w.color.want_semantic {
             let nc = cfg.semantic_channels;
             let base = w.semantic.len();
@@ -324,7 +328,8 @@ pub fn backward(
         w.d_feat.clear();
         w.d_feat.resize(b - a, 0.0);
         // everything behind sample i, dotted with dC: starts with the background
-        let mut after = w.ray_end_t[r] * dc.dot(background);
+        let bg = w.ray_bg.get(r).copied().unwrap_or(background);
+        let mut after = w.ray_end_t[r] * dc.dot(bg);
         for i in (a..b).rev() {
             let (alpha, trans) = (w.s_alpha[i], w.s_trans[i]);
             let weight = trans * alpha;

@@ -5,6 +5,7 @@
 
 use crate::adam::Adam;
 use crate::appearance;
+use crate::background::BackgroundMap;
 use crate::config::{FieldConfig, MIN_VERTICAL_RES, ModelKind};
 use crate::io::FieldError;
 use crate::march::{self, MarchSettings, MarchWork};
@@ -82,6 +83,10 @@ pub struct TrainConfig {
     /// photos' colours are taken as they are (renders).
     #[serde(default)]
     pub appearance_weight: Option<f32>,
+    /// Learn a colour per ray direction beyond the box ([`crate::background`]), of this many
+    /// texels `[width, height]`, starting at `background`; `None`: one colour, `background`.
+    #[serde(default)]
+    pub background_map: Option<[usize; 2]>,
 }
 
 /// The default pull of the per-photo colour transforms toward the identity
@@ -173,6 +178,7 @@ impl TrainConfig {
             density_grad_alpha: DEFAULT_DENSITY_GRAD_ALPHA,
             grid: GridRule::default(),
             appearance_weight: None,
+            background_map: None,
         }
     }
 }
@@ -388,6 +394,28 @@ pub struct Trainer {
     /// The per-photo colour transforms ([`crate::appearance`]; `None` unless
     /// [`TrainConfig::appearance_weight`] is set).
     pub appearance: Option<Appearance>,
+    /// The learned background beyond the box (`None` unless
+    /// [`TrainConfig::background_map`] is set).
+    pub background_map: Option<LearnedBackground>,
+}
+
+/// What one chunk of a batch's rays gives back: its squared errors, sample counts and the
+/// gradients of the per-photo colour transforms and the background map (empty without them).
+struct ChunkResult {
+    sse: f32,
+    sem_sse: f32,
+    samples: usize,
+    color_samples: usize,
+    look_grad: Vec<f32>,
+    beyond_grad: Vec<f32>,
+}
+
+/// A background map being learned, with its optimiser.
+#[derive(Debug, Clone)]
+pub struct LearnedBackground {
+    pub map: BackgroundMap,
+    adam: Adam,
+    grad: Vec<f32>,
 }
 
 /// The learned colour transforms of a run's training views, with their optimiser.
@@ -494,6 +522,7 @@ impl Trainer {
             occupancy_done: 0,
             samples_per_ray: 0.0,
             appearance: None,
+            background_map: None,
         }
         .with_appearance()
     }
@@ -501,6 +530,12 @@ impl Trainer {
     fn with_appearance(mut self) -> Self {
         if self.config.appearance_weight.is_some() {
             self.appearance = Some(Appearance::identity(self.views.len()));
+        }
+        if let Some([w, h]) = self.config.background_map {
+            let map = BackgroundMap::uniform(w, h, Vec3::from(self.config.background));
+            let n = map.rgb.len();
+            self.background_map =
+                Some(LearnedBackground { map, adam: Adam::new(n), grad: vec![0.0; n] });
         }
         self
     }
@@ -710,10 +745,12 @@ impl Trainer {
         let (field, occ, views) = (&self.field, self.occupancy.as_ref(), &self.views);
         let looks = self.appearance.as_ref();
         let na = looks.map_or(0, |a| a.params.len());
+        let beyond = self.background_map.as_ref().map(|b| &b.map);
+        let nb = beyond.map_or(0, |m| m.rgb.len());
         let nc = field.config.semantic_dim();
         let semantic = nc > 0 && views.iter().all(|v| v.features.is_some());
         let sem_scale = 2.0 * self.config.semantic_weight / (batch * nc.max(1)) as f32;
-        let results: Vec<(f32, f32, usize, usize, Vec<f32>)> = self
+        let results: Vec<ChunkResult> = self
             .work
             .par_iter_mut()
             .zip(picks.par_chunks(chunk))
@@ -742,6 +779,10 @@ impl Trainer {
                 }
                 work.want_semantic = semantic;
                 work.touched.track(grad.len(), TOUCH_BLOCK);
+                work.ray_bg.clear();
+                if let Some(m) = beyond {
+                    work.ray_bg.extend(rays.iter().map(|r| m.sample(r.dir)));
+                }
                 march::forward(field, occ, &rays, Some(&jitter), bg, &settings, work);
                 // each photo's colour transform over the rendered colour, and its gradient
                 let mut look_grad = vec![0.0f32; na];
@@ -780,16 +821,30 @@ impl Trainer {
                         .collect()
                 });
                 march::backward(field, bg, &d, d_sem.as_deref(), work, grad);
-                (sse, sem_sse, work.samples, work.color_samples, look_grad)
+                // the background's share of each ray: its transmittance through the box
+                let mut beyond_grad = vec![0.0f32; nb];
+                if let Some(m) = beyond {
+                    for (r, ray) in rays.iter().enumerate() {
+                        m.scatter(ray.dir, (1.0 - work.opacity[r]) * d[r], &mut beyond_grad);
+                    }
+                }
+                ChunkResult {
+                    sse,
+                    sem_sse,
+                    samples: work.samples,
+                    color_samples: work.color_samples,
+                    look_grad,
+                    beyond_grad,
+                }
             })
             .collect();
         let look_lr = APPEARANCE_LR * self.config.lr_decay_target.powf(self.progress() as f32);
         if let Some(a) = self.appearance.as_mut() {
             // the chunks' gradients summed in chunk order (deterministic), then the pull
-            // toward the identity, then Adam at the networks' learning rate
+            // toward the identity, then Adam at APPEARANCE_LR
             a.grad.fill(0.0);
             for r in &results {
-                for (g, x) in a.grad.iter_mut().zip(&r.4) {
+                for (g, x) in a.grad.iter_mut().zip(&r.look_grad) {
                     *g += x;
                 }
             }
@@ -799,19 +854,32 @@ impl Trainer {
             let (m, v) = a.adam.moments_mut();
             step.update(step.alpha(look_lr), &mut a.params, &a.grad, m, v);
         }
-        let sse: f32 = results.iter().map(|r| r.0).sum();
+        let grid_lr = self.learning_rate(Group::Grid, self.progress());
+        if let Some(b) = self.background_map.as_mut() {
+            // summed in chunk order; Adam at the grids' learning rate (a map is a grid)
+            b.grad.fill(0.0);
+            for r in &results {
+                for (g, x) in b.grad.iter_mut().zip(&r.beyond_grad) {
+                    *g += x;
+                }
+            }
+            let step = b.adam.begin();
+            let (m, v) = b.adam.moments_mut();
+            step.update(step.alpha(grid_lr), &mut b.map.rgb, &b.grad, m, v);
+        }
+        let sse: f32 = results.iter().map(|r| r.sse).sum();
         let mse = sse / (batch as f32 * 3.0);
         let psnr = -10.0 * mse.max(1e-12).log10();
-        let samples: usize = results.iter().map(|r| r.2).sum();
+        let samples: usize = results.iter().map(|r| r.samples).sum();
         self.samples_per_ray = samples as f32 / batch as f32;
         StepStats {
             iter: self.iter + 1,
             loss: mse,
             psnr,
             semantic_loss: semantic
-                .then(|| results.iter().map(|r| r.1).sum::<f32>() / (batch * nc) as f32),
+                .then(|| results.iter().map(|r| r.sem_sse).sum::<f32>() / (batch * nc) as f32),
             samples,
-            color_samples: results.iter().map(|r| r.3).sum(),
+            color_samples: results.iter().map(|r| r.color_samples).sum(),
             seconds: 0.0,
         }
     }
@@ -986,6 +1054,9 @@ struct TrainState {
     /// Adam's step count of the colour transforms (0 without them).
     #[serde(default)]
     appearance_t: u32,
+    /// Adam's step count of the background map (0 without one).
+    #[serde(default)]
+    background_t: u32,
 }
 
 impl Trainer {
@@ -1005,8 +1076,18 @@ impl Trainer {
             f.insert_f32("train.appearance_v", &[n], v.to_vec());
             appearance_t = t;
         }
+        let mut background_t = 0;
+        if let Some(b) = &self.background_map {
+            let (m, v, t) = b.adam.state();
+            b.map.write(&mut f);
+            let n = b.map.rgb.len();
+            f.insert_f32("train.background_m", &[n], m.to_vec());
+            f.insert_f32("train.background_v", &[n], v.to_vec());
+            background_t = t;
+        }
         let state = TrainState {
             appearance_t,
+            background_t,
             config: self.config.clone(),
             iter: self.iter,
             elapsed: self.elapsed(),
@@ -1074,6 +1155,30 @@ impl Trainer {
             let v = file.take_f32("train.appearance_v", &[n])?;
             a.adam.set_state(m, v, state.appearance_t);
         }
+        if let Some(b) = t.background_map.as_mut() {
+            let n = b.map.rgb.len();
+            b.map = BackgroundMap::read(&file, &path.display().to_string())?.ok_or_else(|| {
+                FieldError::Invalid {
+                    path: path.display().to_string(),
+                    message: format!(
+                        "the run learns a background map but the checkpoint has no {}",
+                        crate::background::TENSOR
+                    ),
+                }
+            })?;
+            if b.map.rgb.len() != n {
+                return Err(FieldError::Invalid {
+                    path: path.display().to_string(),
+                    message: format!("background map of {} values, expected {n}", b.map.rgb.len()),
+                });
+            }
+            for name in ["train.background_m", "train.background_v"] {
+                file.get_f32(name, &[n])?;
+            }
+            let m = file.take_f32("train.background_m", &[n])?;
+            let v = file.take_f32("train.background_v", &[n])?;
+            b.adam.set_state(m, v, state.background_t);
+        }
         if let Some(i) = iters {
             t.config.iters = i;
         }
@@ -1129,6 +1234,37 @@ pub fn render_view_unless(
         },
     );
     (!stopped.into_inner()).then_some(out)
+}
+
+/// [`render_view`] with a background colour per ray direction.
+pub fn render_view_map(
+    field: &Field,
+    occ: Option<&Occupancy>,
+    camera: &Camera,
+    map: &BackgroundMap,
+) -> Vec<f32> {
+    let (w, h) = (camera.intrinsics.width as usize, camera.intrinsics.height as usize);
+    let mut out = vec![0.0f32; w * h * 3];
+    let settings = MarchSettings::default();
+    let rows_per_task = (1024 / w.max(1)).max(1);
+    out.par_chunks_mut(w * 3 * rows_per_task).enumerate().for_each_init(
+        MarchWork::default,
+        |work, (t, dst)| {
+            let j0 = t * rows_per_task;
+            let rows = dst.len() / (w * 3);
+            let rays: Vec<Ray> = (0..rows)
+                .flat_map(|dj| (0..w).map(move |i| (i, j0 + dj)))
+                .map(|(i, j)| camera.pixel_ray(i as u32, j as u32))
+                .collect();
+            work.ray_bg.clear();
+            work.ray_bg.extend(rays.iter().map(|r| map.sample(r.dir)));
+            march::forward(field, occ, &rays, None, Vec3::ZERO, &settings, work);
+            for (k, c) in work.rgb.iter().enumerate() {
+                dst[k * 3..k * 3 + 3].copy_from_slice(&c.to_array());
+            }
+        },
+    );
+    out
 }
 
 /// Render a view's semantic features (`[height][width][semantic_channels]`) with a field

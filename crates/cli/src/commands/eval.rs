@@ -6,7 +6,6 @@ use assetfield_core::fsx::{StagingDir, write_atomic};
 use assetfield_core::metrics::error_image;
 use assetfield_core::plot::{pca_colors, rgb_image};
 use assetfield_data::{Dataset, Frame, LoadOptions, Split};
-use assetfield_field::eval::evaluate;
 use assetfield_field::render_semantic_view;
 use clap::Args;
 use std::path::PathBuf;
@@ -70,11 +69,10 @@ pub fn eval(a: EvalArgs) -> Result<()> {
     let staging = StagingDir::new(&a.out, a.force)?;
     let root = staging.path().to_path_buf();
     let pb = progress_bar(frames.len() as u64, "rendering views");
-    let result = evaluate(
-        &loaded.field,
-        loaded.occupancy.as_ref(),
+    let result = assetfield_field::eval::evaluate_with(
+        loaded.field.config.kind.name(),
         &frames,
-        info.background_or_white(),
+        |f| Ok::<_, anyhow::Error>(loaded.render(&f.camera)),
         |frame, rgb, m| -> Result<()> {
             let name = format!("r_{}.png", frame.index);
             save_rgb(&root.join("render").join(&name), w, h, rgb.to_vec())?;

@@ -103,7 +103,10 @@ pub fn render(a: RenderArgs) -> Result<()> {
     let t0 = std::time::Instant::now();
     for (name, cam) in &cameras {
         assetfield_core::interrupt::check()?;
-        let rgb = render_view(&loaded.field, loaded.occupancy.as_ref(), cam, bg);
+        let rgb = match &loaded.background_map {
+            Some(_) => loaded.render(cam),
+            None => render_view(&loaded.field, loaded.occupancy.as_ref(), cam, bg),
+        };
         save_rgb(&staging.path().join(name), cam.intrinsics.width, cam.intrinsics.height, rgb)?;
         pb.inc(1);
     }

@@ -68,7 +68,8 @@ pub enum DecoderArg {
     Sh,
 }
 
-/// Whether to learn a colour transform per training photo.
+/// Whether to learn something only captures need (a colour transform per photo, a
+/// background map).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum AppearanceArg {
     /// on for a capture with sparse points (COLMAP), off otherwise.
@@ -186,6 +187,13 @@ pub struct TrainArgs {
     /// psnr_fitted (a map fitted on each test view's left half, scored on its right half).
     #[arg(long, value_enum, default_value = "auto")]
     pub appearance: AppearanceArg,
+    /// Learn a colour per direction for what lies beyond the scene box (the far walls, a
+    /// window, the sky: an equirectangular map of 64 x 32 texels, starting at --background,
+    /// stored in the field file and used by eval and render), so that it does not become
+    /// haze inside the box. auto: on for a capture with sparse points (COLMAP), off for
+    /// renders (their background is one colour).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub background_map: AppearanceArg,
     /// Background that transparent pixels are composited onto, also used behind the field:
     /// white, black, grey or R,G,B in [0, 1]. Stored in the field file.
     #[arg(long, default_value = "white")]
@@ -298,6 +306,9 @@ pub(crate) fn save_checkpoint(t: &Trainer, info: &FieldInfo, path: &Path) -> Res
 /// iterations and time, and the training configuration.
 pub(crate) fn write_field(t: &Trainer, info: FieldInfo, path: &Path) -> Result<()> {
     let mut file = t.field.to_tensor_file(t.occupancy.as_ref())?;
+    if let Some(b) = &t.background_map {
+        b.map.write(&mut file);
+    }
     let info = FieldInfo {
         history: Some(t.history.clone()),
         iterations: Some(t.iter),
@@ -838,6 +849,13 @@ fn start_trainer(
         tc.appearance_weight = Some(assetfield_field::train::DEFAULT_APPEARANCE_WEIGHT);
         eprintln!(
             "learning a colour transform per training photo (exposure, white balance; --appearance off to take the photos' colours as they are)"
+        );
+    }
+    if a.background_map == AppearanceArg::On || (a.background_map == AppearanceArg::Auto && capture)
+    {
+        tc.background_map = Some(assetfield_field::background::DEFAULT_SIZE);
+        eprintln!(
+            "learning a background map beyond the box (64 x 32 directions; --background-map off for one colour)"
         );
     }
     let info = FieldInfo {

@@ -1,0 +1,150 @@
+//! What lies beyond the scene box: a colour per ray direction.
+//!
+//! A capture's photos see the far walls, a window, the sky around the scene. With one
+//! background colour the field can only explain them with density inside its box: haze in
+//! front of the cameras, which mining then reads as objects. A [`BackgroundMap`] gives every
+//! direction its own colour instead, learned with the field: an equirectangular map of the
+//! world's directions (azimuth across, polar angle from +Z down), sampled bilinearly, wrapping
+//! in azimuth. A ray's colour is `c + T * map(dir)`, `T` its transmittance through the box
+//! (the same compositing as the constant background's, so the march's backward pass is the
+//! constant case with a colour per ray).
+//!
+//! The map is at infinity: what lies beyond the box at a finite distance shows no parallax
+//! between photos, and is blurred over the directions it covers.
+
+use assetfield_core::TensorFile;
+use glam::Vec3;
+
+/// The tensor a field file holds the map in, `[height][width][3]`.
+pub const TENSOR: &str = "background.map";
+
+/// The default size, texels `[width, height]`: 64 x 32, 5.6 degrees per texel, a few texels
+/// across a window; finer maps start to hold what a photo sees once (no other view
+/// constrains it), coarser ones blur a room's walls into one colour.
+pub const DEFAULT_SIZE: [usize; 2] = [64, 32];
+
+/// An equirectangular map of colours over the directions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BackgroundMap {
+    pub width: usize,
+    pub height: usize,
+    /// `[height][width][3]`, row 0 looking straight up (+Z).
+    pub rgb: Vec<f32>,
+}
+
+/// The four texels around a direction and their bilinear weights.
+pub type Taps = [(usize, f32); 4];
+
+impl BackgroundMap {
+    /// A map of `width` x `height` texels of one colour.
+    pub fn uniform(width: usize, height: usize, colour: Vec3) -> Self {
+        let rgb = (0..width * height).flat_map(|_| colour.to_array()).collect();
+        BackgroundMap { width: width.max(1), height: height.max(1), rgb }
+    }
+
+    /// The texels (indices of their first channel in `rgb`) and weights of direction `d`.
+    pub fn taps(&self, d: Vec3) -> Taps {
+        let d = d.normalize_or(Vec3::Z);
+        let (w, h) = (self.width, self.height);
+        let u = (d.y.atan2(d.x) / std::f32::consts::TAU + 0.5) * w as f32 - 0.5;
+        let v = d.z.clamp(-1.0, 1.0).acos() / std::f32::consts::PI * h as f32 - 0.5;
+        let (u0, v0) = (u.floor(), v.floor());
+        let (fu, fv) = (u - u0, v - v0);
+        let col = |c: f32| (c as i64).rem_euclid(w as i64) as usize;
+        let row = |r: f32| (r.max(0.0) as usize).min(h - 1);
+        let (c0, c1) = (col(u0), col(u0 + 1.0));
+        let (r0, r1) = (row(v0), row(v0 + 1.0));
+        let at = |r: usize, c: usize| (r * w + c) * 3;
+        [
+            (at(r0, c0), (1.0 - fu) * (1.0 - fv)),
+            (at(r0, c1), fu * (1.0 - fv)),
+            (at(r1, c0), (1.0 - fu) * fv),
+            (at(r1, c1), fu * fv),
+        ]
+    }
+
+    /// The colour seen in direction `d`.
+    pub fn sample(&self, d: Vec3) -> Vec3 {
+        self.taps(d).iter().fold(Vec3::ZERO, |acc, &(k, wt)| {
+            acc + wt * Vec3::new(self.rgb[k], self.rgb[k + 1], self.rgb[k + 2])
+        })
+    }
+
+    /// Adds `g` (the loss gradient with respect to the colour sampled in direction `d`) into
+    /// `grad` (laid out like `rgb`).
+    pub fn scatter(&self, d: Vec3, g: Vec3, grad: &mut [f32]) {
+        for (k, wt) in self.taps(d) {
+            grad[k] += wt * g.x;
+            grad[k + 1] += wt * g.y;
+            grad[k + 2] += wt * g.z;
+        }
+    }
+
+    /// Store the map in a field file.
+    pub fn write(&self, f: &mut TensorFile) {
+        f.insert_f32(TENSOR, &[self.height, self.width, 3], self.rgb.clone());
+    }
+
+    /// The map a field file (`path`, for messages) holds, if any; a tensor of the wrong
+    /// shape or with values that are not finite is an error naming it.
+    pub fn read(f: &TensorFile, path: &str) -> Result<Option<Self>, crate::FieldError> {
+        let Some(shape) = f.shape_of(TENSOR).map(<[usize]>::to_vec) else { return Ok(None) };
+        let invalid =
+            |message: String| crate::FieldError::Invalid { path: path.to_owned(), message };
+        if shape.len() != 3 || shape[2] != 3 || shape[0] == 0 || shape[1] == 0 {
+            return Err(invalid(format!(
+                "tensor {TENSOR} has shape {shape:?}, expected [height, width, 3]"
+            )));
+        }
+        let rgb = f.get_f32(TENSOR, &shape)?.to_vec();
+        if let Some(v) = rgb.iter().find(|v| !v.is_finite()) {
+            return Err(invalid(format!("tensor {TENSOR} holds {v}")));
+        }
+        Ok(Some(BackgroundMap { width: shape[1], height: shape[0], rgb }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sampling_is_bilinear_and_its_gradient_is_its_transpose() {
+        let mut m = BackgroundMap::uniform(8, 4, Vec3::ZERO);
+        for (i, v) in m.rgb.iter_mut().enumerate() {
+            *v = ((i * 37) % 11) as f32 / 10.0;
+        }
+        // the gradient of <g, sample(d)> with respect to the map is scatter(d, g)
+        let g = Vec3::new(0.3, -1.2, 0.7);
+        for d in [Vec3::new(0.3, -0.8, 0.5), Vec3::new(-1.0, 0.01, -0.2), Vec3::Z, -Vec3::Z] {
+            let mut grad = vec![0.0; m.rgb.len()];
+            m.scatter(d, g, &mut grad);
+            let h = 1e-2;
+            for k in 0..m.rgb.len() {
+                let (mut a, mut b) = (m.clone(), m.clone());
+                a.rgb[k] += h;
+                b.rgb[k] -= h;
+                let fd = (g.dot(a.sample(d)) - g.dot(b.sample(d))) / (2.0 * h);
+                assert!((fd - grad[k]).abs() < 1e-4, "texel {k} of {d}: {fd} vs {}", grad[k]);
+            }
+        }
+        // a uniform map is its colour everywhere; the seam in azimuth is continuous
+        let u = BackgroundMap::uniform(8, 4, Vec3::new(0.2, 0.5, 0.9));
+        assert!((u.sample(Vec3::new(-1.0, 1e-4, 0.1)) - Vec3::new(0.2, 0.5, 0.9)).length() < 1e-6);
+        let (a, b) = (m.sample(Vec3::new(-1.0, 1e-4, 0.1)), m.sample(Vec3::new(-1.0, -1e-4, 0.1)));
+        assert!((a - b).length() < 1e-3, "{a} vs {b} across the seam");
+    }
+
+    #[test]
+    fn maps_round_trip_through_field_files() {
+        let mut m = BackgroundMap::uniform(6, 3, Vec3::new(0.1, 0.2, 0.3));
+        m.rgb[4] = 0.9;
+        let mut f = TensorFile::new();
+        assert_eq!(BackgroundMap::read(&f, "f").unwrap(), None);
+        m.write(&mut f);
+        assert_eq!(BackgroundMap::read(&f, "f").unwrap(), Some(m));
+        f.insert_f32(TENSOR, &[3, 6, 2], vec![0.0; 36]);
+        let e = BackgroundMap::read(&f, "f").unwrap_err().to_string();
+        assert!(e.contains(TENSOR) && e.contains("[3, 6, 2]"), "{e}");
+    }
+}
