@@ -47,6 +47,14 @@ pub enum MiningError {
     /// representation: its XY plane only holds one of three factors).
     #[error("cannot mine a {model} field: {reason}")]
     UnsupportedModel { model: String, reason: String },
+    /// Mining failed on a field whose content lies in a vertical sheet
+    /// ([`crate::content`]): the failure, with the note that explains it.
+    #[error("{note}: {source}")]
+    OffTheGround {
+        note: String,
+        #[source]
+        source: Box<MiningError>,
+    },
     /// A tensor a mining step needs is not in the field or library.
     #[error("{source_name}: missing tensor \"{name}\" needed for {purpose}")]
     MissingTensor { source_name: String, name: String, purpose: String },
@@ -59,7 +67,7 @@ pub enum MiningError {
     /// The field's ground is a slab tilted against its XY plane: the ground planes cannot hold
     /// its objects level (a capture whose up axis is not +Z).
     #[error(
-        "the ground in this field is tilted by {degrees:.1} degrees against its XY plane (a slab under {coverage_pct:.0}% of the plane rises across it), so no floor level and no ground level can be found: the capture's up axis is not +Z. Train the field on a levelled capture: `assetfield train DATA --align-ground pca ...`"
+        "the ground in this field is tilted by {degrees:.1} degrees against its XY plane (a slab under {coverage_pct:.0}% of the plane rises across it), so no floor level and no ground level can be found: the capture's up axis is not +Z. Train the field on a levelled capture: `assetfield train DATA --align-ground floor ...` (a capture with sparse points: COLMAP) or `--align-ground pca` (cameras around the scene at one height)"
     )]
     TiltedGround { degrees: f32, coverage_pct: f32 },
     /// Reading, checking, writing or merging a library failed.

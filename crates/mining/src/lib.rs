@@ -14,6 +14,7 @@
 //! (see [`mod@rotate`]). Nothing here panics on bad input; errors are [`MiningError`].
 
 pub mod agglomerative;
+pub mod content;
 pub mod contours;
 pub mod copies;
 pub mod detect;

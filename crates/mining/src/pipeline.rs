@@ -166,6 +166,9 @@ pub struct MineReport {
     pub layout_instances: usize,
     pub metrics: Option<Metrics>,
     pub seconds: f64,
+    /// What the user should know about the field's content (it lies in a vertical sheet:
+    /// [`crate::content`]).
+    pub content_note: Option<String>,
 }
 
 const STEPS: usize = 7; // fixed: progress steps
@@ -571,6 +574,14 @@ pub fn mine(
     progress.step(1, STEPS, "evaluating the density volume");
     let vol = OpacityVolume::from_field(field)?;
     check_interrupt()?;
+    let voxel = field.config.voxel_size().to_array();
+    let orientation = crate::content::orientation(&vol, voxel);
+    tracing::debug!(?orientation, "how the content lies");
+    let content_note = orientation.and_then(|o| o.note());
+    let off_the_ground = |e: MiningError| match &content_note {
+        Some(note) => MiningError::OffTheGround { note: note.clone(), source: Box::new(e) },
+        None => e,
+    };
     let needs_semantic = [Some(opts.detect.on), opts.yaw_on.plane()]
         .contains(&Some(PlaneChoice::Semantic))
         || opts.group_on == GroupOn::Semantic;
@@ -578,13 +589,13 @@ pub fn mine(
     let cx = Context { opts, field, planes: &planes, vol: &vol, semantic: &semantic };
 
     progress.step(2, STEPS, "detecting objects");
-    let mut dets = cx.detect(field_path)?;
+    let mut dets = cx.detect(field_path).map_err(off_the_ground)?;
     check_interrupt()?;
     progress.step(3, STEPS, "grouping into categories"); // fixed: progress step
-    let (grouping, copies) = cx.group(&mut dets)?;
+    let (grouping, copies) = cx.group(&mut dets).map_err(off_the_ground)?;
     check_interrupt()?;
     progress.step(4, STEPS, "matching templates (yaw)"); // fixed: progress step
-    let (poses, pivots, margin) = cx.pose(&dets, &grouping)?;
+    let (poses, pivots, margin) = cx.pose(&dets, &grouping).map_err(off_the_ground)?;
     check_interrupt()?;
 
     progress.step(5, STEPS, "writing the library"); // fixed: progress step
@@ -635,6 +646,7 @@ pub fn mine(
         layout_instances,
         metrics,
         seconds: t0.elapsed().as_secs_f64(),
+        content_note,
     })
 }
 

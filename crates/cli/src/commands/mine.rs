@@ -461,6 +461,9 @@ pub fn mine(a: MineArgs) -> Result<()> {
         r.model,
         r.seconds
     );
+    if let Some(note) = &r.content_note {
+        println!("note: {note}");
+    }
     match r.floor {
         Some(z) => println!("floor slab up to z = {z:.3}; evidence threshold {:.3}", r.threshold),
         None => println!("no floor slab; evidence threshold {:.3}", r.threshold),
