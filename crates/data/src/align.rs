@@ -13,7 +13,7 @@
 use crate::summary::closest_point_to_lines;
 use crate::{DataError, Dataset, DatasetCameras};
 use assetfield_core::{Aabb3, Camera};
-use glam::{Affine3A, DVec3, Mat3, Mat4, Quat, Vec3};
+use glam::{Affine3A, DVec3, Mat3, Mat4, Quat, Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// A rigid change of world coordinates, `p' = rotation * p + translation`, that levels a
@@ -75,6 +75,16 @@ pub const FLOOR_TOLERANCE_SHARE: f32 = 0.01;
 /// (45: photos are taken roughly upright; a wall is 90 degrees off, a floor seen by a
 /// camera tilted down still well within).
 pub const FLOOR_MAX_TILT_DEG: f32 = 45.0;
+
+/// A floor holds at least this share of the sparse points within the tolerance: 5%, what
+/// a floor of low contrast keeps of a walked capture's points (the capture fixture's holds
+/// 7%); fewer make no layer that stands out from the stray points.
+pub const FLOOR_MIN_SHARE: f32 = 0.05;
+
+/// Share of the cameras that stand above a floor by more than the tolerance: 90% (every
+/// photo of a room is taken above its floor; a few cameras' heights may be off in a poor
+/// model). A layer of points at the cameras' own height is not a floor.
+pub const FLOOR_CAMERAS_ABOVE: f32 = 0.9;
 
 /// Planes tried by the floor fit's random sampling (a fixed seed: the same fit every run):
 /// three points of a floor holding 10% of the points are drawn together at least once with
@@ -198,8 +208,13 @@ impl GroundAlignment {
     /// points within [`FLOOR_TOLERANCE_SHARE`] of the points' robust extent of it, and is a
     /// candidate only when its normal is within [`FLOOR_MAX_TILT_DEG`] of the cameras' mean
     /// up vector (camera +Y) and most cameras are above it (walls and a ceiling are not
-    /// floors). The candidate with the most points is refitted to its points (least squares:
-    /// PCA of the inliers) and levelled: its normal, signed toward the cameras, becomes +Z,
+    /// floors). The candidate with the most points, refitted to its points (least squares:
+    /// PCA of the inliers), gives the up direction; it need not be the floor (in a walk at
+    /// eye height the walls' points crowd into a band at the cameras' height). The floor is
+    /// the lowest layer of the points along that direction that holds
+    /// [`FLOOR_MIN_SHARE`] of them with [`FLOOR_CAMERAS_ABOVE`] of the cameras above it,
+    /// refitted to its own points (the best plane stands in where no layer qualifies). It
+    /// is levelled: its normal, signed toward the cameras, becomes +Z,
     /// its points' principal axes x and y (a rectangular floor lies square to the axes); the
     /// floor point under the points' median becomes the origin, so the floor is z = 0.
     /// Unlike [`GroundAlignment::fit_pca`] this holds when every camera is at head height
@@ -210,7 +225,6 @@ impl GroundAlignment {
     pub fn fit_floor(points: &[Vec3], cameras: &[Camera]) -> Result<Self, DataError> {
         let err = |m: String| Err(DataError::Alignment(format!("floor: {m}")));
         const MIN_POINTS: usize = 20; // fixed: fewer cannot show a surface
-        const MIN_SHARE: f32 = 0.05; // fixed: a floor seen in a capture holds more
         if points.len() < MIN_POINTS {
             return err(format!(
                 "{} sparse point(s): at least {MIN_POINTS} are needed to find the floor",
@@ -278,72 +292,36 @@ impl GroundAlignment {
                 "no plane through the sparse points is within {FLOOR_MAX_TILT_DEG} degrees of                  the cameras' up with the cameras above it"
             ));
         };
-        if (k as f32) < MIN_SHARE * points.len() as f32 {
+        if (k as f32) < FLOOR_MIN_SHARE * points.len() as f32 {
             return err(format!(
                 "the best horizontal plane holds {k} of {} sparse points (under {:.0}%): no                  floor stands out",
                 points.len(),
-                MIN_SHARE * 100.0
+                FLOOR_MIN_SHARE * 100.0
             ));
         }
-        // refit to the inliers (the normal of least variance), three times with a tolerance
-        // halved each time but kept over three median residuals: the points of walls and
-        // legs standing on the floor, within the first tolerance of it, drop out
-        let (mut normal, mut d, mut t) = (n0, d0, tol);
-        let mut centroid = DVec3::ZERO;
-        let mut kept = 0usize;
-        for _ in 0..3 {
-            let inl: Vec<DVec3> = points
-                .iter()
-                .filter(|p| (normal.dot(**p) - d).abs() <= t)
-                .map(|p| p.as_dvec3())
-                .collect();
-            if inl.len() < 3 {
-                break;
-            }
-            let m = inl.len() as f64;
-            centroid = inl.iter().copied().sum::<DVec3>() / m;
-            let mut cov = [[0.0f64; 3]; 3];
-            for p in &inl {
-                let q = *p - centroid;
-                for r in 0..3 {
-                    for c in 0..3 {
-                        cov[r][c] += q[r] * q[c] / m;
-                    }
-                }
-            }
-            let (values, vectors) = symmetric_eigen(cov);
-            let kmin = (0..3).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
-            let v = vectors[kmin];
-            let mut n = Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32).normalize_or(normal);
-            if n.dot(n0) < 0.0 {
-                n = -n;
-            }
-            normal = n;
-            d = normal.dot(centroid.as_vec3());
-            kept = inl.len();
-            let mut res: Vec<f32> =
-                inl.iter().map(|p| (normal.dot(p.as_vec3()) - d).abs()).collect();
-            res.sort_unstable_by(f32::total_cmp);
-            t = (0.5 * t).max(3.0 * res[res.len() / 2]);
-        }
+        // the best plane gives the up direction; it need not be the floor: where every
+        // camera is at eye height, the points of the walls crowd into a horizontal band
+        // at eye height (what every photo sees at its horizon), which can hold more points
+        // than the floor
+        let (normal, _, _) = refit(points, n0, d0, tol);
+        // the floor is the lowest horizontal layer holding a real share of the points, with
+        // the cameras above it: the heights along that normal, from the lowest up
+        let (normal, centroid, kept) = match lowest_layer(points, &centres, normal, tol) {
+            Some(d_floor) => refit(points, normal, d_floor, tol),
+            None => refit(points, n0, d0, tol),
+        };
         let c = centroid.as_vec3();
         // the origin: the floor point under the points' median
         let med = median_point(points);
         let origin = med - normal * normal.dot(med - c);
         let level = Mat3::from_quat(Quat::from_rotation_arc(normal, Vec3::Z));
-        // the heading: the floor's principal axes along x and y (a room's floor, a street's
-        // carriageway are rectangles: the scene box then fits them, and mined objects stand
-        // square to the axes as they stand square to the walls)
-        let (mut sxx, mut sxy, mut syy) = (0.0f64, 0.0f64, 0.0f64);
-        for p in points.iter().filter(|p| (normal.dot(**p) - d).abs() <= t) {
-            let q = level * (*p - c);
-            let (x, y) = (q.x as f64, q.y as f64);
-            sxx += x * x;
-            sxy += x * y;
-            syy += y * y;
-        }
-        let heading = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-        let r = Mat3::from_rotation_z(-heading as f32) * level;
+        // the heading: the turn that fits the points into the smallest box (a room's walls
+        // and floor, a street's carriageway and facades are rectangles: the scene box then
+        // fits them, and mined objects stand square to the axes as they stand square to the
+        // walls)
+        let flat: Vec<Vec2> = points.iter().map(|p| (level * (*p - c)).truncate()).collect();
+        let heading = box_heading(&flat);
+        let r = Mat3::from_rotation_z(-heading) * level;
         let tr = -(r * origin);
         let rows = [r.row(0).to_array(), r.row(1).to_array(), r.row(2).to_array()];
         Ok(GroundAlignment {
@@ -472,6 +450,120 @@ pub fn percentile_box(points: &[Vec3], lo: f32, hi: f32) -> (Vec3, Vec3) {
         b[axis] = at(hi);
     }
     (a, b)
+}
+
+/// Refit a plane `normal . p = d` to the points within `tol` of it (the normal of least
+/// variance), three times with a tolerance halved each time but kept over three median
+/// residuals: the points of walls and legs standing on the floor, within the first
+/// tolerance of it, drop out. The plane's normal (signed as `normal`), its inliers' centroid
+/// (a point of the plane) and their count.
+fn refit(points: &[Vec3], normal: Vec3, d: f32, tol: f32) -> (Vec3, DVec3, usize) {
+    let n0 = normal;
+    let (mut normal, mut d, mut t) = (normal, d, tol);
+    let mut centroid = DVec3::ZERO;
+    let mut kept = 0usize;
+    for _ in 0..3 {
+        let inl: Vec<DVec3> = points
+            .iter()
+            .filter(|p| (normal.dot(**p) - d).abs() <= t)
+            .map(|p| p.as_dvec3())
+            .collect();
+        if inl.len() < 3 {
+            break;
+        }
+        let m = inl.len() as f64;
+        centroid = inl.iter().copied().sum::<DVec3>() / m;
+        let mut cov = [[0.0f64; 3]; 3];
+        for p in &inl {
+            let q = *p - centroid;
+            for r in 0..3 {
+                for c in 0..3 {
+                    cov[r][c] += q[r] * q[c] / m;
+                }
+            }
+        }
+        let (values, vectors) = symmetric_eigen(cov);
+        let kmin = (0..3).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
+        let v = vectors[kmin];
+        let mut n = Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32).normalize_or(normal);
+        if n.dot(n0) < 0.0 {
+            n = -n;
+        }
+        normal = n;
+        d = normal.dot(centroid.as_vec3());
+        kept = inl.len();
+        let mut res: Vec<f32> = inl.iter().map(|p| (normal.dot(p.as_vec3()) - d).abs()).collect();
+        res.sort_unstable_by(f32::total_cmp);
+        t = (0.5 * t).max(3.0 * res[res.len() / 2]);
+    }
+    (normal, centroid, kept)
+}
+
+/// The height (along `up`, as `up . p`) of the lowest layer of the points that holds at
+/// least [`FLOOR_MIN_SHARE`] of them within `tol` and has [`FLOOR_CAMERAS_ABOVE`] of the
+/// cameras above it by more than `tol`: the peak of that layer (the window of `tol` either
+/// side holding the most points, climbing from the first window that holds enough). `None`
+/// when no layer does.
+fn lowest_layer(points: &[Vec3], cameras: &[Vec3], up: Vec3, tol: f32) -> Option<f32> {
+    let mut h: Vec<f32> = points.iter().map(|p| up.dot(*p)).collect();
+    h.sort_unstable_by(f32::total_cmp);
+    let need = (FLOOR_MIN_SHARE * h.len() as f32).ceil() as usize;
+    // points within tol of h[i]: the window [lo, hi) of the sorted heights
+    let count = |i: usize| {
+        let lo = h.partition_point(|v| *v < h[i] - tol);
+        let hi = h.partition_point(|v| *v <= h[i] + tol);
+        hi - lo
+    };
+    let cameras_above = |z: f32| {
+        let n = cameras.iter().filter(|c| up.dot(**c) > z + tol).count();
+        n as f32 >= FLOOR_CAMERAS_ABOVE * cameras.len() as f32
+    };
+    let first = (0..h.len()).find(|&i| count(i) >= need)?;
+    // climb to the layer's peak: the best window within one tolerance above the first
+    let peak = (first..h.len())
+        .take_while(|&i| h[i] <= h[first] + tol)
+        .max_by_key(|&i| (count(i), std::cmp::Reverse(i)))?;
+    let z = h[peak];
+    cameras_above(z).then_some(z)
+}
+
+/// Steps of the heading search, degrees: 0.5 (a room's box off by half a degree pads
+/// it by under 1% of its width).
+const HEADING_STEP_DEG: f32 = 0.5;
+
+/// The heading (radians, in `[0, pi/2)`) whose turn `-heading` gives the points the smallest
+/// [`BOX_PERCENTILES`] box on the ground: the area is scanned every [`HEADING_STEP_DEG`].
+fn box_heading(points: &[Vec2]) -> f32 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    let mut xs = Vec::with_capacity(points.len());
+    let mut ys = Vec::with_capacity(points.len());
+    let span = |v: &mut Vec<f32>| {
+        let n = v.len() - 1;
+        let at = |q: f32| ((q * n as f32).round() as usize).min(n);
+        let (lo, hi) = (at(BOX_PERCENTILES.0), at(BOX_PERCENTILES.1));
+        let a = *v.select_nth_unstable_by(lo, f32::total_cmp).1;
+        let b = *v.select_nth_unstable_by(hi, f32::total_cmp).1;
+        b - a
+    };
+    let steps = (90.0 / HEADING_STEP_DEG).round() as usize;
+    let mut best = (f32::INFINITY, 0.0f32);
+    for k in 0..steps {
+        let h = (k as f32 * HEADING_STEP_DEG).to_radians();
+        let (sn, cs) = (-h).sin_cos();
+        xs.clear();
+        ys.clear();
+        for p in points {
+            xs.push(cs * p.x - sn * p.y);
+            ys.push(sn * p.x + cs * p.y);
+        }
+        let area = span(&mut xs) * span(&mut ys);
+        if area < best.0 {
+            best = (area, h);
+        }
+    }
+    best.1
 }
 
 fn median_point(points: &[Vec3]) -> Vec3 {
@@ -790,6 +882,55 @@ mod tests {
             pca.is_err()
                 || Vec3::from(pca.unwrap().normal).angle_between(Vec3::Z).to_degrees() > 5.0
         );
+    }
+
+    /// A walk round a closed room (8 x 6, walls 2.6 high, turned 30 degrees on the ground):
+    /// most sparse points lie on the walls near eye height (what every photo sees at its
+    /// horizon), only 7% on the floor. The band at eye height holds more points than the
+    /// floor; the floor is still the floor, and the room's box is square to its walls.
+    #[test]
+    fn a_band_of_wall_points_at_eye_height_is_not_the_floor() {
+        let mut rng = 777u64;
+        let mut u = || {
+            rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((rng >> 33) as f32) / (1u64 << 31) as f32
+        };
+        let turn = Quat::from_rotation_z(30f32.to_radians());
+        let (hx, hy, eye) = (4.0, 3.0, 1.6);
+        let mut pts = Vec::new();
+        for _ in 0..140 {
+            pts.push(Vec3::new((u() - 0.5) * 2.0 * hx, (u() - 0.5) * 2.0 * hy, 0.0));
+        }
+        for k in 0..1860 {
+            // heights crowd round eye height: the mean of two draws, narrowed
+            let z = (eye + (u() + u() - 1.0) * 0.6).clamp(0.05, 2.6);
+            let a = u() * 2.0 - 1.0;
+            pts.push(match k % 4 {
+                0 => Vec3::new(a * hx, -hy, z),
+                1 => Vec3::new(a * hx, hy, z),
+                2 => Vec3::new(-hx, a * hy, z),
+                _ => Vec3::new(hx, a * hy, z),
+            });
+        }
+        let pts: Vec<Vec3> = pts.into_iter().map(|p| turn * p).collect();
+        let cams: Vec<Camera> = (0..40)
+            .map(|k| {
+                let a = k as f32 / 40.0 * std::f32::consts::TAU;
+                let p = Vec3::new(3.5 * a.cos(), 2.5 * a.sin(), eye + 0.03 * (k % 3) as f32);
+                Camera::look_at(intrinsics(), turn * p, Vec3::new(0.0, 0.0, 0.3), Vec3::Z)
+            })
+            .collect();
+        let g = GroundAlignment::fit_floor(&pts, &cams).unwrap();
+        let floor = g.transform_point(Vec3::new(1.0, 0.5, 0.0));
+        assert!(floor.z.abs() < 0.02, "floor at z = {}", floor.z);
+        let eye_z = g.transform_point(cams[0].position()).z;
+        assert!((eye_z - eye).abs() < 0.05, "camera at z = {eye_z}");
+        let share = g.floor_share.unwrap();
+        assert!((0.05..0.1).contains(&share), "floor share {share}");
+        let lev: Vec<Vec3> = pts.iter().map(|p| g.transform_point(*p)).collect();
+        let e = bounds_from_points(&lev).unwrap().extent();
+        let (long, short) = (e.x.max(e.y), e.x.min(e.y));
+        assert!((8.0..9.0).contains(&long) && (6.0..6.8).contains(&short), "box extent {e}");
     }
 
     #[test]
