@@ -53,11 +53,15 @@ pub fn assetfield_bin() -> PathBuf {
             // always (re)build once per test process: a stale binary from an earlier build
             // would test old code (cheap when it is up to date)
             let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-            let status = Command::new(cargo)
-                .args(["build", "-p", "assetfield-cli", "--bin", "assetfield"])
-                .current_dir(repo())
-                .status()
-                .expect("cargo runs");
+            // the profile the tests were built with (`cargo test --release` tests the
+            // release binary, which is the one next to them)
+            let release = dir.file_name().is_some_and(|n| n == "release");
+            let mut args = vec!["build", "-p", "assetfield-cli", "--bin", "assetfield"];
+            if release {
+                args.push("--release");
+            }
+            let status =
+                Command::new(cargo).args(&args).current_dir(repo()).status().expect("cargo runs");
             assert!(status.success(), "building the assetfield binary failed");
             bin
         })
