@@ -34,8 +34,8 @@ pub use resolve::{
     AssetCatalog, AssetInfo, PartsCatalog, ResolvedInstance, ResolvedLayout, resolve, resolve_with,
 };
 pub use script::{
-    AssetDef, Axis, Edit, Facing, Item, LibraryRef, Lighting, ObjSource, Part, Region, Script,
-    Variation, ViewSettings,
+    AssetDef, Axis, CaptureSettings, Edit, Facing, Item, LibraryRef, Lighting, ObjSource, Part,
+    Region, Script, Variation, ViewSettings,
 };
 pub use source::{
     LoadedScript, append_edits, append_edits_str, load, load_str, load_str_with, load_with,

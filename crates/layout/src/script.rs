@@ -594,6 +594,46 @@ pub struct ViewSettings {
     pub elevation_deg: Option<(f32, f32)>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fov_deg: Option<f32>,
+    /// Photograph the scene as a hand-held capture inside the room instead of from the orbit
+    /// around it (`assetfield synth --capture`): `capture: ()` for the defaults.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub capture: Option<CaptureSettings>,
+}
+
+/// A hand-held capture of a room, as `assetfield synth --capture` takes it: cameras along a
+/// walking path at eye height inside the script's `extent`, each photo with its own exposure
+/// and white balance, sensor noise, opaque images over a sky. Unset fields take the
+/// defaults that `assetfield-synth` documents.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CaptureSettings {
+    /// Camera height above the ground, scene units [default: 1.6 m in the script's units].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eye_height: Option<f32>,
+    /// Distance of the walking path inside the extent's edges, scene units [default: 0.5 m].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path_inset: Option<f32>,
+    /// Standard deviation of each photo's exposure, stops (log2 of the gain) [default 0.25].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exposure_stops: Option<f32>,
+    /// Standard deviation of each photo's per-channel white-balance gain, as a fraction
+    /// [default 0.04].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub white_balance: Option<f32>,
+    /// Standard deviation of the sensor noise, fraction of full scale, independent per pixel
+    /// and channel [default 0.01: 2.5 of 255].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<f32>,
+    /// Seed of the path's jitter, the exposures and the noise [default 0].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+}
+
+impl CaptureSettings {
+    /// Allowed exposure spread, stops.
+    pub const EXPOSURE_STOPS: RangeInclusive<f32> = 0.0..=2.0;
+    /// Allowed white-balance and noise spreads, fractions.
+    pub const SPREAD: RangeInclusive<f32> = 0.0..=0.5;
 }
 
 impl ViewSettings {

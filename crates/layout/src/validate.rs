@@ -10,8 +10,8 @@
 
 use crate::error::{InvalidValue, LayoutError, Location};
 use crate::script::{
-    AssetDef, Edit, Facing, Item, LibraryRef, Lighting, ObjSource, Part, Region, Script, V2, V3,
-    Variation, ViewSettings,
+    AssetDef, CaptureSettings, Edit, Facing, Item, LibraryRef, Lighting, ObjSource, Part, Region,
+    Script, V2, V3, Variation, ViewSettings,
 };
 use crate::source::{EditNode, ItemNode, SourceFile};
 use std::fmt::Display;
@@ -396,6 +396,26 @@ pub fn views(v: &ViewSettings, location: &Location) -> Result<(), LayoutError> {
     if let Some(f) = v.fov_deg {
         let r = ViewSettings::FOV_DEG;
         c.within("fov_deg", f, *r.start(), *r.end())?;
+    }
+    if let Some(cap) = &v.capture {
+        let c = Check { location, item: "views.capture".into() };
+        if let Some(h) = cap.eye_height {
+            c.positive("eye_height", h)?;
+        }
+        if let Some(d) = cap.path_inset {
+            c.positive("path_inset", d)?;
+        }
+        let stops = CaptureSettings::EXPOSURE_STOPS;
+        if let Some(e) = cap.exposure_stops {
+            c.within("exposure_stops", e, *stops.start(), *stops.end())?;
+        }
+        let spread = CaptureSettings::SPREAD;
+        if let Some(w) = cap.white_balance {
+            c.within("white_balance", w, *spread.start(), *spread.end())?;
+        }
+        if let Some(n) = cap.noise {
+            c.within("noise", n, *spread.start(), *spread.end())?;
+        }
     }
     Ok(())
 }

@@ -7,11 +7,13 @@
 //! - [`sh3f`]: Sweet Home 3D furniture catalogs (real meshes read from `.sh3f` zips);
 //! - [`random`]: random scenes drawn from a seed (`assetfield synth --random SEED`);
 //! - [`tracer`]: the CPU ray tracer (Lambert + ambient, anti-aliasing, transparent background);
+//! - [`capture`]: hand-held captures: a walking path inside the room, exposure, noise, sky;
 //! - [`synth`]: the camera rig and dataset writer behind `assetfield synth`;
 //! - [`export`]: the scene as meshes (OBJ, MTL, textures) for another renderer.
 
 pub mod assets;
 pub mod bvh;
+pub mod capture;
 pub mod curated;
 pub mod error;
 pub mod export;

@@ -25,7 +25,9 @@ use crate::curated::{CURATED, CuratedModel, Placement, asset_name};
 use assetfield_core::Rect2;
 use assetfield_layout::resolve::asset_info_from_bounds;
 use assetfield_layout::rng::Rng;
-use assetfield_layout::script::{AssetDef, Item, ObjSource, Part, Region, Variation, ViewSettings};
+use assetfield_layout::script::{
+    AssetDef, CaptureSettings, Item, ObjSource, Part, Region, Variation, ViewSettings,
+};
 use assetfield_layout::source::{parse_script, write_script};
 use assetfield_layout::{AssetCatalog, AssetInfo, Script, load_str, resolve};
 use glam::Vec2;
@@ -192,6 +194,9 @@ enum FloorKind {
 }
 
 impl FloorKind {
+    /// The floors made of tiles (a pattern to match between photos).
+    const TILED: [FloorKind; 4] =
+        [FloorKind::Checker, FloorKind::Planks, FloorKind::Carpet, FloorKind::Asphalt];
     const ALL: [FloorKind; 8] = [
         FloorKind::None,
         FloorKind::ThinSlab,
@@ -340,6 +345,129 @@ fn wall_parts(rng: &mut Rng, hx: f32, hy: f32, u: f32) -> Vec<Part> {
         .collect()
 }
 
+/// A captured room's walls (metres): full height, so that the room is closed around the
+/// walking cameras and only the sky shows over them.
+const ROOM_HEIGHT: (f32, f32) = (2.4, 3.0);
+/// The wallpaper's panels (metres, width and height ranges): a grid of panels in two shades
+/// drawn at random, each a little off its shade, rows offset by half a panel as bricks are:
+/// corners everywhere, what structure from motion matches between photos.
+const PANEL_WIDTH: (f32, f32) = (0.25, 0.5);
+const PANEL_HEIGHT: (f32, f32) = (0.15, 0.3);
+/// Pictures per wall (inclusive range), their side (metres), the height of their centre
+/// above the floor (metres) and how far they stand off the wall (metres, frame depth).
+const PICTURES_PER_WALL: (usize, usize) = (2, 4);
+const PICTURE_SIDE: (f32, f32) = (0.5, 1.2);
+const PICTURE_HEIGHT: (f32, f32) = (1.2, 1.7);
+const PICTURE_DEPTH: f32 = 0.03;
+/// A picture's canvas: a grid of this many colour cells per side (inclusive range) inside a
+/// frame of [`PICTURE_FRAME`] metres: corners for feature matching, as a painting has.
+const PICTURE_CELLS: (usize, usize) = (3, 6);
+const PICTURE_FRAME: f32 = 0.04;
+/// The band between the furniture and a captured room's walls, metres: the walking path
+/// lies in its middle ([`crate::capture::PATH_INSET_M`]).
+const WALK_MARGIN: f32 = 1.0;
+
+/// Which kind of scene a seed draws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Style {
+    /// Objects in a room seen from an orbit around it: low walls on 0-3 sides, any floor.
+    Orbit,
+    /// A room to photograph from inside (`synth --random SEED --capture`): walls all round
+    /// at full height with wallpaper and pictures, a tiled floor, a walking margin between
+    /// the furniture and the walls, and the capture rig in its `views`.
+    Capture,
+}
+
+/// A captured room's walls on all four sides of `[-hx, hx] x [-hy, hy]` (scene units, `u`
+/// per metre): panelled wallpaper and framed pictures on the inner faces.
+fn capture_wall_parts(rng: &mut Rng, hx: f32, hy: f32, u: f32) -> Vec<Part> {
+    let h = rng.range(ROOM_HEIGHT.0, ROOM_HEIGHT.1) * u;
+    let t = WALL_THICKNESS * u;
+    // a light shade and a darker one of about the same hue
+    let light =
+        (round3(rng.range(0.6, 0.92)), round3(rng.range(0.55, 0.9)), round3(rng.range(0.5, 0.88)));
+    let k = rng.range(0.45, 0.65);
+    let (a, b) = (light, (round3(light.0 * k), round3(light.1 * k), round3(light.2 * k)));
+    let panel_w = rng.range(PANEL_WIDTH.0, PANEL_WIDTH.1) * u;
+    let rows = ((h / (rng.range(PANEL_HEIGHT.0, PANEL_HEIGHT.1) * u)).round() as usize).max(1);
+    let panel_h = h / rows as f32;
+    let mut parts = Vec::new();
+    for side in 0..4 {
+        // `along`: half the wall's length; a box at (s along the wall, n off its inner face
+        // towards the outside, z) of size (sa along, sn across, sz)
+        let along = if side % 2 == 0 { hx + t } else { hy };
+        let place = |s: f32, n: f32, z: f32, sa: f32, sn: f32, sz: f32, c| {
+            let (center, size) = match side {
+                0 => ((s, -hy - n), (sa, sn)),
+                1 => ((hx + n, s), (sn, sa)),
+                2 => ((-s, hy + n), (sa, sn)),
+                _ => ((-hx - n, -s), (sn, sa)),
+            };
+            tile_box(
+                (round3(center.0), round3(center.1), round3(z)),
+                (round3(size.0), round3(size.1), round3(sz)),
+                c,
+            )
+        };
+        let n = ((2.0 * along) / panel_w).ceil().max(1.0) as usize;
+        let w = 2.0 * along / n as f32;
+        for row in 0..rows {
+            // odd rows offset by half a panel: a half panel at each end
+            let edges: Vec<f32> = if row % 2 == 0 {
+                (0..=n).map(|k| -along + k as f32 * w).collect()
+            } else {
+                std::iter::once(-along)
+                    .chain((0..n).map(|k| -along + (k as f32 + 0.5) * w))
+                    .chain(std::iter::once(along))
+                    .collect()
+            };
+            let z = (row as f32 + 0.5) * panel_h;
+            for e in edges.windows(2) {
+                let base = if rng.f32() < 0.5 { a } else { b };
+                let j = rng.range(0.9, 1.1);
+                let c = (round3(base.0 * j), round3(base.1 * j), round3(base.2 * j));
+                parts.push(place(0.5 * (e[0] + e[1]), 0.5 * t, z, e[1] - e[0], t, panel_h, c));
+            }
+        }
+        let count = int_in(rng, PICTURES_PER_WALL.0, PICTURES_PER_WALL.1);
+        let slot = 2.0 * (along - t) / count as f32;
+        for p in 0..count {
+            let side_m = rng.range(PICTURE_SIDE.0, PICTURE_SIDE.1).min(0.8 * slot / u);
+            let (pw, ph) = (side_m * u * rng.range(0.8, 1.25), side_m * u);
+            let s = -(along - t) + (p as f32 + 0.5) * slot + rng.range(-0.1, 0.1) * slot;
+            let z = rng.range(PICTURE_HEIGHT.0, PICTURE_HEIGHT.1) * u;
+            let d = PICTURE_DEPTH * u;
+            let dark = round3(rng.range(0.05, 0.3));
+            parts.push(place(
+                s,
+                -0.5 * d,
+                z,
+                pw,
+                d,
+                ph,
+                (dark, round3(dark * 0.9), round3(dark * 0.8)),
+            ));
+            let frame = PICTURE_FRAME * u;
+            let (cw, ch) = (pw - 2.0 * frame, ph - 2.0 * frame);
+            let (nx, ny) = (
+                int_in(rng, PICTURE_CELLS.0, PICTURE_CELLS.1),
+                int_in(rng, PICTURE_CELLS.0, PICTURE_CELLS.1),
+            );
+            for i in 0..nx {
+                for j in 0..ny {
+                    let c = (round3(rng.f32()), round3(rng.f32()), round3(rng.f32()));
+                    let cs = s - 0.5 * cw + (i as f32 + 0.5) * cw / nx as f32;
+                    let cz = z - 0.5 * ch + (j as f32 + 0.5) * ch / ny as f32;
+                    // a hair in front of the frame's face
+                    let cd = 0.1 * d;
+                    parts.push(place(cs, -d - 0.5 * cd, cz, cw / nx as f32, cd, ch / ny as f32, c));
+                }
+            }
+        }
+    }
+    parts
+}
+
 /// What a drawn scene holds, for reports and tests.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RandomScene {
@@ -356,12 +484,17 @@ pub struct RandomScene {
 /// Draw the scene of `seed` (see the module docs). The same seed gives the same script, byte
 /// for byte, on every machine.
 pub fn random_scene(seed: u64) -> Result<RandomScene, SynthError> {
+    random_scene_styled(seed, Style::Orbit)
+}
+
+/// Draw the scene of `seed` in a [`Style`]: [`random_scene`] for [`Style::Orbit`].
+pub fn random_scene_styled(seed: u64, style: Style) -> Result<RandomScene, SynthError> {
     let pool = candidates()?;
     let mut last_err = None;
     for attempt in 0..ATTEMPTS {
         // GROW^attempt by multiplication (powi's rounding may vary by platform)
         let grow = (0..attempt).fold(1.0f32, |g, _| g * GROW);
-        let scene = draw(seed, &pool, grow)?;
+        let scene = draw(seed, &pool, grow, style)?;
         // check that every scatter fits, with the sizes synthesis will use
         let loaded = load_str(Path::new(&format!("random_{seed}.ron")), &scene.text)?;
         match resolve(&loaded, &scene.catalog()?) {
@@ -397,7 +530,7 @@ impl RandomScene {
 /// categories, the room and its container, touching pairs, scatters, objects on tables and
 /// spare categories, in that order. Every step draws from one generator in a fixed order,
 /// so a seed gives the same scene on every machine.
-fn draw(seed: u64, pool: &[Candidate], grow: f32) -> Result<RandomScene, SynthError> {
+fn draw(seed: u64, pool: &[Candidate], grow: f32, style: Style) -> Result<RandomScene, SynthError> {
     let mut rng = Rng::stream(seed, "random-scene");
     let u = round3(rng.range(UNITS_PER_METRE.0, UNITS_PER_METRE.1));
     let picked = Picked::draw(&mut rng, pool);
@@ -410,6 +543,7 @@ fn draw(seed: u64, pool: &[Candidate], grow: f32) -> Result<RandomScene, SynthEr
         u,
         hx,
         hy,
+        style,
         assets: BTreeMap::new(),
         layout: Vec::new(),
         taken: Vec::new(),
@@ -432,10 +566,18 @@ fn draw(seed: u64, pool: &[Candidate], grow: f32) -> Result<RandomScene, SynthEr
     categories.extend(used_tops);
     categories.extend(d.spare_categories(&picked.floors, categories.len()));
     let Drawing { assets, layout, .. } = d;
+    let (name, room, capture) = match style {
+        Style::Orbit => (format!("random_{seed}"), (hx, hy), None),
+        Style::Capture => {
+            let m = round3(WALK_MARGIN * u);
+            let settings = CaptureSettings { seed: Some(seed), ..Default::default() };
+            (format!("capture_{seed}"), (round3(hx + m), round3(hy + m)), Some(settings))
+        }
+    };
     let script = Script {
-        name: Some(format!("random_{seed}")),
+        name: Some(name),
         assets,
-        extent: Some(((-hx, -hy), (hx, hy))),
+        extent: Some(((-room.0, -room.1), room)),
         views: Some(ViewSettings {
             count: None,
             test: None,
@@ -443,14 +585,16 @@ fn draw(seed: u64, pool: &[Candidate], grow: f32) -> Result<RandomScene, SynthEr
             radius: None,
             elevation_deg: None,
             fov_deg: None,
+            capture,
         }),
         units_per_metre: Some(u),
         layout,
         ..Script::default()
     };
     let body = write_script(&script)?;
+    let flag = if style == Style::Capture { " --capture" } else { "" };
     let text = format!(
-        "// Random scene {seed} drawn by `assetfield synth --random {seed}` ({} categories, floor: {}, {:.3} scene units per metre).\n// Rendering this file gives the same dataset: assetfield synth THIS_FILE\n{body}",
+        "// Random scene {seed} drawn by `assetfield synth --random {seed}{flag}` ({} categories, floor: {}, {:.3} scene units per metre).\n// Rendering this file gives the same dataset: assetfield synth THIS_FILE\n{body}",
         categories.len(),
         floor.name(),
         u
@@ -523,6 +667,7 @@ struct Drawing {
     layout: Vec<Item>,
     /// The boxes of the touching pairs placed so far (scatters keep clear by themselves).
     taken: Vec<Rect2>,
+    style: Style,
 }
 
 impl Drawing {
@@ -536,9 +681,21 @@ impl Drawing {
     /// The floor and walls, as one container instance named `room` (where there is either).
     fn container(&mut self) -> FloorKind {
         let (hx, hy, u) = (self.hx, self.hy, self.u);
-        let floor = FloorKind::ALL[self.rng.below(FloorKind::ALL.len())];
-        let mut container_parts = floor_parts(&mut self.rng, floor, hx, hy, u);
-        let walls = wall_parts(&mut self.rng, hx, hy, u);
+        let (floor, mut container_parts, walls) = match self.style {
+            Style::Orbit => {
+                let floor = FloorKind::ALL[self.rng.below(FloorKind::ALL.len())];
+                let parts = floor_parts(&mut self.rng, floor, hx, hy, u);
+                (floor, parts, wall_parts(&mut self.rng, hx, hy, u))
+            }
+            Style::Capture => {
+                // a floor with texture for structure from motion, under the walking margin too
+                let floor = FloorKind::TILED[self.rng.below(FloorKind::TILED.len())];
+                let m = WALK_MARGIN * u;
+                let (rx, ry) = (round3(hx + m), round3(hy + m));
+                let parts = floor_parts(&mut self.rng, floor, rx, ry, u);
+                (floor, parts, capture_wall_parts(&mut self.rng, rx, ry, u))
+            }
+        };
         let has_walls = !walls.is_empty();
         if !container_parts.is_empty() || has_walls {
             let name = if container_parts.is_empty() { "walls" } else { floor.name() };

@@ -10,14 +10,15 @@
 
 use crate::SynthError;
 use crate::assets::AssetSet;
+use crate::capture::{CaptureConfig, Photo, capture_rig, develop, sky};
 use crate::tracer::{Light, Scene};
 use assetfield_core::fsx::{StagingDir, write_atomic};
-use assetfield_core::{Aabb3, Camera, Intrinsics, interrupt};
+use assetfield_core::{Aabb3, Camera, Intrinsics, Rect2, interrupt};
 use assetfield_data::{FrameEntry, TransformsFile, write_transforms};
 use assetfield_layout::{
     GtLayout, InvalidValue, LoadedScript, Location, ResolvedLayout, ViewSettings, resolve,
 };
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -36,6 +37,9 @@ pub struct SynthOptions {
     /// Also write the scene's meshes into `mesh/` ([`crate::export::export_obj`]), for
     /// rendering the same cameras with another renderer.
     pub mesh: bool,
+    /// Photograph the scene as a hand-held capture ([`crate::capture`]) even when its script
+    /// does not ask for one (`views: (capture: ...)`).
+    pub capture: bool,
 }
 
 /// Validated settings, ready to run.
@@ -89,7 +93,10 @@ impl SynthConfig {
             radius: None,
             elevation_deg: None,
             fov_deg: None,
+            capture: None,
         });
+        let fov_default =
+            if opts.capture || s.capture.is_some() { crate::capture::FOV_DEG } else { d.fov_deg };
         let origin = |flag: bool, script: bool| match (flag, script) {
             (true, _) => Origin::Flag,
             (false, true) => Origin::Script,
@@ -111,7 +118,7 @@ impl SynthConfig {
             resolution: opts.resolution.or(s.resolution).unwrap_or(d.resolution),
             radius: opts.radius.or(s.radius),
             elevation_deg: opts.elevation_deg.or(s.elevation_deg).unwrap_or(d.elevation_deg),
-            fov_deg: opts.fov_deg.or(s.fov_deg).unwrap_or(d.fov_deg),
+            fov_deg: opts.fov_deg.or(s.fov_deg).unwrap_or(fov_default),
             samples_per_side: opts.samples_per_side.unwrap_or(d.samples_per_side),
         };
         let Some(p) = cfg.problem() else { return Ok(cfg) };
@@ -312,9 +319,7 @@ pub fn camera_rig(bounds: &Aabb3, cfg: &SynthConfig) -> Vec<RigView> {
     let (z0, z1) = (cfg.elevation_deg.0.to_radians().sin(), cfg.elevation_deg.1.to_radians().sin());
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
     let n = cfg.views;
-    let test: Vec<u32> = (0..cfg.test_views)
-        .map(|t| (((t as f32 + 0.5) * n as f32) / cfg.test_views as f32) as u32)
-        .collect();
+    let test = test_indices(cfg);
     (0..n)
         .map(|k| {
             let z = z0 + (z1 - z0) * (k as f32 + 0.5) / n as f32;
@@ -325,6 +330,26 @@ pub fn camera_rig(bounds: &Aabb3, cfg: &SynthConfig) -> Vec<RigView> {
             RigView { camera, test: test.contains(&k) }
         })
         .collect()
+}
+
+/// The indices of the held-out views among `cfg.views`: `cfg.test_views` of them, evenly
+/// interleaved.
+pub fn test_indices(cfg: &SynthConfig) -> Vec<u32> {
+    let n = cfg.views;
+    (0..cfg.test_views)
+        .map(|t| (((t as f32 + 0.5) * n as f32) / cfg.test_views as f32) as u32)
+        .collect()
+}
+
+/// A capture's settings and how each of its photos was developed (train views, then test
+/// views, in file order).
+#[derive(Debug, Clone, Serialize)]
+pub struct CaptureReport {
+    pub settings: CaptureConfig,
+    /// The room the cameras walked in (the script's extent), scene units.
+    pub room: [[f32; 2]; 2],
+    pub train_gains: Vec<[f32; 3]>,
+    pub test_gains: Vec<[f32; 3]>,
 }
 
 /// What a synthesis run produced.
@@ -348,6 +373,9 @@ pub struct SynthReport {
     /// Triangles written to `mesh/scene.obj` (with `--mesh`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mesh_triangles: Option<usize>,
+    /// With `--capture`: the capture's settings and every photo's gain.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub capture: Option<CaptureReport>,
 }
 
 /// Progress of a run: views rendered so far and in all.
@@ -448,7 +476,33 @@ pub fn synthesize_loaded(
     };
 
     let bounds = world.bounds();
-    let rig = camera_rig(&bounds, &cfg);
+    let capture = (opts.capture || script.views.as_ref().is_some_and(|v| v.capture.is_some()))
+        .then(|| {
+            let settings = script.views.as_ref().and_then(|v| v.capture).unwrap_or_default();
+            CaptureConfig::resolve(&settings, script.units_per_metre.unwrap_or(1.0))
+        });
+    let room = script
+        .extent
+        .map(|((x0, y0), (x1, y1))| Rect2::new(Vec2::new(x0, y0), Vec2::new(x1, y1)))
+        .unwrap_or_else(|| bounds.bev());
+    let (rig, photos): (Vec<RigView>, Vec<Option<Photo>>) = match &capture {
+        Some(cap) => capture_rig(room, cfg.intrinsics(), cfg.views, &test_indices(&cfg), cap)?
+            .into_iter()
+            .map(|(v, p)| (v, Some(p)))
+            .unzip(),
+        None => camera_rig(&bounds, &cfg).into_iter().map(|v| (v, None)).unzip(),
+    };
+    // one view as the camera saw it: over the sky and developed for a capture, else with
+    // a transparent background
+    let shoot = |scene: &Scene, k: usize, camera: &Camera| match (&capture, photos[k]) {
+        (Some(cap), Some(photo)) => {
+            let light = scene.light.direction;
+            let pixels = scene.render_over(camera, cfg.samples_per_side, &|d| sky(d, light));
+            let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
+            image::DynamicImage::ImageRgb8(develop(&pixels, w, h, &photo, cap, k as u64))
+        }
+        _ => image::DynamicImage::ImageRgba8(scene.render(camera, cfg.samples_per_side)),
+    };
     let staging = StagingDir::new(out, overwrite)?;
     let dir = staging.path().to_path_buf();
     for sub in ["train", "test"] {
@@ -458,16 +512,22 @@ pub fn synthesize_loaded(
     let n_edit = if edited_scene.is_some() { cfg.test_views as usize } else { 0 };
     let total = rig.len() + n_edit;
     let (mut train, mut test) = (Vec::new(), Vec::new());
+    // the rig index of every view, train then test (the edited views reuse the test ones')
+    let (mut train_k, mut test_k) = (Vec::new(), Vec::new());
     for (k, view) in rig.iter().enumerate() {
         interrupt::check()?;
-        let (split, list) = if view.test { ("test", &mut test) } else { ("train", &mut train) };
+        let (split, list, ks) = if view.test {
+            ("test", &mut test, &mut test_k)
+        } else {
+            ("train", &mut train, &mut train_k)
+        };
         let name = rel_name(split, list.len());
-        let img = world.render(&view.camera, cfg.samples_per_side);
         assetfield_core::fsx::save_png(
             &dir.join(format!("{name}.png")),
-            &image::DynamicImage::ImageRgba8(img),
+            &shoot(&world, k, &view.camera),
         )?;
         list.push((name, view.camera));
+        ks.push(k);
         progress(k + 1, total);
     }
     let fov = cfg.fov_deg.to_radians();
@@ -489,12 +549,11 @@ pub fn synthesize_loaded(
         let edir = dir.join("edited");
         std::fs::create_dir_all(edir.join("test"))
             .map_err(|e| assetfield_core::CoreError::io(&edir, e))?;
-        for (k, (name, cam)) in test.iter().enumerate() {
+        for (k, ((name, cam), &rig_k)) in test.iter().zip(&test_k).enumerate() {
             interrupt::check()?;
-            let img = escene.render(cam, cfg.samples_per_side);
             assetfield_core::fsx::save_png(
                 &edir.join(format!("{name}.png")),
-                &image::DynamicImage::ImageRgba8(img),
+                &shoot(escene, rig_k, cam),
             )?;
             progress(rig.len() + k + 1, total);
         }
@@ -525,6 +584,16 @@ pub fn synthesize_loaded(
         seconds,
         rays_per_second: rays / seconds.max(1e-9),
         mesh_triangles: mesh.map(|m| m.triangles),
+        capture: capture.map(|settings| {
+            let gains =
+                |ks: &[usize]| ks.iter().filter_map(|&k| photos[k]).map(|p| p.gain).collect();
+            CaptureReport {
+                settings,
+                room: [room.min.to_array(), room.max.to_array()],
+                train_gains: gains(&train_k),
+                test_gains: gains(&test_k),
+            }
+        }),
     };
     let json = serde_json::to_string_pretty(&report).expect("report serialises");
     write_atomic(&dir.join("synth.json"), json.as_bytes())?;

@@ -1,6 +1,7 @@
 //! The ground-truth renderer: a two-level BVH (instances, then each asset's shapes), a fixed
 //! directional light with Lambert shading plus ambient light, optional hard shadows,
-//! stratified anti-aliasing and a transparent background; rows in parallel with rayon.
+//! stratified anti-aliasing and a transparent background (or, for photographs, a background
+//! colour per direction); rows in parallel with rayon.
 
 use crate::assets::AssetSet;
 use crate::bvh::Bvh;
@@ -133,6 +134,36 @@ impl Scene {
             }
         }
         Some(h.color * (l.ambient + (1.0 - l.ambient) * diffuse))
+    }
+
+    /// Render a view over a background: linear colour per pixel (row-major, not clamped),
+    /// the mean of `samples_per_side^2` stratified samples, where a sample that hits nothing
+    /// takes `background(direction)`. What a photograph sees: no alpha.
+    pub fn render_over(
+        &self,
+        camera: &Camera,
+        samples_per_side: u32,
+        background: &(dyn Fn(Vec3) -> Vec3 + Sync),
+    ) -> Vec<Vec3> {
+        let (w, h) = (camera.intrinsics.width as usize, camera.intrinsics.height as usize);
+        let n = samples_per_side.max(1);
+        let mut out = vec![Vec3::ZERO; w * h];
+        out.par_chunks_mut(w.max(1)).enumerate().for_each(|(j, row)| {
+            for (i, px) in row.iter_mut().enumerate() {
+                let mut sum = Vec3::ZERO;
+                for a in 0..n {
+                    for b in 0..n {
+                        let u = i as f32 + (b as f32 + 0.5) / n as f32;
+                        let v = j as f32 + (a as f32 + 0.5) / n as f32;
+                        let ray = camera.ray(u, v);
+                        sum +=
+                            self.shade(ray.origin, ray.dir).unwrap_or_else(|| background(ray.dir));
+                    }
+                }
+                *px = sum / (n * n) as f32;
+            }
+        });
+        out
     }
 
     /// Render a view as straight-alpha RGBA8: `samples_per_side^2` stratified samples per

@@ -3,6 +3,7 @@
 use super::util::progress_bar;
 use anyhow::{Context, Result};
 use assetfield_data::{Dataset, DatasetSummary, LoadOptions, Split};
+use assetfield_synth::random::Style;
 use assetfield_synth::{LoadedScene, SynthOptions, synthesize, synthesize_loaded};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -63,6 +64,16 @@ pub struct SynthArgs {
     /// scripts/blender_render.py renders the dataset again with Blender's Cycles.
     #[arg(long)]
     pub mesh: bool,
+    /// Photograph the scene as a hand-held capture: cameras along a walking path at eye
+    /// height (1.6 m) inside the scene's extent (0.5 m from its edges), looking into the
+    /// room and down at it, each photo with its own exposure (0.25 stops) and white balance
+    /// (4%), sensor noise (1% of full scale), opaque over a sky; 60 degrees field of view
+    /// unless --fov. With --random, the drawn room is one to photograph from inside: walls
+    /// all round at full height with striped wallpaper and framed pictures, a tiled floor, a
+    /// walking margin of 1 m around the furniture. A script asks for the same with
+    /// `views: (capture: ())`; synth.json records every photo's gain.
+    #[arg(long)]
+    pub capture: bool,
     /// Replace the output folder if it exists.
     #[arg(long)]
     pub force: bool,
@@ -81,7 +92,8 @@ pub fn synth(a: SynthArgs) -> Result<()> {
     }
     let random = match a.random {
         Some(seed) => {
-            let r = assetfield_synth::random::random_scene(seed)
+            let style = if a.capture { Style::Capture } else { Style::Orbit };
+            let r = assetfield_synth::random::random_scene_styled(seed, style)
                 .with_context(|| format!("drawing random scene {seed}"))?;
             if let Some(f) = &a.write_script {
                 assetfield_core::fsx::write_atomic(f, r.text.as_bytes())
@@ -92,7 +104,10 @@ pub fn synth(a: SynthArgs) -> Result<()> {
         None => None,
     };
     let scene = match (&random, &a.scene) {
-        (Some(r), _) => PathBuf::from(format!("random_{}.ron", r.seed)),
+        (Some(r), _) => PathBuf::from(format!(
+            "{}.ron",
+            r.script.name.clone().unwrap_or_else(|| format!("random_{}", r.seed))
+        )),
         (None, Some(s)) => s.clone(),
         (None, None) => anyhow::bail!("give a scene script or --random SEED"),
     };
@@ -108,6 +123,7 @@ pub fn synth(a: SynthArgs) -> Result<()> {
         radius: a.radius,
         elevation_deg: elevation,
         fov_deg: a.fov,
+        capture: a.capture,
         samples_per_side: a.aa,
         mesh: a.mesh,
     };
