@@ -156,6 +156,15 @@ pub struct TrainArgs {
     /// the default, gives every sample its own density gradient (fields mine as measured).
     #[arg(long, default_value_t = assetfield_field::train::DEFAULT_DENSITY_GRAD_ALPHA)]
     pub density_grad_alpha: f32,
+    /// Weight of the total variation of the density planes (the mean squared difference of
+    /// neighbouring texels), which smooths floaters away where few views constrain the field;
+    /// 0, the default, as TensoRF for renders (TensoRF uses 1.0 for forward-facing
+    /// captures).
+    #[arg(long, default_value_t = 0.0, value_name = "WEIGHT")]
+    pub tv_density: f32,
+    /// Weight of the total variation of the colour planes, as --tv-density.
+    #[arg(long, default_value_t = 0.0, value_name = "WEIGHT")]
+    pub tv_color: f32,
     /// Colour decoder: mlp or sh (spherical harmonics, degree 2).
     /// [default: mlp; with --share, the shared decoder]
     #[arg(long, value_enum)]
@@ -369,6 +378,11 @@ pub(crate) fn check_options(a: &TrainArgs) -> Result<usize> {
             bail!("{flag} {v} must be between 0 and 1");
         }
     }
+    for (flag, v) in [("--tv-density", a.tv_density), ("--tv-color", a.tv_color)] {
+        if !(v.is_finite() && v >= 0.0) {
+            bail!("{flag} {v} must be 0 or more");
+        }
+    }
     if a.iters == Some(0) {
         bail!("--iters must be at least 1");
     }
@@ -405,6 +419,8 @@ pub(crate) fn train_config(
     tc.batch = a.batch;
     tc.color_grad_weight = a.color_grad_weight;
     tc.density_grad_alpha = a.density_grad_alpha;
+    tc.tv_weight_density = a.tv_density;
+    tc.tv_weight_color = a.tv_color;
     tc.iters = match (a.iters, seconds) {
         (Some(n), _) => n,
         (None, Some(_)) => u64::MAX,
