@@ -1096,4 +1096,25 @@ mod tests {
         );
         assert_eq!(checkpoint_path(Path::new("f")), PathBuf::from("f.ckpt.safetensors"));
     }
+
+    fn parse(args: &[&str]) -> TrainArgs {
+        let mut all = vec!["assetfield", "train", "data", "--out", "f.safetensors"];
+        all.extend_from_slice(args);
+        match crate::Cli::try_parse_from_args(&all).unwrap().command {
+            crate::Command::Train(a) => a,
+            _ => unreachable!("a train command"),
+        }
+    }
+
+    #[test]
+    fn total_variation_weights_reach_the_trainer_and_are_checked() {
+        let a = parse(&["--tv-density", "1", "--tv-color", "0.5"]);
+        check_options(&a).unwrap();
+        let tc = train_config(&a, ModelKind::Standard, 64, [1.0; 3]);
+        assert_eq!((tc.tv_weight_density, tc.tv_weight_color), (1.0, 0.5));
+        let d = train_config(&parse(&[]), ModelKind::Standard, 64, [1.0; 3]);
+        assert_eq!((d.tv_weight_density, d.tv_weight_color), (0.0, 0.0));
+        let e = check_options(&parse(&["--tv-color=-1"])).unwrap_err().to_string();
+        assert!(e.contains("--tv-color -1 must be 0 or more"), "{e}");
+    }
 }
