@@ -92,10 +92,8 @@ pub struct ColmapImage {
 impl ColmapImage {
     /// Camera-to-world in OpenGL camera axes: `[R^T | -R^T t]` with the y and z axes turned.
     pub fn c2w(&self) -> Mat4 {
-        let [w, x, y, z] = self.qvec;
-        let r = DMat3::from_quat(DQuat::from_xyzw(x, y, z, w));
-        let rt = r.transpose();
-        let centre = -(rt * DVec3::from(self.tvec));
+        let rt = self.rotation().transpose();
+        let centre = self.centre();
         let flip = DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0));
         let m = rt * flip;
         let c = |v: DVec3| v.as_vec3().extend(0.0);
@@ -104,9 +102,13 @@ impl ColmapImage {
 
     /// The camera centre in world coordinates.
     pub fn centre(&self) -> DVec3 {
+        -(self.rotation().transpose() * DVec3::from(self.tvec))
+    }
+
+    /// The world-to-camera rotation.
+    fn rotation(&self) -> DMat3 {
         let [w, x, y, z] = self.qvec;
-        let r = DMat3::from_quat(DQuat::from_xyzw(x, y, z, w));
-        -(r.transpose() * DVec3::from(self.tvec))
+        DMat3::from_quat(DQuat::from_xyzw(x, y, z, w))
     }
 }
 

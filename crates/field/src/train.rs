@@ -1209,6 +1209,36 @@ pub fn render_view_unless(
     background: Vec3,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<Vec<f32>> {
+    render_tiles(field, occ, camera, Backdrop::Colour(background), stop)
+}
+
+/// [`render_view`] with a background colour per ray direction.
+pub fn render_view_map(
+    field: &Field,
+    occ: Option<&Occupancy>,
+    camera: &Camera,
+    map: &BackgroundMap,
+) -> Vec<f32> {
+    render_tiles(field, occ, camera, Backdrop::Map(map), &|| false)
+        .expect("a render nothing stops finishes")
+}
+
+/// What a rendered view shows where the field is transparent.
+#[derive(Clone, Copy)]
+enum Backdrop<'a> {
+    Colour(Vec3),
+    Map(&'a BackgroundMap),
+}
+
+/// A view rendered in tiles of about 1024 rays (rows in parallel), `stop` asked before
+/// each: RGB rows, or `None` when stopped.
+fn render_tiles(
+    field: &Field,
+    occ: Option<&Occupancy>,
+    camera: &Camera,
+    backdrop: Backdrop<'_>,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<Vec<f32>> {
     let (w, h) = (camera.intrinsics.width as usize, camera.intrinsics.height as usize);
     let mut out = vec![0.0f32; w * h * 3];
     let settings = MarchSettings::default();
@@ -1227,6 +1257,14 @@ pub fn render_view_unless(
                 .flat_map(|dj| (0..w).map(move |i| (i, j0 + dj)))
                 .map(|(i, j)| camera.pixel_ray(i as u32, j as u32))
                 .collect();
+            work.ray_bg.clear();
+            let background = match backdrop {
+                Backdrop::Colour(c) => c,
+                Backdrop::Map(map) => {
+                    work.ray_bg.extend(rays.iter().map(|r| map.sample(r.dir)));
+                    Vec3::ZERO
+                }
+            };
             march::forward(field, occ, &rays, None, background, &settings, work);
             for (k, c) in work.rgb.iter().enumerate() {
                 dst[k * 3..k * 3 + 3].copy_from_slice(&c.to_array());
@@ -1234,37 +1272,6 @@ pub fn render_view_unless(
         },
     );
     (!stopped.into_inner()).then_some(out)
-}
-
-/// [`render_view`] with a background colour per ray direction.
-pub fn render_view_map(
-    field: &Field,
-    occ: Option<&Occupancy>,
-    camera: &Camera,
-    map: &BackgroundMap,
-) -> Vec<f32> {
-    let (w, h) = (camera.intrinsics.width as usize, camera.intrinsics.height as usize);
-    let mut out = vec![0.0f32; w * h * 3];
-    let settings = MarchSettings::default();
-    let rows_per_task = (1024 / w.max(1)).max(1);
-    out.par_chunks_mut(w * 3 * rows_per_task).enumerate().for_each_init(
-        MarchWork::default,
-        |work, (t, dst)| {
-            let j0 = t * rows_per_task;
-            let rows = dst.len() / (w * 3);
-            let rays: Vec<Ray> = (0..rows)
-                .flat_map(|dj| (0..w).map(move |i| (i, j0 + dj)))
-                .map(|(i, j)| camera.pixel_ray(i as u32, j as u32))
-                .collect();
-            work.ray_bg.clear();
-            work.ray_bg.extend(rays.iter().map(|r| map.sample(r.dir)));
-            march::forward(field, occ, &rays, None, Vec3::ZERO, &settings, work);
-            for (k, c) in work.rgb.iter().enumerate() {
-                dst[k * 3..k * 3 + 3].copy_from_slice(&c.to_array());
-            }
-        },
-    );
-    out
 }
 
 /// Render a view's semantic features (`[height][width][semantic_channels]`) with a field
