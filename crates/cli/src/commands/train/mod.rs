@@ -159,7 +159,8 @@ pub struct TrainArgs {
     /// Weight of the total variation of the density planes (the mean squared difference of
     /// neighbouring texels), which smooths floaters away where few views constrain the field;
     /// 0, the default, as TensoRF for renders (TensoRF uses 1.0 for forward-facing
-    /// captures).
+    /// captures). It costs mining: at 1.0 the evidence plane turns smooth and detection
+    /// blurs objects together (docs/training.md).
     #[arg(long, default_value_t = 0.0, value_name = "WEIGHT")]
     pub tv_density: f32,
     /// Weight of the total variation of the colour planes, as --tv-density.
