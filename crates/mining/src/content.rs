@@ -17,6 +17,7 @@ use crate::planes::OpacityVolume;
 /// suite (23 fields at their full budget, walls and all), the thinnest horizontal spread is
 /// 3.7 (`living_room`) to 9.1 (`random_12`) times the vertical one, so no dev field comes
 /// near it; fixed at the geometric meaning, not tuned.
+// fixed: twice as tall and as long as thick; no dev field comes near it (see above)
 pub const SHEET_RATIO: f32 = 0.5;
 
 /// The vertical spread over the longest horizontal one (standard deviations) from which
@@ -25,6 +26,7 @@ pub const SHEET_RATIO: f32 = 0.5;
 /// most 0.27 of even the thinnest horizontal one; the instant-ngp fox (a head on a wall,
 /// 3000 iterations at a quarter of its size) is 1.0-1.1 of the longest. Fixed at the
 /// geometric meaning (twice as long as tall), not tuned.
+// fixed: twice as long as tall; dev fields stay under 0.27 (see above)
 pub const TALL_RATIO: f32 = 0.5;
 
 /// How a field's content lies.
@@ -110,6 +112,7 @@ pub fn orientation(vol: &OpacityVolume, voxel: [f32; 3]) -> Option<Orientation> 
     let (xx, xy, yy, zz) = (cov(0, 0), cov(0, 1), cov(1, 1), cov(2, 2));
     // the horizontal covariance's eigenvalues and the thinnest direction
     let half_trace = 0.5 * (xx + yy);
+    // fixed: the eigenvalues of a symmetric 2 x 2 matrix
     let root = (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
     let (long, thin) = ((half_trace + root).max(0.0), (half_trace - root).max(0.0));
     let angle = 0.5 * (2.0 * xy).atan2(xx - yy) + std::f64::consts::FRAC_PI_2;
