@@ -135,9 +135,9 @@ pub fn capture_rig(
     let half = 0.5 * (room.max - room.min);
     let mut rng = Rng::stream(cap.seed, "capture-rig");
     let n = views.max(1);
+    let step = perimeter / n as f32;
     Ok((0..n)
         .map(|k| {
-            let step = perimeter / n as f32;
             let s = (k as f32 + 0.5 + STEP_JITTER * normal(&mut rng)) * step;
             let p = along_rect(path, s);
             let z = cap.eye_height * (1.0 + EYE_JITTER * normal(&mut rng));

@@ -74,6 +74,11 @@ pub fn catalog_dir() -> PathBuf {
     }
 }
 
+/// Whether every catalog of [`ALLOWED_CATALOGS`] is in `dir` (as `NAME.sh3f`).
+pub fn catalogs_installed(dir: &Path) -> bool {
+    ALLOWED_CATALOGS.iter().all(|c| dir.join(format!("{c}.sh3f")).is_file())
+}
+
 /// One model of a catalog index.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CatalogModel {

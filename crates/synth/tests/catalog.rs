@@ -8,7 +8,7 @@
 use assetfield_core::{Camera, Intrinsics};
 use assetfield_layout::{load_str, resolve};
 use assetfield_synth::curated::{CURATED, Placement};
-use assetfield_synth::sh3f::{ALLOWED_CATALOGS, Catalog, DIR_ENV, catalog_dir};
+use assetfield_synth::sh3f::{ALLOWED_CATALOGS, Catalog, DIR_ENV, catalog_dir, catalogs_installed};
 use assetfield_synth::{AssetSet, Light, Scene};
 use glam::Vec3;
 use std::path::Path;
@@ -16,7 +16,7 @@ use std::path::Path;
 /// The catalog folder, or `None` after saying loudly why the test does not run.
 fn catalogs_or_skip(test: &str) -> Option<std::path::PathBuf> {
     let dir = catalog_dir();
-    if ALLOWED_CATALOGS.iter().all(|c| dir.join(format!("{c}.sh3f")).is_file()) {
+    if catalogs_installed(&dir) {
         return Some(dir);
     }
     let why = format!(

@@ -6,7 +6,7 @@
 
 use assetfield_layout::{ResolvedLayout, load_str, resolve};
 use assetfield_synth::random::{CATEGORIES, RANDOM_RESOLUTION, UNITS_PER_METRE, random_scene};
-use assetfield_synth::sh3f::{ALLOWED_CATALOGS, DIR_ENV, catalog_dir};
+use assetfield_synth::sh3f::{DIR_ENV, catalog_dir, catalogs_installed};
 use assetfield_synth::{AssetSet, LoadedScene, SynthOptions, synthesize_loaded};
 use glam::Vec2;
 use std::path::{Path, PathBuf};
@@ -35,7 +35,7 @@ fn seeds() -> Seeds {
 
 fn catalogs_or_skip(test: &str) -> bool {
     let dir = catalog_dir();
-    if ALLOWED_CATALOGS.iter().all(|c| dir.join(format!("{c}.sh3f")).is_file()) {
+    if catalogs_installed(&dir) {
         return true;
     }
     let why = format!(
