@@ -11,8 +11,17 @@
 //!
 //! The map is at infinity: what lies beyond the box at a finite distance shows no parallax
 //! between photos, and is blurred over the directions it covers.
+//!
+//! The map lies beyond the box's sides and top only. The box's bottom face is the ground the
+//! planes stand on, and the ground is opaque: a ray that leaves the box through it has met
+//! the floor, and sees the field's plain background colour ([`BackgroundMap::backdrop`]),
+//! never the map. A map that took those rays too would learn the floor as a colour per
+//! direction: an explanation without parallax, right for each photo alone and for none
+//! together once the cameras stand inside the box (a walk through a room, where the floor
+//! is a metre or two below every camera). The field then patches each photo with haze near
+//! its camera, and the floor never forms.
 
-use assetfield_core::TensorFile;
+use assetfield_core::{Aabb3, Ray, TensorFile};
 use glam::Vec3;
 
 /// The tensor a field file holds the map in, `[height][width][3]`.
@@ -63,6 +72,13 @@ impl BackgroundMap {
         ]
     }
 
+    /// What `ray` sees beyond the box `aabb` where the field lets it through: the map in
+    /// its direction, or `ground` (the field's plain background colour) where it leaves the
+    /// box through its floor ([`leaves_through_floor`]).
+    pub fn backdrop(&self, aabb: &Aabb3, ray: &Ray, ground: Vec3) -> Vec3 {
+        if leaves_through_floor(aabb, ray) { ground } else { self.sample(ray.dir) }
+    }
+
     /// The colour seen in direction `d`.
     pub fn sample(&self, d: Vec3) -> Vec3 {
         self.taps(d).iter().fold(Vec3::ZERO, |acc, &(k, wt)| {
@@ -104,6 +120,20 @@ impl BackgroundMap {
     }
 }
 
+/// Whether `ray` leaves `aabb` through its bottom face (the ground): it goes down and meets
+/// the floor's plane no later than any other face's on its way out. A ray that misses the
+/// box, or leaves through a side or the top, does not.
+pub fn leaves_through_floor(aabb: &Aabb3, ray: &Ray) -> bool {
+    if ray.dir.z >= 0.0 || ray.dir.z.is_nan() {
+        return false;
+    }
+    let inv = ray.dir.recip();
+    let Some((_, exit)) = aabb.intersect(ray.origin, inv, f32::INFINITY) else { return false };
+    // the same product the slab test takes for the floor's face, so a ray leaving through
+    // the floor compares equal to its exit
+    (aabb.min.z - ray.origin.z) * inv.z <= exit
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -133,6 +163,33 @@ mod tests {
         assert!((u.sample(Vec3::new(-1.0, 1e-4, 0.1)) - Vec3::new(0.2, 0.5, 0.9)).length() < 1e-6);
         let (a, b) = (m.sample(Vec3::new(-1.0, 1e-4, 0.1)), m.sample(Vec3::new(-1.0, -1e-4, 0.1)));
         assert!((a - b).length() < 1e-3, "{a} vs {b} across the seam");
+    }
+
+    #[test]
+    fn only_rays_that_leave_through_the_floor_see_the_ground() {
+        let aabb = Aabb3::new(Vec3::new(-2.0, -1.0, 0.0), Vec3::new(2.0, 1.0, 1.0));
+        let ray =
+            |o: [f32; 3], d: [f32; 3]| Ray { origin: o.into(), dir: Vec3::from(d).normalize() };
+        let floor = |r: &Ray| leaves_through_floor(&aabb, r);
+        // a camera inside the room: down to the floor; level, up, and down but out through a
+        // wall first
+        let eye = [0.0, 0.0, 0.6];
+        assert!(floor(&ray(eye, [0.3, 0.2, -1.0])));
+        assert!(floor(&ray(eye, [0.0, 0.0, -1.0])));
+        assert!(!floor(&ray(eye, [1.0, 0.0, 0.0])));
+        assert!(!floor(&ray(eye, [0.2, 0.1, 1.0])));
+        assert!(!floor(&ray(eye, [1.0, 0.0, -0.1])));
+        // from outside and above (an orbit): into the box and out through its floor, or
+        // past the box altogether
+        assert!(floor(&ray([0.0, -4.0, 3.0], [0.0, 1.0, -0.8])));
+        assert!(!floor(&ray([0.0, -4.0, 3.0], [0.0, 1.0, -0.1])));
+        assert!(!floor(&ray([0.0, -4.0, 3.0], [0.0, -1.0, -1.0])));
+        // what the map is asked for: the ground colour where the floor is met, the map's
+        // own colour elsewhere
+        let m = BackgroundMap::uniform(8, 4, Vec3::new(0.2, 0.5, 0.9));
+        let ground = Vec3::splat(0.7);
+        assert_eq!(m.backdrop(&aabb, &ray(eye, [0.3, 0.2, -1.0]), ground), ground);
+        assert_eq!(m.backdrop(&aabb, &ray(eye, [1.0, 0.0, -0.1]), ground), m.sample(Vec3::X));
     }
 
     #[test]

@@ -143,7 +143,13 @@ impl LoadedField {
     /// its background colour.
     pub fn render(&self, camera: &assetfield_core::Camera) -> Vec<f32> {
         match &self.background_map {
-            Some(m) => crate::render_view_map(&self.field, self.occupancy.as_ref(), camera, m),
+            Some(m) => crate::render_view_map(
+                &self.field,
+                self.occupancy.as_ref(),
+                camera,
+                m,
+                self.info.background_or_white(),
+            ),
             None => render_view(
                 &self.field,
                 self.occupancy.as_ref(),

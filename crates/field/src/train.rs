@@ -5,7 +5,7 @@
 
 use crate::adam::Adam;
 use crate::appearance;
-use crate::background::BackgroundMap;
+use crate::background::{BackgroundMap, leaves_through_floor};
 use crate::config::{FieldConfig, MIN_VERTICAL_RES, ModelKind};
 use crate::io::FieldError;
 use crate::march::{self, MarchSettings, MarchWork};
@@ -747,6 +747,7 @@ impl Trainer {
         let na = looks.map_or(0, |a| a.params.len());
         let beyond = self.background_map.as_ref().map(|b| &b.map);
         let nb = beyond.map_or(0, |m| m.rgb.len());
+        let aabb = field.config.aabb();
         let nc = field.config.semantic_dim();
         let semantic = nc > 0 && views.iter().all(|v| v.features.is_some());
         let sem_scale = 2.0 * self.config.semantic_weight / (batch * nc.max(1)) as f32;
@@ -781,7 +782,7 @@ impl Trainer {
                 work.touched.track(grad.len(), TOUCH_BLOCK);
                 work.ray_bg.clear();
                 if let Some(m) = beyond {
-                    work.ray_bg.extend(rays.iter().map(|r| m.sample(r.dir)));
+                    work.ray_bg.extend(rays.iter().map(|r| m.backdrop(&aabb, r, bg)));
                 }
                 march::forward(field, occ, &rays, Some(&jitter), bg, &settings, work);
                 // each photo's colour transform over the rendered colour, and its gradient
@@ -825,7 +826,9 @@ impl Trainer {
                 let mut beyond_grad = vec![0.0f32; nb];
                 if let Some(m) = beyond {
                     for (r, ray) in rays.iter().enumerate() {
-                        m.scatter(ray.dir, (1.0 - work.opacity[r]) * d[r], &mut beyond_grad);
+                        if !leaves_through_floor(&aabb, ray) {
+                            m.scatter(ray.dir, (1.0 - work.opacity[r]) * d[r], &mut beyond_grad);
+                        }
                     }
                 }
                 ChunkResult {
@@ -1212,14 +1215,17 @@ pub fn render_view_unless(
     render_tiles(field, occ, camera, Backdrop::Colour(background), stop)
 }
 
-/// [`render_view`] with a background colour per ray direction.
+/// [`render_view`] with a background colour per ray direction beyond the box's sides and
+/// top, and `ground` (the field's plain background colour) for the rays that leave it
+/// through the floor (see [`crate::background`]).
 pub fn render_view_map(
     field: &Field,
     occ: Option<&Occupancy>,
     camera: &Camera,
     map: &BackgroundMap,
+    ground: Vec3,
 ) -> Vec<f32> {
-    render_tiles(field, occ, camera, Backdrop::Map(map), &|| false)
+    render_tiles(field, occ, camera, Backdrop::Map { map, ground }, &|| false)
         .expect("a render nothing stops finishes")
 }
 
@@ -1227,7 +1233,11 @@ pub fn render_view_map(
 #[derive(Clone, Copy)]
 enum Backdrop<'a> {
     Colour(Vec3),
-    Map(&'a BackgroundMap),
+    /// The map beyond the box's sides and top, `ground` where a ray leaves through its floor.
+    Map {
+        map: &'a BackgroundMap,
+        ground: Vec3,
+    },
 }
 
 /// A view rendered in tiles of about 1024 rays (rows in parallel), `stop` asked before
@@ -1260,9 +1270,10 @@ fn render_tiles(
             work.ray_bg.clear();
             let background = match backdrop {
                 Backdrop::Colour(c) => c,
-                Backdrop::Map(map) => {
-                    work.ray_bg.extend(rays.iter().map(|r| map.sample(r.dir)));
-                    Vec3::ZERO
+                Backdrop::Map { map, ground } => {
+                    let aabb = field.config.aabb();
+                    work.ray_bg.extend(rays.iter().map(|r| map.backdrop(&aabb, r, ground)));
+                    ground
                 }
             };
             march::forward(field, occ, &rays, None, background, &settings, work);
