@@ -13,9 +13,11 @@
 //! between photos, and is blurred over the directions it covers.
 //!
 //! The map lies beyond the box's sides and top only. The box's bottom face is the ground the
-//! planes stand on, and the ground is opaque: a ray that leaves the box through it has met
-//! the floor, and sees the field's plain background colour ([`BackgroundMap::backdrop`]),
-//! never the map. A map that took those rays too would learn the floor as a colour per
+//! planes stand on, and the ground is opaque: no light comes from under it, so a ray that
+//! gets through the box's floor face brings black ([`BackgroundMap::backdrop`]), never the
+//! map. (Black, not the field's plain background colour: a bright colour there pushes the
+//! young field to darken those rays with haze wherever it can, near the cameras first; a
+//! walked room scored 15.3 dB held out with white there, 22.1 with black.) A map that took those rays too would learn the floor as a colour per
 //! direction: an explanation without parallax, right for each photo alone and for none
 //! together once the cameras stand inside the box (a walk through a room, where the floor
 //! is a metre or two below every camera). The field then patches each photo with haze near
@@ -73,10 +75,10 @@ impl BackgroundMap {
     }
 
     /// What `ray` sees beyond the box `aabb` where the field lets it through: the map in
-    /// its direction, or `ground` (the field's plain background colour) where it leaves the
-    /// box through its floor ([`leaves_through_floor`]).
-    pub fn backdrop(&self, aabb: &Aabb3, ray: &Ray, ground: Vec3) -> Vec3 {
-        if leaves_through_floor(aabb, ray) { ground } else { self.sample(ray.dir) }
+    /// its direction, or black where it leaves the box through its floor
+    /// ([`leaves_through_floor`]: the ground is opaque).
+    pub fn backdrop(&self, aabb: &Aabb3, ray: &Ray) -> Vec3 {
+        if leaves_through_floor(aabb, ray) { Vec3::ZERO } else { self.sample(ray.dir) }
     }
 
     /// The colour seen in direction `d`.
@@ -184,12 +186,10 @@ mod tests {
         assert!(floor(&ray([0.0, -4.0, 3.0], [0.0, 1.0, -0.8])));
         assert!(!floor(&ray([0.0, -4.0, 3.0], [0.0, 1.0, -0.1])));
         assert!(!floor(&ray([0.0, -4.0, 3.0], [0.0, -1.0, -1.0])));
-        // what the map is asked for: the ground colour where the floor is met, the map's
-        // own colour elsewhere
+        // what the map is asked for: black where the floor is met, its own colour elsewhere
         let m = BackgroundMap::uniform(8, 4, Vec3::new(0.2, 0.5, 0.9));
-        let ground = Vec3::splat(0.7);
-        assert_eq!(m.backdrop(&aabb, &ray(eye, [0.3, 0.2, -1.0]), ground), ground);
-        assert_eq!(m.backdrop(&aabb, &ray(eye, [1.0, 0.0, -0.1]), ground), m.sample(Vec3::X));
+        assert_eq!(m.backdrop(&aabb, &ray(eye, [0.3, 0.2, -1.0])), Vec3::ZERO);
+        assert_eq!(m.backdrop(&aabb, &ray(eye, [1.0, 0.0, -0.1])), m.sample(Vec3::X));
     }
 
     #[test]

@@ -143,13 +143,7 @@ impl LoadedField {
     /// its background colour.
     pub fn render(&self, camera: &assetfield_core::Camera) -> Vec<f32> {
         match &self.background_map {
-            Some(m) => crate::render_view_map(
-                &self.field,
-                self.occupancy.as_ref(),
-                camera,
-                m,
-                self.info.background_or_white(),
-            ),
+            Some(m) => crate::render_view_map(&self.field, self.occupancy.as_ref(), camera, m),
             None => render_view(
                 &self.field,
                 self.occupancy.as_ref(),

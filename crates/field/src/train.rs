@@ -782,7 +782,7 @@ impl Trainer {
                 work.touched.track(grad.len(), TOUCH_BLOCK);
                 work.ray_bg.clear();
                 if let Some(m) = beyond {
-                    work.ray_bg.extend(rays.iter().map(|r| m.backdrop(&aabb, r, bg)));
+                    work.ray_bg.extend(rays.iter().map(|r| m.backdrop(&aabb, r)));
                 }
                 march::forward(field, occ, &rays, Some(&jitter), bg, &settings, work);
                 // each photo's colour transform over the rendered colour, and its gradient
@@ -1216,16 +1216,14 @@ pub fn render_view_unless(
 }
 
 /// [`render_view`] with a background colour per ray direction beyond the box's sides and
-/// top, and `ground` (the field's plain background colour) for the rays that leave it
-/// through the floor (see [`crate::background`]).
+/// top, and black for the rays that leave it through the floor (see [`crate::background`]).
 pub fn render_view_map(
     field: &Field,
     occ: Option<&Occupancy>,
     camera: &Camera,
     map: &BackgroundMap,
-    ground: Vec3,
 ) -> Vec<f32> {
-    render_tiles(field, occ, camera, Backdrop::Map { map, ground }, &|| false)
+    render_tiles(field, occ, camera, Backdrop::Map(map), &|| false)
         .expect("a render nothing stops finishes")
 }
 
@@ -1233,11 +1231,8 @@ pub fn render_view_map(
 #[derive(Clone, Copy)]
 enum Backdrop<'a> {
     Colour(Vec3),
-    /// The map beyond the box's sides and top, `ground` where a ray leaves through its floor.
-    Map {
-        map: &'a BackgroundMap,
-        ground: Vec3,
-    },
+    /// The map beyond the box's sides and top, black through its floor.
+    Map(&'a BackgroundMap),
 }
 
 /// A view rendered in tiles of about 1024 rays (rows in parallel), `stop` asked before
@@ -1270,10 +1265,10 @@ fn render_tiles(
             work.ray_bg.clear();
             let background = match backdrop {
                 Backdrop::Colour(c) => c,
-                Backdrop::Map { map, ground } => {
+                Backdrop::Map(map) => {
                     let aabb = field.config.aabb();
-                    work.ray_bg.extend(rays.iter().map(|r| map.backdrop(&aabb, r, ground)));
-                    ground
+                    work.ray_bg.extend(rays.iter().map(|r| map.backdrop(&aabb, r)));
+                    Vec3::ZERO
                 }
             };
             march::forward(field, occ, &rays, None, background, &settings, work);

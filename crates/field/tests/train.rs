@@ -427,10 +427,10 @@ fn a_background_map_takes_what_lies_beyond_the_box() {
         let d = d.normalize();
         Vec3::new(0.55 + 0.4 * d.z, 0.6 + 0.3 * d.x, 0.75 - 0.3 * d.y)
     };
-    // the ground under the box is opaque: rays that leave through its floor see the plain
-    // background colour (0.7), every other ray the sky
+    // the ground under the box is opaque: rays that leave through its floor see black,
+    // every other ray the sky
     let aabb = tiny_configs(ModelKind::Standard).1.aabb();
-    let ground = Vec3::splat(0.7);
+    let ground = Vec3::ZERO;
     let recomposite = |mut data: Dataset| {
         for f in &mut data.frames {
             let (w, h) = (f.image.width, f.image.height);
@@ -466,9 +466,7 @@ fn a_background_map_takes_what_lies_beyond_the_box() {
         let mut n = 0usize;
         for f in &test.frames {
             let img = match &t.background_map {
-                Some(b) => {
-                    assetfield_field::render_view_map(&t.field, None, &f.camera, &b.map, ground)
-                }
+                Some(b) => assetfield_field::render_view_map(&t.field, None, &f.camera, &b.map),
                 None => render_view(&t.field, None, &f.camera, Vec3::splat(0.7)),
             };
             se += img.iter().zip(&f.image.rgb).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>();
@@ -516,12 +514,13 @@ fn a_background_map_takes_what_lies_beyond_the_box() {
 }
 
 /// A walk: cameras inside a room wide for its height, at half its height, look across a
-/// tiled floor of two close greys (as a real floor is) at a sky beyond. The rays that meet
-/// the floor leave the box through its floor face, where the ground is opaque: they see the
-/// plain background colour, never the background map, so the floor has to form as density.
-/// A map that took those rays learned the floor as a colour per direction and the floor
-/// never formed (opacity 0.45 here; in a walked room of furniture the field then patched
-/// every photo with haze near its camera, docs/training.md).
+/// tiled floor of two close light greys at a sky beyond. The rays that meet the floor leave
+/// the box through its floor face, where the ground is opaque: they see black (no light
+/// comes from under the ground), never the background map, so the floor has to form as
+/// density. A map that took those rays learned the floor as a colour per direction and the
+/// floor never formed (opacity 0.18, 29.3 dB held out, against 0.99 and 32.6 dB; in a
+/// walked room of furniture the field then patched every photo with haze near its camera,
+/// docs/training.md).
 #[test]
 fn a_floor_seen_from_inside_the_box_forms_as_density() {
     use assetfield_core::{Camera, Intrinsics, Ray};
@@ -538,7 +537,7 @@ fn a_floor_seen_from_inside_the_box_forms_as_density() {
     // floor places right in every view
     let tile = |p: Vec3| {
         let (i, j) = ((p.x / 0.26).floor() as i32, (p.y / 0.26).floor() as i32);
-        let g = if (i + j).rem_euclid(2) == 0 { 0.24 } else { 0.29 };
+        let g = if (i + j).rem_euclid(2) == 0 { 0.62 } else { 0.68 };
         Vec3::new(g + 0.02 * i.rem_euclid(3) as f32, g, g + 0.03 * j.rem_euclid(2) as f32)
     };
     let world = |ray: &Ray| {
@@ -583,11 +582,10 @@ fn a_floor_seen_from_inside_the_box_forms_as_density() {
         t.step();
     }
     let map = &t.background_map.as_ref().unwrap().map;
-    let ground = Vec3::from(t.config.background);
     let mut se = 0.0f64;
     let mut n = 0usize;
     for f in &test.frames {
-        let img = assetfield_field::render_view_map(&t.field, None, &f.camera, map, ground);
+        let img = assetfield_field::render_view_map(&t.field, None, &f.camera, map);
         se += img.iter().zip(&f.image.rgb).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>();
         n += img.len();
     }
@@ -619,5 +617,5 @@ fn a_floor_seen_from_inside_the_box_forms_as_density() {
         "walk over a tiled floor: held-out PSNR {held_out:.2} dB, floor opacity {opacity:.3}"
     );
     assert!(opacity > 0.9, "the floor did not form: opacity {opacity:.3}");
-    assert!(held_out > 20.0, "held-out PSNR {held_out:.2} dB");
+    assert!(held_out > 30.0, "held-out PSNR {held_out:.2} dB");
 }
