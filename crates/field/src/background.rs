@@ -15,13 +15,13 @@
 //! The map lies beyond the box's sides and top only. The box's bottom face is the ground the
 //! planes stand on, and the ground is opaque: no light comes from under it, so a ray that
 //! gets through the box's floor face brings black ([`BackgroundMap::backdrop`]), never the
-//! map. (Black, not the field's plain background colour: a bright colour there pushes the
-//! young field to darken those rays with haze wherever it can, near the cameras first; a
-//! walked room scored 15.3 dB held out with white there, 22.1 with black.) A map that took those rays too would learn the floor as a colour per
-//! direction: an explanation without parallax, right for each photo alone and for none
-//! together once the cameras stand inside the box (a walk through a room, where the floor
-//! is a metre or two below every camera). The field then patches each photo with haze near
-//! its camera, and the floor never forms.
+//! map. A map that took those rays too learned the floor as a colour per direction: an
+//! explanation without parallax, right for each photo alone and for none together once the
+//! cameras stand inside the box (a walk through a room, the floor a metre or two below every
+//! camera); the field then patched each photo with haze near its camera, and the floor never
+//! formed. Black rather than the field's plain background colour: a bright colour there
+//! pushes the young field to darken those rays with haze wherever it can, near the cameras
+//! first (a walked room: 15.3 dB held out with white there, 22.1 with black).
 
 use assetfield_core::{Aabb3, Ray, TensorFile};
 use glam::Vec3;
