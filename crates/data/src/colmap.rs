@@ -92,8 +92,7 @@ pub struct ColmapImage {
 impl ColmapImage {
     /// Camera-to-world in OpenGL camera axes: `[R^T | -R^T t]` with the y and z axes turned.
     pub fn c2w(&self) -> Mat4 {
-        let rt = self.rotation().transpose();
-        let centre = self.centre();
+        let (rt, centre) = self.pose();
         let flip = DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0));
         let m = rt * flip;
         let c = |v: DVec3| v.as_vec3().extend(0.0);
@@ -102,13 +101,14 @@ impl ColmapImage {
 
     /// The camera centre in world coordinates.
     pub fn centre(&self) -> DVec3 {
-        -(self.rotation().transpose() * DVec3::from(self.tvec))
+        self.pose().1
     }
 
-    /// The world-to-camera rotation.
-    fn rotation(&self) -> DMat3 {
+    /// The camera-to-world rotation `R^T` (COLMAP's axes) and the centre `-R^T t`.
+    fn pose(&self) -> (DMat3, DVec3) {
         let [w, x, y, z] = self.qvec;
-        DMat3::from_quat(DQuat::from_xyzw(x, y, z, w))
+        let rt = DMat3::from_quat(DQuat::from_xyzw(x, y, z, w)).transpose();
+        (rt, -(rt * DVec3::from(self.tvec)))
     }
 }
 

@@ -78,7 +78,12 @@ impl BackgroundMap {
     /// its direction, or black where it leaves the box through its floor
     /// ([`leaves_through_floor`]: the ground is opaque).
     pub fn backdrop(&self, aabb: &Aabb3, ray: &Ray) -> Vec3 {
-        if leaves_through_floor(aabb, ray) { Vec3::ZERO } else { self.sample(ray.dir) }
+        self.backdrop_of(ray, leaves_through_floor(aabb, ray))
+    }
+
+    /// [`BackgroundMap::backdrop`] for a ray already known to leave through the floor or not.
+    pub fn backdrop_of(&self, ray: &Ray, through_floor: bool) -> Vec3 {
+        if through_floor { Vec3::ZERO } else { self.sample(ray.dir) }
     }
 
     /// The colour seen in direction `d`.

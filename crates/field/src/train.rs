@@ -780,9 +780,16 @@ impl Trainer {
                 }
                 work.want_semantic = semantic;
                 work.touched.track(grad.len(), TOUCH_BLOCK);
+                // which rays leave through the box's floor (black behind them, and no
+                // gradient for the map), decided once per ray
+                let through_floor: Vec<bool> = match beyond {
+                    Some(_) => rays.iter().map(|r| leaves_through_floor(&aabb, r)).collect(),
+                    None => Vec::new(),
+                };
                 work.ray_bg.clear();
                 if let Some(m) = beyond {
-                    work.ray_bg.extend(rays.iter().map(|r| m.backdrop(&aabb, r)));
+                    work.ray_bg
+                        .extend(rays.iter().zip(&through_floor).map(|(r, &f)| m.backdrop_of(r, f)));
                 }
                 march::forward(field, occ, &rays, Some(&jitter), bg, &settings, work);
                 // each photo's colour transform over the rendered colour, and its gradient
@@ -826,7 +833,7 @@ impl Trainer {
                 let mut beyond_grad = vec![0.0f32; nb];
                 if let Some(m) = beyond {
                     for (r, ray) in rays.iter().enumerate() {
-                        if !leaves_through_floor(&aabb, ray) {
+                        if !through_floor[r] {
                             m.scatter(ray.dir, (1.0 - work.opacity[r]) * d[r], &mut beyond_grad);
                         }
                     }
@@ -1248,6 +1255,7 @@ fn render_tiles(
     let mut out = vec![0.0f32; w * h * 3];
     let settings = MarchSettings::default();
     let rows_per_task = (1024 / w.max(1)).max(1);
+    let aabb = field.config.aabb();
     let stopped = std::sync::atomic::AtomicBool::new(false);
     out.par_chunks_mut(w * 3 * rows_per_task).enumerate().for_each_init(
         MarchWork::default,
@@ -1266,7 +1274,6 @@ fn render_tiles(
             let background = match backdrop {
                 Backdrop::Colour(c) => c,
                 Backdrop::Map(map) => {
-                    let aabb = field.config.aabb();
                     work.ray_bg.extend(rays.iter().map(|r| map.backdrop(&aabb, r)));
                     Vec3::ZERO
                 }
