@@ -7,7 +7,7 @@
 use assetfield_data::{
     AlignMethod, ColmapModel, Dataset, DatasetCameras, GroundAlignment, LoadOptions, Split,
 };
-use assetfield_tests::{fail, ok, repo, scratch};
+use assetfield_tests::{fail, ok, render_poses, repo, scratch};
 use glam::{DVec3, Mat3, Vec3};
 use std::path::{Path, PathBuf};
 
@@ -119,21 +119,12 @@ fn pose_agreement(project: &Path, render: &Path) -> PoseAgreement {
     let g = GroundAlignment::fit_floor(&cams.points, &cams.cameras()).unwrap();
     assert_eq!(g.method, AlignMethod::Floor);
     g.apply_to_cameras(&mut cams);
-    // the true poses by image name
-    let mut truth = std::collections::BTreeMap::new();
-    for split in ["train", "test"] {
-        let f = assetfield_data::schema::TransformsFile::read(
-            &render.join(format!("transforms_{split}.json")),
-        )
-        .unwrap();
-        for e in &f.frames {
-            let stem =
-                e.file_path.trim_start_matches("./").trim_start_matches(&format!("{split}/"));
-            truth.insert(format!("images/{split}_{stem}.png"), e.matrix());
-        }
-    }
-    let pairs: Vec<(glam::Affine3A, glam::Mat4)> =
-        cams.views.iter().map(|v| (v.camera.c2w, truth[&v.file_path])).collect();
+    let truth = render_poses(render);
+    let pairs: Vec<(glam::Affine3A, glam::Mat4)> = cams
+        .views
+        .iter()
+        .map(|v| (v.camera.c2w, truth[v.file_path.trim_start_matches("images/")]))
+        .collect();
     // scale from the spreads, heading about +Z and offset by least squares (2-D Procrustes)
     let c: Vec<DVec3> = pairs.iter().map(|(a, _)| Vec3::from(a.translation).as_dvec3()).collect();
     let t: Vec<DVec3> = pairs.iter().map(|(_, m)| m.w_axis.truncate().as_dvec3()).collect();

@@ -175,6 +175,24 @@ impl Similarity {
     }
 }
 
+/// The camera-to-world poses a `synth` render was made with (`transforms_{train,test}.json`),
+/// by the name its photo takes in a COLMAP project of it: `SPLIT_r_K.png`.
+pub fn render_poses(render: &Path) -> std::collections::BTreeMap<String, glam::Mat4> {
+    let mut poses = std::collections::BTreeMap::new();
+    for split in ["train", "test"] {
+        let f = assetfield_data::schema::TransformsFile::read(
+            &render.join(format!("transforms_{split}.json")),
+        )
+        .unwrap();
+        for e in &f.frames {
+            let stem =
+                e.file_path.trim_start_matches("./").trim_start_matches(&format!("{split}/"));
+            poses.insert(format!("{split}_{stem}.png"), e.matrix());
+        }
+    }
+    poses
+}
+
 /// Write the NeRF-synthetic dataset `src` (`transforms_{train,test}.json`, `camera_angle_x`)
 /// as a nerfstudio capture `dst/transforms.json` (`fl_x fl_y cx cy w h`, one file, split by
 /// holdout) whose cameras are moved by `s`: the same photos of the same scene, posed in

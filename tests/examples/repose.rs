@@ -23,9 +23,8 @@
 //! ```
 
 use assetfield_data::colmap::ColmapModel;
-use assetfield_data::schema::TransformsFile;
 
-use assetfield_tests::{Similarity, moved_gt, repose_as_nerfstudio};
+use assetfield_tests::{Similarity, moved_gt, render_poses, repose_as_nerfstudio};
 use glam::{Mat3, Vec3};
 use std::path::Path;
 
@@ -91,25 +90,13 @@ fn main() {
 /// rms spread of COLMAP's centres about their mean (COLMAP units) and the number of cameras.
 fn fit_to_colmap(render: &Path, colmap: &Path) -> (Similarity, f64, f64, usize) {
     use glam::DVec3;
-    let mut exact = std::collections::HashMap::new();
-    for split in ["train", "test"] {
-        let file = TransformsFile::read(&render.join(format!("transforms_{split}.json")))
-            .expect("a NeRF-synthetic render");
-        for f in &file.frames {
-            let name = Path::new(&f.file_path).file_name().expect("a frame name");
-            let m = &f.transform_matrix;
-            exact.insert(
-                format!("{split}_{}.png", name.to_string_lossy()),
-                DVec3::new(m[0][3] as f64, m[1][3] as f64, m[2][3] as f64),
-            );
-        }
-    }
+    let exact = render_poses(render);
     let dir = assetfield_data::colmap::find_model(colmap).expect("a COLMAP model");
     let model = ColmapModel::read(&dir).expect("a readable COLMAP model");
     let pairs: Vec<(DVec3, DVec3)> = model
         .images
         .iter()
-        .filter_map(|im| exact.get(&im.name).map(|x| (*x, im.centre())))
+        .filter_map(|im| exact.get(&im.name).map(|m| (m.w_axis.truncate().as_dvec3(), im.centre())))
         .collect();
     assert!(pairs.len() >= 3, "at least three cameras in both ({} found)", pairs.len());
     let n = pairs.len() as f64;

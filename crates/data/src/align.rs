@@ -271,7 +271,8 @@ impl GroundAlignment {
         // camera is at eye height, the points of the walls crowd into a horizontal band
         // at eye height (what every photo sees at its horizon), which can hold more points
         // than the floor, and a band along the walls fixes its tilt poorly
-        let (normal, _, _) = refit(points, n0, d0, tol);
+        let best = refit(points, n0, d0, tol);
+        let normal = best.0;
         // the floor is the lowest horizontal layer holding a real share of the points, with
         // the cameras above it: the heights along that normal, from the lowest up, refitted
         // to its own points. That refit starts from the first normal's tilt, and the walls'
@@ -280,7 +281,7 @@ impl GroundAlignment {
         // that tilt) at a fine tolerance, near a floor's own scatter; where that plane passes
         // within a tolerance of the layer under the band's median point (the same layer,
         // turned) and holds more points within the fine tolerance, it is the floor
-        let (normal, centroid, _) = match lowest_layer(points, &centres, normal, tol) {
+        let (normal, centroid) = match lowest_layer(points, &centres, normal, tol) {
             Some(d_floor) => {
                 let refitted = refit(points, normal, d_floor, tol);
                 let band: Vec<Vec3> = points
@@ -292,7 +293,7 @@ impl GroundAlignment {
                 let holds = |n: Vec3, d: f32| {
                     points.iter().filter(|p| (n.dot(**p) - d).abs() <= fine).count()
                 };
-                let (n1, c1, _) = refitted;
+                let (n1, c1) = refitted;
                 // the layer's point under the band's median: a plane turned about it is the
                 // same layer; one a table's height above it is not
                 let m = median_point(&band);
@@ -300,14 +301,14 @@ impl GroundAlignment {
                 let sampled = (PlaneSampler { tol: fine, ..sampler })
                     .best(&band)
                     .map(|(_, n, d)| refit(points, n, d, fine))
-                    .filter(|(n, c, _)| {
+                    .filter(|(n, c)| {
                         let d = n.dot(c.as_vec3());
                         (n.dot(on_layer) - d).abs() <= tol
                             && holds(*n, d) > holds(n1, n1.dot(c1.as_vec3()))
                     });
                 sampled.unwrap_or(refitted)
             }
-            None => refit(points, n0, d0, tol),
+            None => best,
         };
         let c = centroid.as_vec3();
         // the floor's share at the first tolerance, whatever tolerance found its plane
@@ -529,14 +530,13 @@ impl PlaneSampler<'_> {
 
 /// Refit a plane `normal . p = d` to the points within `tol` of it (the normal of least
 /// variance), three times with a tolerance halved each time but kept over three median
-/// residuals (and never widened): the points of walls and legs standing on the floor, within the first
-/// tolerance of it, drop out. The plane's normal (signed as `normal`), its inliers' centroid
-/// (a point of the plane) and their count.
-fn refit(points: &[Vec3], normal: Vec3, d: f32, tol: f32) -> (Vec3, DVec3, usize) {
+/// residuals (and never widened): the points of walls and legs standing on the floor,
+/// within the first tolerance of it, drop out. The plane's normal (signed as `normal`) and
+/// its inliers' centroid (a point of the plane).
+fn refit(points: &[Vec3], normal: Vec3, d: f32, tol: f32) -> (Vec3, DVec3) {
     let n0 = normal;
     let (mut normal, mut d, mut t) = (normal, d, tol);
     let mut centroid = DVec3::ZERO;
-    let mut kept = 0usize;
     for _ in 0..3 {
         let inl: Vec<DVec3> = points
             .iter()
@@ -566,12 +566,11 @@ fn refit(points: &[Vec3], normal: Vec3, d: f32, tol: f32) -> (Vec3, DVec3, usize
         }
         normal = n;
         d = normal.dot(centroid.as_vec3());
-        kept = inl.len();
         let mut res: Vec<f32> = inl.iter().map(|p| (normal.dot(p.as_vec3()) - d).abs()).collect();
         res.sort_unstable_by(f32::total_cmp);
         t = (0.5 * t).max(3.0 * res[res.len() / 2]).min(t);
     }
-    (normal, centroid, kept)
+    (normal, centroid)
 }
 
 /// The height (along `up`, as `up . p`) of the lowest layer of the points that holds at

@@ -53,7 +53,11 @@ fn psnr(field: &Field, test: &Dataset) -> f32 {
 /// Training and model settings for the tiny scene: 400 iterations of 1024 rays, planes from
 /// 24 to 48 texels, 8 density and 12 colour channels.
 fn tiny_configs(kind: ModelKind) -> (TrainConfig, FieldConfig) {
-    let aabb = Aabb3::new(Vec3::new(-1.3, -1.3, -0.05), Vec3::new(1.3, 1.3, 0.9));
+    tiny_configs_in(kind, Aabb3::new(Vec3::new(-1.3, -1.3, -0.05), Vec3::new(1.3, 1.3, 0.9)))
+}
+
+/// [`tiny_configs`] for a scene in the box `aabb`.
+fn tiny_configs_in(kind: ModelKind, aabb: Aabb3) -> (TrainConfig, FieldConfig) {
     let mut cfg = TrainConfig::new(kind);
     cfg.batch = 1024;
     cfg.iters = 400;
@@ -525,12 +529,9 @@ fn a_background_map_takes_what_lies_beyond_the_box() {
 fn a_floor_seen_from_inside_the_box_forms_as_density() {
     use assetfield_core::{Camera, Intrinsics, Ray};
     let template = Dataset::load(dataset(), Split::Train, &LoadOptions::default()).unwrap();
-    let (mut cfg, _) = tiny_configs(ModelKind::Standard);
     // a room wide for its height, as a walk sees it: the floor at grazing angles
     let aabb = Aabb3::new(Vec3::new(-3.0, -3.0, -0.05), Vec3::new(3.0, 3.0, 1.0));
-    let mut fc = FieldConfig::new(ModelKind::Standard, aabb, 48);
-    fc.density_channels = 8;
-    fc.color_channels = 12;
+    let (mut cfg, fc) = tiny_configs_in(ModelKind::Standard, aabb);
     let half = aabb.max.x;
     let sky = |d: Vec3| Vec3::new(0.55 + 0.4 * d.z, 0.6 + 0.3 * d.x, 0.75 - 0.3 * d.y);
     // tiles of two greys, tinted by row and column: a texture that only density on the
