@@ -1012,3 +1012,22 @@ fn a_bouquet_of_faint_leaves_on_a_desk_is_seeded_by_its_opacity_seen_from_above(
     let r = only_child(&d).rect;
     assert!(within_a_texel(r, PixelRect::new(20, 30, 28, 38)), "{r:?}");
 }
+
+#[test]
+fn a_small_faint_flower_that_rises_on_a_solid_body_is_found() {
+    // a solid desk (levels 2..=12) with a flower on it: a faint stem and leaves (opacity
+    // 0.2 per level, not opaque seen from above) over rows 20..23, columns 30..33, levels
+    // 13..=17, and a bloom (levels 18..=19) over its middle row of three texels: the bloom alone
+    // is opaque, smaller than the smallest object (4 texels) with 6 opaque voxels, but it
+    // stands well past the top's blur. A speck as small right over the top is haze
+    // (`objects_on_a_solid_body_unpack_but_specks_do_not`).
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 24);
+    fill(&mut v, (5, 45), (10, 60), (2, 13), 0.95);
+    fill(&mut v, (20, 23), (30, 33), (13, 18), 0.2);
+    fill(&mut v, (21, 22), (30, 33), (18, 20), 0.95);
+    let color = painted(rows, cols, (20..23, 30..33), [0.8, 0.2, 0.3], [0.9, 0.9, 0.85]);
+    let d = detect_small(&v, &color);
+    let r = only_child(&d).rect;
+    assert!(within_a_texel(r, PixelRect::new(20, 30, 23, 33)), "{r:?}");
+}
