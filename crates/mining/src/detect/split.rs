@@ -2,7 +2,7 @@
 //! apart, so each first-round region is cut (a) at thin bridges: the cores surviving a
 //! morphological opening become seeds, every texel goes to the geodesically nearest seed,
 //! and pieces that do not reach the ground (a lamp head whose arm is too thin) join their
-//! neighbour; (b) in 3D: 6-connected components of the opaque voxels, each component
+//! standing neighbour; (b) in 3D: 6-connected components of the opaque voxels, each component
 //! standing on the ground starts an object (a chair partly under a table), floating parts
 //! join the object under or next to them, objects that mostly cover each other merge.
 
@@ -319,7 +319,7 @@ pub(super) fn stands(
 /// Cut a region at thin bridges: the cores that survive a morphological opening of radius
 /// `radius` become seeds, every texel goes to the geodesically nearest seed, and pieces
 /// that do not reach the ground (a lamp head whose arm is too thin, a shade over its base)
-/// join the neighbour they share the longest border with.
+/// join the standing neighbour they share the longest border with.
 pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mask> {
     let (vol, start, ground, ground_tol, tau) =
         (cx.vol, cx.start, cx.ground, cx.ground_tol, cx.tau);
@@ -347,44 +347,22 @@ pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mas
     let mut pieces: Vec<Mask> = (0..seeds.len())
         .map(|s| Mask { rows: h, cols: w, data: owner.iter().map(|&o| o == Some(s)).collect() })
         .collect();
-    // floating pieces join their longest-bordering neighbour
+    // a floating piece joins the standing neighbour it shares the longest border with; one
+    // with no standing neighbour stays as it is (nothing it could be part of stands either:
+    // two stools in contact whose legs a short run left faint), until no piece joins
     loop {
         let grounded: Vec<bool> = pieces
             .iter()
             .map(|p| stands(vol, rect, p, start, ground + ground_tol, tau, cx.p.blur_levels))
             .collect();
-        let Some(f) = (0..pieces.len()).find(|&i| !grounded[i]) else { break };
-        let mut border = vec![0usize; pieces.len()];
-        for r in 0..h {
-            for c in 0..w {
-                if !pieces[f].get(r, c) {
-                    continue;
-                }
-                for (dr, dc) in [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)] {
-                    let (nr, nc) = (r as isize + dr, c as isize + dc);
-                    if nr < 0 || nc < 0 || nr >= h as isize || nc >= w as isize {
-                        continue;
-                    }
-                    for (j, p) in pieces.iter().enumerate() {
-                        if j != f && p.get(nr as usize, nc as usize) {
-                            border[j] += 1;
-                        }
-                    }
-                }
-            }
-        }
-        let Some((j, &b)) =
-            border.iter().enumerate().max_by_key(|&(j, &b)| (b, std::cmp::Reverse(j)))
-        else {
-            break;
-        };
-        if b == 0 {
-            // isolated and floating: leave it alone (it may still be an object)
-            if pieces.iter().enumerate().all(|(i, _)| i == f || grounded[i]) {
-                break;
-            }
-            break;
-        }
+        let join = (0..pieces.len()).filter(|&f| !grounded[f]).find_map(|f| {
+            let border = shared_borders(&pieces, f);
+            (0..pieces.len())
+                .filter(|&j| grounded[j] && border[j] > 0)
+                .max_by_key(|&j| (border[j], std::cmp::Reverse(j)))
+                .map(|j| (f, j))
+        });
+        let Some((f, j)) = join else { break };
         let pf = pieces.remove(f);
         let j = if j > f { j - 1 } else { j };
         or_into(&mut pieces[j], &pf);
@@ -393,6 +371,32 @@ pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mas
         }
     }
     pieces
+}
+
+/// Per piece, the texel edges it shares with piece `f` (4-neighbours).
+fn shared_borders(pieces: &[Mask], f: usize) -> Vec<usize> {
+    let mut border = vec![0usize; pieces.len()];
+    let p = &pieces[f];
+    let (h, w) = (p.rows, p.cols);
+    for r in 0..h {
+        for c in 0..w {
+            if !p.get(r, c) {
+                continue;
+            }
+            for (dr, dc) in [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)] {
+                let (nr, nc) = (r as isize + dr, c as isize + dc);
+                if nr < 0 || nc < 0 || nr >= h as isize || nc >= w as isize {
+                    continue;
+                }
+                for (j, q) in pieces.iter().enumerate() {
+                    if j != f && q.get(nr as usize, nc as usize) {
+                        border[j] += 1;
+                    }
+                }
+            }
+        }
+    }
+    border
 }
 
 /// Cut the hollow objects out of a region holding several enclosures (hollow objects in
