@@ -71,6 +71,42 @@ pub fn remove_small(mask: &Mask, min_area: usize) -> Result<Mask> {
     Ok(Mask { rows: mask.rows, cols: mask.cols, data })
 }
 
+/// Clear every 8-connected component with fewer than `min_area` pixels, except one of at
+/// least `lone_area` with no other component of at least `lone_area` within `gap` pixels
+/// (Chebyshev distance) of it: a small object standing alone, where a fragment lies beside
+/// what it broke from.
+pub fn remove_small_unless_alone(
+    mask: &Mask,
+    min_area: usize,
+    lone_area: usize,
+    gap: usize,
+) -> Result<Mask> {
+    let (labels, sizes) = label_components(mask)?;
+    let (h, w) = (mask.rows, mask.cols);
+    let small = |l: usize| sizes[l] < min_area;
+    let mut keep: Vec<bool> = (0..sizes.len()).map(|l| !small(l)).collect();
+    let mut texels: Vec<Vec<usize>> = vec![Vec::new(); sizes.len()];
+    for (i, &l) in labels.iter().enumerate() {
+        if l != u32::MAX && small(l as usize) && sizes[l as usize] >= lone_area {
+            texels[l as usize].push(i);
+        }
+    }
+    for (l, own) in texels.iter().enumerate().filter(|(_, t)| !t.is_empty()) {
+        let crowded = own.iter().any(|&i| {
+            let (r, c) = (i / w, i % w);
+            (r.saturating_sub(gap)..=(r + gap).min(h - 1)).any(|rr| {
+                (c.saturating_sub(gap)..=(c + gap).min(w - 1)).any(|cc| {
+                    let o = labels[rr * w + cc];
+                    o != u32::MAX && o as usize != l && sizes[o as usize] >= lone_area
+                })
+            })
+        });
+        keep[l] = !crowded;
+    }
+    let data = labels.iter().map(|&l| l != u32::MAX && keep[l as usize]).collect();
+    Ok(Mask { rows: h, cols: w, data })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -111,5 +147,34 @@ mod tests {
         assert!(!cleaned.get(10, 10) && cleaned.get(3, 3));
         assert_eq!(cleaned.count(), 35);
         assert_eq!(remove_small(&m, 0).unwrap(), m);
+    }
+
+    #[test]
+    fn a_small_component_stays_when_it_stands_alone() {
+        // a 4 x 4 component (16 pixels) far from everything, one beside a large component,
+        // and a speck of 4 pixels alone
+        let mut m = square(30, 30, 2, 2, 6, 6);
+        let big = square(30, 30, 10, 10, 20, 20);
+        let beside = square(30, 30, 10, 22, 14, 26);
+        let speck = square(30, 30, 25, 25, 27, 27);
+        for other in [&big, &beside, &speck] {
+            m = Mask {
+                rows: 30,
+                cols: 30,
+                data: m.data.iter().zip(&other.data).map(|(a, b)| *a || *b).collect(),
+            };
+        }
+        let kept = remove_small_unless_alone(&m, 25, 16, 3).unwrap();
+        assert!(kept.get(3, 3), "the lone component stays");
+        assert!(kept.get(15, 15), "the large one stays");
+        assert!(!kept.get(11, 23), "the one two pixels from the large one goes");
+        assert!(!kept.get(25, 25), "the speck goes");
+        // with no gap every component of at least 16 pixels stands alone
+        assert!(remove_small_unless_alone(&m, 25, 16, 0).unwrap().get(11, 23));
+        // a lone area at the minimum is the plain rule
+        assert_eq!(
+            remove_small_unless_alone(&m, 25, 25, 3).unwrap(),
+            remove_small(&m, 25).unwrap()
+        );
     }
 }

@@ -37,6 +37,8 @@ pub(super) struct Ctx<'a> {
     pub tau: f32,
     /// Smallest object footprint, texels.
     pub min_texels: usize,
+    /// Smallest footprint of an object standing alone, texels (at most `min_texels`).
+    pub min_lone_texels: usize,
 }
 
 impl<'a> Ctx<'a> {
@@ -110,6 +112,10 @@ impl<'a> Ctx<'a> {
         // fixed: a guard (a 2 x 2 footprint has an inside)
         let min_texels = p.min_area_texels.max(4);
         let ground = ground_level(vol, floor, start, tau, min_texels);
+        let min_lone_texels = match p.preset {
+            super::params::Preset::Paper => min_texels,
+            super::params::Preset::Default => p.min_lone_area_texels.clamp(1, min_texels),
+        };
         Ok(Ctx {
             grid,
             vol,
@@ -124,7 +130,20 @@ impl<'a> Ctx<'a> {
             tau_e,
             tau,
             min_texels,
+            min_lone_texels,
         })
+    }
+
+    /// `mask` without its specks: components under the smallest object's area, unless one
+    /// stands alone ([`crate::morphology::remove_small_unless_alone`]: at least
+    /// `min_lone_texels`, and no such component within the field's blur across).
+    pub fn without_specks(&self, mask: &crate::image::Mask) -> Result<crate::image::Mask> {
+        crate::morphology::remove_small_unless_alone(
+            mask,
+            self.min_texels,
+            self.min_lone_texels,
+            self.p.blur_levels.max(1),
+        )
     }
 
     /// Whether a part whose lowest occupied level is `kmin` stands on the ground.

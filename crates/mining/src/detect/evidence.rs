@@ -7,7 +7,6 @@ use super::params::Preset;
 use crate::error::{MiningError, Result};
 use crate::image::{Mask, PlaneImage};
 use crate::kmeans::{BackgroundRule, KMeansOptions, kmeans, object_mask_from_plane};
-use crate::morphology::remove_small;
 
 /// Threshold between the background cluster and the next one of a 1-D K-means, and per
 /// value whether it lies outside the background cluster.
@@ -58,5 +57,5 @@ pub(super) fn binarise(cx: &Ctx, feature: Option<&PlaneImage>) -> Result<Mask> {
     } else {
         Mask::new(rows, cols, cx.above.clone())?
     };
-    remove_small(&mask, cx.min_texels)
+    cx.without_specks(&mask)
 }

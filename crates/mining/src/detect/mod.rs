@@ -245,12 +245,16 @@ fn parts_of_regions(cx: &Ctx, mask: &Mask, removed: &mut Vec<Removed>) -> Result
         } else {
             split
         };
+        // a region left whole keeps the smallest lone object's area (the specks beside
+        // other regions went with the first round's mask); pieces cut out of a region keep
+        // the smallest object's
+        let smallest = if split.len() == 1 { cx.min_lone_texels } else { cx.min_texels };
         for part in split
             .into_iter()
-            .map(|part| if p.stages.smooth { shape::smooth(part, cx.min_texels) } else { part })
+            .map(|part| if p.stages.smooth { shape::smooth(part, smallest) } else { part })
             .filter_map(Part::tighten)
         {
-            if part.footprint.count() < cx.min_texels {
+            if part.footprint.count() < smallest {
                 continue;
             }
             match filters::judge(cx, &part) {

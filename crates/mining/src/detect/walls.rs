@@ -10,7 +10,6 @@ use super::shape::fill_empty_holes;
 use crate::contours::components;
 use crate::error::Result;
 use crate::image::Mask;
-use crate::morphology::remove_small;
 
 /// Remove the walls from the first-round mask, recording each.
 pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> Result<Mask> {
@@ -65,7 +64,7 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
         }
     }
     let cleaned = Mask::from_fn(rows, cols, |rr, cc| mask.get(rr, cc) && !walls.get(rr, cc));
-    remove_small(&cleaned, cx.min_texels)
+    cx.without_specks(&cleaned)
 }
 
 /// The opening radius that removes a wall, texels.
