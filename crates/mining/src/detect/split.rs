@@ -2,9 +2,10 @@
 //! apart, so each first-round region is cut (a) at thin bridges: the cores surviving a
 //! morphological opening become seeds, every texel goes to the geodesically nearest seed,
 //! and pieces that do not reach the ground (a lamp head whose arm is too thin) join their
-//! standing neighbour; (b) in 3D: 6-connected components of the opaque voxels, each component
-//! standing on the ground starts an object (a chair partly under a table), floating parts
-//! join the object under or next to them, objects that mostly cover each other merge.
+//! standing neighbour; (b) in 3D: 6-connected components of the opaque voxels, each
+//! component standing on the ground starts an object (a chair partly under a table),
+//! floating parts join the object under or next to them, objects that mostly cover each
+//! other merge.
 
 use std::collections::VecDeque;
 
