@@ -112,9 +112,11 @@ impl<'a> Ctx<'a> {
         // fixed: a guard (a 2 x 2 footprint has an inside)
         let min_texels = p.min_area_texels.max(4);
         let ground = ground_level(vol, floor, start, tau, min_texels);
+        // the smallest count holding the share (a share of exactly 16 / 25 gives 16)
+        let lone = (f64::from(p.min_lone_area_share) * min_texels as f64 - 1e-3).ceil(); // fixed: rounding slack
         let min_lone_texels = match p.preset {
             super::params::Preset::Paper => min_texels,
-            super::params::Preset::Default => p.min_lone_area_texels.clamp(1, min_texels),
+            super::params::Preset::Default => (lone.max(1.0) as usize).min(min_texels),
         };
         Ok(Ctx {
             grid,

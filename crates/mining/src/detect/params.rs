@@ -176,17 +176,19 @@ pub struct DetectParams {
     /// 3-minute field as the metre rule did, but lost small objects in a validation room of
     /// 10 cm texels (F1 0.759 -> 0.679), so it was not kept.
     pub min_area_texels: usize,
-    /// Smallest footprint of an object standing alone, texels (16): a first-round region
-    /// smaller than [`DetectParams::min_area_texels`] is still an object when no region at
-    /// least this large lies within [`DetectParams::blur_levels`] texels of it (a hydrant
-    /// or a table lamp in a street of 10 cm texels covers 20-25 texels; the fragments and
-    /// haze that lie beside an object are not alone). Pieces cut out of a region keep the
-    /// larger minimum. On the basis: 12 kept specks in a short run (`conference_room` at
-    /// 2000 iterations 0.980 -> 0.820), 20 found fewer hydrants than 16 (`random_1003` at
-    /// 6000 iterations 0.789 -> 0.771). Never above the minimum area; the paper preset has
-    /// no such rule. Files written before it existed read as 16.
-    #[serde(default = "default_min_lone_area_texels")]
-    pub min_lone_area_texels: usize,
+    /// Smallest footprint of an object standing alone, as a share of
+    /// [`DetectParams::min_area_texels`] (0.64: 16 of 25 texels, the smallest object's
+    /// square one texel narrower): a first-round region smaller than the smallest object is
+    /// still an object when it covers this share of it and no region that large lies
+    /// within [`DetectParams::blur_levels`] texels of it (a hydrant or a table lamp in a
+    /// street of 10 cm texels covers 20-25 texels; the fragments and haze that lie beside
+    /// an object are not alone). Pieces cut out of a region keep the whole minimum. On the
+    /// basis: 0.48 (12 texels) kept specks in a short run (`conference_room` at 2000
+    /// iterations 0.980 -> 0.820), 0.8 (20) found fewer hydrants (`random_1003` at 6000
+    /// iterations 0.789 -> 0.771). The paper preset has no such rule. Files written before
+    /// it existed read as 0.64.
+    #[serde(default = "default_min_lone_area_share")]
+    pub min_lone_area_share: f32,
 
     // --- floor ---
     /// The floor is a surface seen from above over at least this share of the plane, counting
@@ -218,9 +220,9 @@ pub struct DetectParams {
     pub unpack: Unpack,
 }
 
-/// [`DetectParams::min_lone_area_texels`]'s default.
-fn default_min_lone_area_texels() -> usize {
-    16 // tuned: detect.min_lone_area_texels
+/// [`DetectParams::min_lone_area_share`]'s default.
+fn default_min_lone_area_share() -> f32 {
+    0.64 // tuned: detect.min_lone_area_share
 }
 
 impl Default for DetectParams {
@@ -235,7 +237,7 @@ impl Default for DetectParams {
             filters: Filters::ALL,
             blur_levels: 3,      // tuned: detect.blur_levels
             min_area_texels: 25, // tuned: detect.min_area_texels
-            min_lone_area_texels: default_min_lone_area_texels(),
+            min_lone_area_share: default_min_lone_area_share(),
             floor_coverage: 0.25,            // tuned: detect.floor_coverage
             wall_half_thickness_texels: 3.5, // tuned: detect.wall_half_thickness_texels
             bridge_radius_texels: 2,         // tuned: detect.bridge_radius_texels
@@ -391,6 +393,7 @@ impl DetectParams {
             ));
         }
         share("floor_coverage", self.floor_coverage)?;
+        share("min_lone_area_share", self.min_lone_area_share)?;
         share("unpack.free_share", self.unpack.free_share)?;
         share("unpack.dense_window_share", self.unpack.dense_window_share)?;
         Ok(())
@@ -414,6 +417,8 @@ mod tests {
         assert_eq!(bad.validate().unwrap_err().0, "blur_levels");
         let bad = DetectParams { floor_coverage: f32::NAN, ..Default::default() };
         assert_eq!(bad.validate().unwrap_err().0, "floor_coverage");
+        let bad = DetectParams { min_lone_area_share: 1.5, ..Default::default() };
+        assert_eq!(bad.validate().unwrap_err().0, "min_lone_area_share");
     }
 
     #[test]

@@ -1061,7 +1061,8 @@ fn floating_neighbours_bridged_by_haze_stay_apart() {
 
 #[test]
 fn a_small_object_standing_alone_is_found_but_not_one_beside_another() {
-    // with the smallest object at 25 texels and the smallest lone one at 16: a 4 x 5 box
+    // with the smallest object at 25 texels and the smallest lone one at 16 (a share of
+    // 0.64): a 4 x 5 box
     // (20 texels) far from everything is an object; the same box two texels from a large
     // one (within the field's blur across) is taken for a fragment of it
     let (rows, cols) = (60, 80);
@@ -1071,7 +1072,7 @@ fn a_small_object_standing_alone_is_found_but_not_one_beside_another() {
     fill(&mut v, (12, 16), (31, 36), (2, 8), 0.95);
     let color = painted(rows, cols, (0..1, 0..1), [0.9, 0.9, 0.85], [0.3, 0.3, 0.6]);
     let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
-    let p = DetectParams { min_area_texels: 25, min_lone_area_texels: 16, ..params() };
+    let p = DetectParams { min_area_texels: 25, min_lone_area_share: 0.64, ..params() };
     let d = detect(&grid, &v, &color, None, &p).unwrap();
     assert_eq!(
         rects(&d),
@@ -1080,7 +1081,7 @@ fn a_small_object_standing_alone_is_found_but_not_one_beside_another() {
         d.removed
     );
     // without the lone rule the small box is a speck
-    let plain = DetectParams { min_lone_area_texels: 25, ..p };
+    let plain = DetectParams { min_lone_area_share: 1.0, ..p };
     let d = detect(&grid, &v, &color, None, &plain).unwrap();
     assert_eq!(rects(&d), vec![PixelRect::new(10, 10, 30, 30)]);
 }
