@@ -121,8 +121,9 @@ pub struct MineArgs {
     #[arg(long, default_value_t = 2)]
     pub k: usize,
     /// Smallest object footprint in plane texels (smaller specks are dropped; at the
-    /// default 300-texel plane, 25 texels is 0.02 m^2 in an 8 m room). Texels, not world
-    /// units: captures come in any unit.
+    /// default 300-texel plane, 25 texels is 0.02 m^2 in an 8 m room). An object standing
+    /// alone may be smaller, down to 0.64 of it (`min_lone_area_share` in a
+    /// --detect-params file). Texels, not world units: captures come in any unit.
     #[arg(long, value_name = "TEXELS")]
     pub min_area: Option<usize>,
     /// Do not look for a floor slab (measure the evidence over the whole column).
