@@ -200,8 +200,12 @@ pub struct DetectParams {
     pub floor_coverage: f32,
 
     // --- walls ---
-    /// Half the thickness of the thickest wall, texels (3.5: 20 cm walls in the suite's
-    /// rooms; furniture is thicker than a wall but shorter).
+    /// Half the thickness of the thickest wall, texels (5: a wall with the haze a field
+    /// leaves along its inner face; furniture is thicker than a wall but shorter). 3.5 (20 cm
+    /// walls in the suite's rooms) and 4 left the walls of the 200-photo walk of issue 33 as
+    /// seven objects (F1 0.754 at 256 pixels with COLMAP's poses; 0.868 with 5 or 6); 7 cut
+    /// the sides of `random_1003`'s vans as walls (6000 iterations 0.789 -> 0.727); 4 to 6
+    /// mine the basis the same.
     pub wall_half_thickness_texels: f32,
 
     // --- splitting ---
@@ -239,7 +243,7 @@ impl Default for DetectParams {
             min_area_texels: 25, // tuned: detect.min_area_texels
             min_lone_area_share: default_min_lone_area_share(),
             floor_coverage: 0.25,            // tuned: detect.floor_coverage
-            wall_half_thickness_texels: 3.5, // tuned: detect.wall_half_thickness_texels
+            wall_half_thickness_texels: 5.0, // tuned: detect.wall_half_thickness_texels
             bridge_radius_texels: 2,         // tuned: detect.bridge_radius_texels
             colour_contrast: 1.5,            // tuned: detect.colour_contrast
             colour: ColourSplit::default(),
