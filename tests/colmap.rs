@@ -27,14 +27,15 @@ fn render(dir: &Path) -> PathBuf {
     out
 }
 
-/// `synth --random 1 --capture --res 512`, the photos the capture fixture's model was made
-/// from.
+/// `synth --random 1 --capture --views 50 --test-views 10 --res 512`, the photos the capture
+/// fixture's model was made from (a capture's default was 50 photos then).
 fn render_capture(dir: &Path) -> PathBuf {
     let out = dir.join("capture");
-    ok(
-        dir,
-        &["synth", "--random", "1", "--capture", "--res", "512", "--out", out.to_str().unwrap()],
-    );
+    let args = ["--capture", "--views", "50", "--test-views", "10", "--res", "512"];
+    let mut cmd = vec!["synth", "--random", "1"];
+    cmd.extend(args);
+    cmd.extend(["--out", out.to_str().unwrap()]);
+    ok(dir, &cmd);
     out
 }
 

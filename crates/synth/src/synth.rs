@@ -95,8 +95,8 @@ impl SynthConfig {
             fov_deg: None,
             capture: None,
         });
-        let fov_default =
-            if opts.capture || s.capture.is_some() { crate::capture::FOV_DEG } else { d.fov_deg };
+        let capture = opts.capture || s.capture.is_some();
+        let fov_default = if capture { crate::capture::FOV_DEG } else { d.fov_deg };
         let origin = |flag: bool, script: bool| match (flag, script) {
             (true, _) => Origin::Flag,
             (false, true) => Origin::Script,
@@ -112,9 +112,16 @@ impl SynthConfig {
             (Setting::Aa, Origin::Flag),
         ];
         let origin_of = |k: Setting| origins.iter().find(|(s, _)| *s == k).map(|(_, o)| *o);
+        // a capture walks: more photos, every 8th held out
+        let views_default = if capture { crate::capture::VIEWS } else { d.views };
+        let test_default = if capture {
+            (opts.views.or(s.count).unwrap_or(views_default) / crate::capture::HOLDOUT_EVERY).max(1)
+        } else {
+            d.test_views
+        };
         let cfg = SynthConfig {
-            views: opts.views.or(s.count).unwrap_or(d.views),
-            test_views: opts.test_views.or(s.test).unwrap_or(d.test_views),
+            views: opts.views.or(s.count).unwrap_or(views_default),
+            test_views: opts.test_views.or(s.test).unwrap_or(test_default),
             resolution: opts.resolution.or(s.resolution).unwrap_or(d.resolution),
             radius: opts.radius.or(s.radius),
             elevation_deg: opts.elevation_deg.or(s.elevation_deg).unwrap_or(d.elevation_deg),

@@ -32,10 +32,12 @@ pub struct SynthArgs {
     /// complete.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
-    /// Total number of views (train + test) [default: 50, or the scene's `views.count`].
+    /// Total number of views (train + test) [default: the scene's `views.count`, else 50;
+    /// 200 for a capture, which walks].
     #[arg(long)]
     pub views: Option<u32>,
-    /// Number of test views, evenly interleaved [default: 10].
+    /// Number of test views, evenly interleaved [default: the scene's `views.test`, else 10;
+    /// every 8th for a capture].
     #[arg(long)]
     pub test_views: Option<u32>,
     /// Square image resolution in pixels [default: 400].
