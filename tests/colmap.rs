@@ -31,11 +31,9 @@ fn render(dir: &Path) -> PathBuf {
 /// fixture's model was made from (a capture's default was 50 photos then).
 fn render_capture(dir: &Path) -> PathBuf {
     let out = dir.join("capture");
-    let args = ["--capture", "--views", "50", "--test-views", "10", "--res", "512"];
-    let mut cmd = vec!["synth", "--random", "1"];
-    cmd.extend(args);
-    cmd.extend(["--out", out.to_str().unwrap()]);
-    ok(dir, &cmd);
+    let out_arg = out.to_str().unwrap();
+    let args = ["synth", "--random", "1", "--capture", "--views", "50", "--test-views", "10"];
+    ok(dir, &[&args[..], &["--res", "512", "--out", out_arg]].concat());
     out
 }
 

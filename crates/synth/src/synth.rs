@@ -113,14 +113,12 @@ impl SynthConfig {
         ];
         let origin_of = |k: Setting| origins.iter().find(|(s, _)| *s == k).map(|(_, o)| *o);
         // a capture walks: more photos, every 8th held out
-        let views_default = if capture { crate::capture::VIEWS } else { d.views };
-        let test_default = if capture {
-            (opts.views.or(s.count).unwrap_or(views_default) / crate::capture::HOLDOUT_EVERY).max(1)
-        } else {
-            d.test_views
-        };
+        let views =
+            opts.views.or(s.count).unwrap_or(if capture { crate::capture::VIEWS } else { d.views });
+        let test_default =
+            if capture { (views / crate::capture::HOLDOUT_EVERY).max(1) } else { d.test_views };
         let cfg = SynthConfig {
-            views: opts.views.or(s.count).unwrap_or(views_default),
+            views,
             test_views: opts.test_views.or(s.test).unwrap_or(test_default),
             resolution: opts.resolution.or(s.resolution).unwrap_or(d.resolution),
             radius: opts.radius.or(s.radius),
