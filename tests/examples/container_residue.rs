@@ -8,7 +8,9 @@
 //! Prints one line per entry whose footprint holds more than its ring by over 10% (of the
 //! ring, or of 0.1 where the ring is nearly empty: residue), and a summary line per library
 //! with those and the entries whose footprint holds less (a ring that takes in a wall or a
-//! floor's edge). `AF_MAP=NAME` draws the column opacity around entry NAME (`.` at or under
+//! floor's edge). `AF_GAP=TEXELS` moves the ring out (the default 3 lies inside the halo
+//! that mining fills round every object, 6 texels for a blur of 3; 7 lies beyond it).
+//! `AF_MAP=NAME` draws the column opacity around entry NAME (`.` at or under
 //! its ring's, digits tenths over it, `#` double or more).
 
 use assetfield_scene::AssetLibrary;
@@ -38,7 +40,8 @@ fn measure(dir: &Path) -> Result<(), Box<dyn std::error::Error>> {
     let [cols, rows, _] = comp.field.config.res;
     let opacity = assetfield_tests::column_opacity(&comp.field);
     let g = comp.grid;
-    let margin = RING_GAP * g.step.x.max(g.step.y);
+    let gap = std::env::var("AF_GAP").ok().and_then(|v| v.parse().ok()).unwrap_or(RING_GAP);
+    let margin = gap * g.step.x.max(g.step.y);
     let boxes: Vec<[f32; 4]> = lib.index.entries.iter().map(|e| e.source_box).collect();
     let within = |b: &[f32; 4], p: Vec2, m: f32| {
         p.x >= b[0] - m && p.x <= b[2] + m && p.y >= b[1] - m && p.y <= b[3] + m

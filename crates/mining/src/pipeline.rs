@@ -259,9 +259,13 @@ pub fn fill_from_background_by_class(
 
 /// The fill of the container: every object's region of `mask` (the objects and their
 /// halos) takes the per-channel median of the unmasked texels within `ring` texels of it, of
-/// the masked texel's own class where `class` is given (the floor from the floor, empty space
+/// the masked texel's class where `class` is given (the floor from the floor, empty space
 /// from empty space; the other class, then the nearest texel
-/// ([`fill_from_background_by_class`]) where a region's ring holds none of it). A median,
+/// ([`fill_from_background_by_class`]) where a region's ring holds none of it). A masked
+/// texel's class is whether the floor in view continues under it ([`floor_under`]), not its
+/// own: an object's solid base is opaque at the floor's levels wherever it stands (a
+/// pedestal table beyond a floor's edge read as floor), and the floor under a solid body may
+/// be missing from the field (never seen). A median,
 /// not the nearest texel: the nearest copies whatever touches the region's edge (a kerb, a
 /// neighbour's blur, the object's own haze) across it in streaks, which is the
 /// object-shaped mark a vacated footprint must not keep. The regions and rings are found
@@ -269,7 +273,9 @@ pub fn fill_from_background_by_class(
 #[derive(Debug)]
 pub struct RingFill<'a> {
     mask: &'a Mask,
-    class: Option<&'a [bool]>,
+    /// Per texel, its own class (unmasked texels) or whether the floor continues under it
+    /// (masked texels, [`floor_under`]).
+    class: Option<Vec<bool>>,
     /// Per texel, its region (masked texels) or the region whose ring it is in.
     region: Vec<u32>,
     /// Per region, the ring's texels of class 0 (empty space) and 1 (floor).
@@ -286,7 +292,7 @@ impl<'a> RingFill<'a> {
     pub fn around_objects(
         mask: &'a Mask,
         objects: &Mask,
-        class: Option<&'a [bool]>,
+        class: Option<&[bool]>,
         ring: usize,
     ) -> Result<Self> {
         let (rows, cols) = (mask.rows, mask.cols);
@@ -318,7 +324,14 @@ impl<'a> RingFill<'a> {
                 }
             }
         }
-        let class_of = |i: usize| class.map_or(0usize, |cl| usize::from(cl[i]));
+        // under the mask, whether the floor in view continues there ([`floor_under`]); in
+        // view, each texel's own class (the medians are of the floor's texels and of empty
+        // space's)
+        let class = match class {
+            Some(cl) => Some(floor_under(mask, cl, ring)?),
+            None => None,
+        };
+        let class_of = |i: usize| class.as_ref().map_or(0usize, |cl| usize::from(cl[i]));
         let mut members: Vec<[Vec<usize>; 2]> = vec![[Vec::new(), Vec::new()]; sizes.len()];
         for i in 0..n {
             if !mask.data[i] && region[i] != u32::MAX {
@@ -352,7 +365,7 @@ impl<'a> RingFill<'a> {
             self.members.iter().map(|m| [median(&m[0]), median(&m[1])]).collect();
         // the nearest texel only where a region's ring holds neither class
         let mut out = if medians.iter().any(|m| m[0].is_none() && m[1].is_none()) {
-            fill_from_background_by_class(plane, self.mask, self.class)?
+            fill_from_background_by_class(plane, self.mask, self.class.as_deref())?
         } else {
             plane.validate()?;
             if (self.mask.rows, self.mask.cols) != (plane.rows, plane.cols) {
@@ -369,7 +382,7 @@ impl<'a> RingFill<'a> {
                 continue;
             }
             let [empty, floor] = &medians[self.region[i] as usize];
-            let on_floor = self.class.is_some_and(|cl| cl[i]);
+            let on_floor = self.class.as_ref().is_some_and(|cl| cl[i]);
             let (own, other) = if on_floor { (floor, empty) } else { (empty, floor) };
             if let Some(v) = own.as_ref().or(other.as_ref()) {
                 out.data[i * ch..(i + 1) * ch].copy_from_slice(v);
@@ -377,6 +390,76 @@ impl<'a> RingFill<'a> {
         }
         Ok(out)
     }
+}
+
+/// Per texel, whether most of the unmasked texels within `radius` texels (a square window)
+/// are of class `true` (the floor); a texel with none in its window keeps its own class: the
+/// floor's extent rather than its texels over the floor's threshold, which are noisy where
+/// the floor is faint (texels under it amid the floor) and where haze lies beyond it (specks
+/// over it). A majority over the field's blur; no value of its own.
+pub fn class_areas(mask: &Mask, class: &[bool], radius: usize) -> Vec<bool> {
+    let (rows, cols) = (mask.rows, mask.cols);
+    // summed-area tables of unmasked texels and of unmasked floor texels
+    let (w, mut seen, mut floor) =
+        (cols + 1, vec![0u32; (rows + 1) * (cols + 1)], vec![0u32; (rows + 1) * (cols + 1)]);
+    for r in 0..rows {
+        for c in 0..cols {
+            let i = r * cols + c;
+            let (a, b) = (u32::from(!mask.data[i]), u32::from(!mask.data[i] && class[i]));
+            let j = (r + 1) * w + c + 1;
+            seen[j] = a + seen[j - 1] + seen[j - w] - seen[j - w - 1];
+            floor[j] = b + floor[j - 1] + floor[j - w] - floor[j - w - 1];
+        }
+    }
+    let sum = |t: &[u32], r0: usize, c0: usize, r1: usize, c1: usize| {
+        t[r1 * w + c1] + t[r0 * w + c0] - t[r0 * w + c1] - t[r1 * w + c0]
+    };
+    (0..rows * cols)
+        .map(|i| {
+            let (r, c) = (i / cols, i % cols);
+            let (r0, c0) = (r.saturating_sub(radius), c.saturating_sub(radius));
+            let (r1, c1) = ((r + radius + 1).min(rows), (c + radius + 1).min(cols));
+            let n = sum(&seen, r0, c0, r1, c1);
+            if n == 0 { class[i] } else { 2 * sum(&floor, r0, c0, r1, c1) > n }
+        })
+        .collect()
+}
+
+/// Whether the floor lies under each masked texel: the floor in view (its area,
+/// [`class_areas`] over `blur` texels) closed over the masked texels, with a square wide enough
+/// to span every connected piece of the mask. An object on the floor, or on a floor's edge,
+/// is a hole or a notch in the floor in view, which the closing fills (and a straight edge
+/// through it stays straight); one beyond the floor's edge lies in no concavity of the floor
+/// and stays empty space. Unmasked texels keep their own class.
+pub fn floor_under(mask: &Mask, class: &[bool], blur: usize) -> Result<Vec<bool>> {
+    let (rows, cols) = (mask.rows, mask.cols);
+    if rows == 0 || cols == 0 {
+        return Ok(class.to_vec());
+    }
+    let areas = class_areas(mask, class, blur);
+    let in_view = Mask::from_fn(rows, cols, |r, c| !mask.get(r, c) && areas[r * cols + c]);
+    // the widest piece of the mask, by the shorter side of its box
+    let (labels, sizes) = crate::contours::label_components_4(mask)?;
+    let mut boxes = vec![(usize::MAX, usize::MAX, 0usize, 0usize); sizes.len()];
+    for (i, &l) in labels.iter().enumerate() {
+        if l != u32::MAX {
+            let (r, c) = (i / cols, i % cols);
+            let b = &mut boxes[l as usize];
+            *b = (b.0.min(r), b.1.min(c), b.2.max(r), b.3.max(c));
+        }
+    }
+    let span = boxes.iter().map(|b| (b.2 - b.0 + 1).min(b.3 - b.1 + 1)).max().unwrap_or(0);
+    // closed with the plane's edge texels continued outward (the plane's border neither
+    // floor nor empty space: a margin of empty space along it stays a straight edge, a floor
+    // cut by it stays floor)
+    let r = span.div_ceil(2);
+    let padded = Mask::from_fn(rows + 2 * r, cols + 2 * r, |pr, pc| {
+        let (y, x) = (pr.saturating_sub(r).min(rows - 1), pc.saturating_sub(r).min(cols - 1));
+        in_view.get(y, x)
+    });
+    let closed_padded = crate::morphology::close(&padded, r)?;
+    let closed = Mask::from_fn(rows, cols, |y, x| closed_padded.get(y + r, x + r));
+    Ok((0..rows * cols).map(|i| if mask.data[i] { closed.data[i] } else { class[i] }).collect())
 }
 
 /// The 4-neighbours of flat index `i` inside a `rows x cols` grid, as flat indices.
@@ -1193,6 +1276,57 @@ mod tests {
         let f = fill(&plane, &mask, Some(&class), 2);
         let row = &f.channel(0).unwrap()[..12];
         assert_eq!((row[2], row[6], row[9]), (1.0, 0.0, 0.0));
+    }
+
+    #[test]
+    fn what_lies_under_an_object_is_the_ground_around_it() {
+        // a floor (value 1) on columns 0..8 and empty space (0) beyond; a pedestal table
+        // beyond the floor's edge (columns 11..14), whose base is opaque at the floor's
+        // levels (its own texels read as floor), and a cabinet on the floor (columns 2..5)
+        // under which the field has no floor (its texels read as empty)
+        let (rows, cols) = (6, 16);
+        let on_floor = |c: usize| c < 8;
+        let table = |r: usize, c: usize| (1..5).contains(&r) && (11..14).contains(&c);
+        let cabinet = |r: usize, c: usize| (1..5).contains(&r) && (2..5).contains(&c);
+        let plane = PlaneImage::from_fn(rows, cols, 1, |r, c, _| {
+            if table(r, c) || cabinet(r, c) { 7.0 } else { f32::from(u8::from(on_floor(c))) }
+        })
+        .unwrap();
+        let mask = Mask::from_fn(rows, cols, |r, c| table(r, c) || cabinet(r, c));
+        let class: Vec<bool> = (0..rows * cols)
+            .map(|i| {
+                (on_floor(i % cols) || table(i / cols, i % cols)) && !cabinet(i / cols, i % cols)
+            })
+            .collect();
+        let under = floor_under(&mask, &class, 2).unwrap();
+        for r in 1..5 {
+            assert!(!under[r * cols + 12] && under[r * cols + 3], "row {r}");
+        }
+        let f =
+            RingFill::around_objects(&mask, &mask, Some(&class), 2).unwrap().apply(&plane).unwrap();
+        let v = f.channel(0).unwrap();
+        for r in 1..5 {
+            assert_eq!((v[r * cols + 3], v[r * cols + 12]), (1.0, 0.0), "row {r}");
+        }
+        // a table over the floor's edge (a notch in the floor in view): the edge continues
+        // under it
+        let edge = Mask::from_fn(rows, cols, |r, c| (1..5).contains(&r) && (6..10).contains(&c));
+        let all: Vec<bool> = (0..rows * cols).map(|i| edge.data[i] || on_floor(i % cols)).collect();
+        let under = floor_under(&edge, &all, 2).unwrap();
+        assert_eq!((under[2 * cols + 6], under[2 * cols + 9]), (true, false));
+        // classes as areas: a faint floor's texels under the threshold (every third) are the
+        // floor's, specks of haze over it beyond the floor (every fifth) are empty space's
+        let noisy: Vec<bool> = (0..rows * cols)
+            .map(|i| if on_floor(i % cols) { i % 3 != 0 } else { i % 5 == 0 })
+            .collect();
+        let none = Mask::empty(rows, cols).unwrap();
+        let areas = class_areas(&none, &noisy, 2);
+        for i in 0..rows * cols {
+            let c = i % cols;
+            if !(7..=8).contains(&c) {
+                assert_eq!(areas[i], on_floor(c), "texel {i}");
+            }
+        }
     }
 
     #[test]
