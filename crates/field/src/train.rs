@@ -1257,13 +1257,13 @@ fn render_tiles(
     let rows_per_task = (1024 / w.max(1)).max(1);
     let aabb = field.config.aabb();
     let stopped = std::sync::atomic::AtomicBool::new(false);
-    out.par_chunks_mut(w * 3 * rows_per_task).enumerate().for_each_init(
-        MarchWork::default,
-        |work, (t, dst)| {
+    out.par_chunks_mut(w * 3 * rows_per_task).enumerate().for_each(|(t, dst)| {
+        with_render_work(|work| {
             if stopped.load(std::sync::atomic::Ordering::Relaxed) || stop() {
                 stopped.store(true, std::sync::atomic::Ordering::Relaxed);
                 return;
             }
+            work.want_semantic = false;
             let j0 = t * rows_per_task;
             let rows = dst.len() / (w * 3);
             let rays: Vec<Ray> = (0..rows)
@@ -1282,9 +1282,26 @@ fn render_tiles(
             for (k, c) in work.rgb.iter().enumerate() {
                 dst[k * 3..k * 3 + 3].copy_from_slice(&c.to_array());
             }
-        },
-    );
+        })
+    });
     (!stopped.into_inner()).then_some(out)
+}
+
+thread_local! {
+    /// Each thread's march buffers for rendering, kept from tile to tile and view to view.
+    /// `for_each_init` makes a fresh set for every piece rayon splits a view into, and
+    /// growing a fresh set zero-fills newly faulted pages: with it, a quarter of a render's
+    /// time was the kernel clearing pages.
+    static RENDER_WORK: std::cell::RefCell<MarchWork> = std::cell::RefCell::new(MarchWork::default());
+}
+
+/// Run `f` with this thread's render buffers ([`RENDER_WORK`]; a fresh set if they are in
+/// use further up this thread's stack).
+fn with_render_work<R>(f: impl FnOnce(&mut MarchWork) -> R) -> R {
+    RENDER_WORK.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut work) => f(&mut work),
+        Err(_) => f(&mut MarchWork::default()),
+    })
 }
 
 /// Render a view's semantic features (`[height][width][semantic_channels]`) with a field
@@ -1302,13 +1319,10 @@ pub fn render_semantic_view(
     let mut out = vec![0.0f32; w * h * nc];
     let settings = MarchSettings::default();
     let rows_per_task = (1024 / w.max(1)).max(1);
-    out.par_chunks_mut(w * nc * rows_per_task).enumerate().for_each_init(
-        || {
-            let mut w = MarchWork::default();
-            w.want_semantic = true;
-            w
-        },
-        |work, (t, dst)| {
+    out.par_chunks_mut(w * nc * rows_per_task).enumerate().for_each(|(t, dst)| {
+        with_render_work(|work| {
+            work.want_semantic = true;
+            work.ray_bg.clear();
             let j0 = t * rows_per_task;
             let rows = dst.len() / (w * nc);
             let rays: Vec<Ray> = (0..rows)
@@ -1317,7 +1331,7 @@ pub fn render_semantic_view(
                 .collect();
             march::forward(field, occ, &rays, None, Vec3::ZERO, &settings, work);
             dst.copy_from_slice(&work.semantic);
-        },
-    );
+        })
+    });
     Some(out)
 }
