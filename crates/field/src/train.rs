@@ -5,7 +5,7 @@
 
 use crate::adam::Adam;
 use crate::appearance;
-use crate::background::{BackgroundMap, leaves_through_floor};
+use crate::background::BackgroundMap;
 use crate::config::{FieldConfig, MIN_VERTICAL_RES, ModelKind};
 use crate::io::FieldError;
 use crate::march::{self, MarchSettings, MarchWork};
@@ -87,6 +87,15 @@ pub struct TrainConfig {
     /// texels `[width, height]`, starting at `background`; `None`: one colour, `background`.
     #[serde(default)]
     pub background_map: Option<[usize; 2]>,
+    /// The box's bottom face is the ground: with a background map, rays through it bring
+    /// black, not the map ([`crate::background`]). Off for a capture whose ground was not
+    /// found; runs from before it existed resume with it on.
+    #[serde(default = "ground_under_box_default")]
+    pub ground_under_box: bool,
+}
+
+fn ground_under_box_default() -> bool {
+    true
 }
 
 /// The default pull of the per-photo colour transforms toward the identity
@@ -179,6 +188,7 @@ impl TrainConfig {
             grid: GridRule::default(),
             appearance_weight: None,
             background_map: None,
+            ground_under_box: true,
         }
     }
 }
@@ -532,7 +542,8 @@ impl Trainer {
             self.appearance = Some(Appearance::identity(self.views.len()));
         }
         if let Some([w, h]) = self.config.background_map {
-            let map = BackgroundMap::uniform(w, h, Vec3::from(self.config.background));
+            let mut map = BackgroundMap::uniform(w, h, Vec3::from(self.config.background));
+            map.ground = self.config.ground_under_box;
             let n = map.rgb.len();
             self.background_map =
                 Some(LearnedBackground { map, adam: Adam::new(n), grad: vec![0.0; n] });
@@ -783,7 +794,7 @@ impl Trainer {
                 // which rays leave through the box's floor (black behind them, and no
                 // gradient for the map), decided once per ray
                 let through_floor: Vec<bool> = match beyond {
-                    Some(_) => rays.iter().map(|r| leaves_through_floor(&aabb, r)).collect(),
+                    Some(m) => rays.iter().map(|r| m.through_ground(&aabb, r)).collect(),
                     None => Vec::new(),
                 };
                 work.ray_bg.clear();

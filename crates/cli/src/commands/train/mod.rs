@@ -874,6 +874,16 @@ fn start_trainer(
         eprintln!(
             "learning a background map beyond the box (64 x 32 directions; --background-map off for one colour)"
         );
+        // the box's bottom is the ground where the world stands on it: a render of this
+        // project (synth.json: the ground at z = 0) or a capture levelled on its floor
+        let floor_found =
+            alignment.is_some_and(|g| g.method == assetfield_data::align::AlignMethod::Floor);
+        tc.ground_under_box = inputs.all_cams.scene_box.is_some() || floor_found;
+        if !tc.ground_under_box {
+            eprintln!(
+                "no floor found under the box: the map takes the rays below it too (--align-ground floor levels a capture with sparse points on its floor)"
+            );
+        }
     }
     let info = FieldInfo {
         dataset: Some(data.root.clone()),
