@@ -397,7 +397,7 @@ impl<'a> RingFill<'a> {
 /// floor's extent rather than its texels over the floor's threshold, which are noisy where
 /// the floor is faint (texels under it amid the floor) and where haze lies beyond it (specks
 /// over it). A majority over the field's blur; no value of its own.
-pub fn class_areas(mask: &Mask, class: &[bool], radius: usize) -> Vec<bool> {
+fn class_areas(mask: &Mask, class: &[bool], radius: usize) -> Vec<bool> {
     let (rows, cols) = (mask.rows, mask.cols);
     // summed-area tables of unmasked texels and of unmasked floor texels
     let (w, mut seen, mut floor) =
@@ -431,7 +431,7 @@ pub fn class_areas(mask: &Mask, class: &[bool], radius: usize) -> Vec<bool> {
 /// is a hole or a notch in the floor in view, which the closing fills (and a straight edge
 /// through it stays straight); one beyond the floor's edge lies in no concavity of the floor
 /// and stays empty space. Unmasked texels keep their own class.
-pub fn floor_under(mask: &Mask, class: &[bool], blur: usize) -> Result<Vec<bool>> {
+fn floor_under(mask: &Mask, class: &[bool], blur: usize) -> Result<Vec<bool>> {
     let (rows, cols) = (mask.rows, mask.cols);
     if rows == 0 || cols == 0 {
         return Ok(class.to_vec());
