@@ -369,6 +369,31 @@ fn ground_alignment_levels_tilted_poses() {
 }
 
 #[test]
+fn the_ground_under_the_box_only_where_there_is_one() {
+    // a render of this project stands on z = 0: rays below its box meet the ground; the same
+    // photos without synth.json (a capture posed with no floor found) let the map take them
+    let dir = scratch("field-ground");
+    synth_tiny(&dir);
+    let ground = |out: &str| {
+        let f = TensorFile::load(&dir.join(out)).unwrap();
+        f.get_u8(assetfield_field::background::GROUND_TENSOR, &[1]).unwrap()[0]
+    };
+    let mut args = vec!["train", "d", "--out", "rendered.safetensors", "--background-map", "on"];
+    args.extend(TINY);
+    let (code, _, err) = run_cli(&dir, &args);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("no floor found"), "{err}");
+    assert_eq!(ground("rendered.safetensors"), 1);
+    std::fs::remove_file(dir.join("d/synth.json")).unwrap();
+    args[3] = "posed.safetensors";
+    let (code, _, err) = run_cli(&dir, &args);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("no floor found under the box"), "{err}");
+    assert_eq!(ground("posed.safetensors"), 0);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn bad_input_fails_clearly() {
     let dir = scratch("field-bad");
     synth_tiny(&dir);
