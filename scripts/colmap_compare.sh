@@ -60,7 +60,9 @@ if not os.path.exists(link):
 PY
 # the exact run's box: the scene's, padded by 5% of its extent on every side as COLMAP's box
 # from the points is (BOX_PAD_SHARE in crates/data/src/align.rs); unpadded, the room's walls
-# lie on the box's faces and the 200-photo walk lost 1.5 dB and 0.1 F1 at 256 pixels
+# lie on the box's faces and the 200-photo walk lost 1.5 dB and 0.1 F1 at 256 pixels. The
+# render's world stands on z = 0, so the box's bottom is the ground (--ground-under-box on),
+# as it is for the COLMAP run levelled on its floor; the nerfstudio file cannot say so
 box=$(python3 - "$R/synth.json" <<'PY'
 import json, sys
 lo, hi = json.load(open(sys.argv[1]))['scene_aabb']
@@ -69,7 +71,7 @@ print(','.join(f'{v:.4f}' for v in [a - p for a, p in zip(lo, pad)] + [b + p for
 PY
 )
 "$BIN" train "$O/exact" --out "$O/exact.safetensors" --model s --aabb="$box" --align-ground none \
-  --background-map on --force --discard-checkpoint "${FLAGS[@]}" > "$O/exact.train.log" 2>&1
+  --background-map on --ground-under-box on --force --discard-checkpoint "${FLAGS[@]}" > "$O/exact.train.log" 2>&1
 "$BIN" train "$C" --out "$O/colmap.safetensors" --model s --force --discard-checkpoint "${FLAGS[@]}" \
   > "$O/colmap.train.log" 2>&1
 for k in exact colmap; do

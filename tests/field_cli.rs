@@ -382,14 +382,20 @@ fn the_ground_under_the_box_only_where_there_is_one() {
     args.extend(TINY);
     let (code, _, err) = run_cli(&dir, &args);
     assert_eq!(code, 0, "{err}");
-    assert!(!err.contains("no floor found"), "{err}");
+    assert!(!err.contains("no floor under the box"), "{err}");
     assert_eq!(ground("rendered.safetensors"), 1);
     std::fs::remove_file(dir.join("d/synth.json")).unwrap();
     args[3] = "posed.safetensors";
     let (code, _, err) = run_cli(&dir, &args);
     assert_eq!(code, 0, "{err}");
-    assert!(err.contains("no floor found under the box"), "{err}");
+    assert!(err.contains("no floor under the box"), "{err}");
     assert_eq!(ground("posed.safetensors"), 0);
+    // the user who knows the box stands on the ground says so
+    args[3] = "told.safetensors";
+    args.extend(["--ground-under-box", "on"]);
+    let (code, _, err) = run_cli(&dir, &args);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(ground("told.safetensors"), 1);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -72,7 +72,7 @@ pub enum DecoderArg {
 /// background map).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum AppearanceArg {
-    /// on for a capture with sparse points (COLMAP), off otherwise.
+    /// decided from the data, as the option says.
     Auto,
     On,
     Off,
@@ -204,6 +204,13 @@ pub struct TrainArgs {
     /// renders (their background is one colour).
     #[arg(long, value_enum, default_value = "auto")]
     pub background_map: AppearanceArg,
+    /// With a background map: whether the box's bottom face is the ground, so that rays
+    /// leaving through it bring black rather than the map (no light comes from under a
+    /// floor). auto: on for this project's renders (synth.json: the world stands on z = 0)
+    /// and for captures levelled on their floor (--align-ground floor), off otherwise (a
+    /// capture posed with no floor found: whatever lies below its box is seen through it).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub ground_under_box: AppearanceArg,
     /// Background that transparent pixels are composited onto, also used behind the field:
     /// white, black, grey or R,G,B in [0, 1]. Stored in the field file.
     #[arg(long, default_value = "white")]
@@ -878,10 +885,14 @@ fn start_trainer(
         // project (synth.json: the ground at z = 0) or a capture levelled on its floor
         let floor_found =
             alignment.is_some_and(|g| g.method == assetfield_data::align::AlignMethod::Floor);
-        tc.ground_under_box = inputs.all_cams.scene_box.is_some() || floor_found;
+        tc.ground_under_box = match a.ground_under_box {
+            AppearanceArg::On => true,
+            AppearanceArg::Off => false,
+            AppearanceArg::Auto => inputs.all_cams.scene_box.is_some() || floor_found,
+        };
         if !tc.ground_under_box {
             eprintln!(
-                "no floor found under the box: the map takes the rays below it too (--align-ground floor levels a capture with sparse points on its floor)"
+                "no floor under the box: the map takes the rays below it too (--ground-under-box on where the box's bottom is the ground; --align-ground floor levels a capture with sparse points on its floor)"
             );
         }
     }
