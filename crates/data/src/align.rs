@@ -218,8 +218,8 @@ impl GroundAlignment {
     /// that layer's band at a fine tolerance ([`FLOOR_FINE_TOLERANCE`]: the refit alone
     /// keeps part of the first plane's tilt). It is levelled: its normal, signed toward the
     /// cameras, becomes +Z, its points' principal axes x and y (a rectangular floor lies
-    /// square to the axes); the
-    /// floor point under the points' median becomes the origin, so the floor is z = 0.
+    /// square to the axes); the floor point under the points' median becomes the origin, so
+    /// the floor is z = 0.
     /// Unlike [`GroundAlignment::fit_pca`] this holds when every camera is at head height
     /// (a walk through a room: the camera positions are a line or a flat blob with no clear
     /// normal).

@@ -97,8 +97,8 @@ fn check_joint_options(a: &TrainArgs) -> Result<ModelKind> {
         (a.aabb.is_some(), "--aabb"),
         (a.align_ground == AlignArg::Pca, "--align-ground pca"),
         (a.align_ground == AlignArg::Floor, "--align-ground floor"),
-        (a.appearance == super::AppearanceArg::On, "--appearance on"),
-        (a.background_map == super::AppearanceArg::On, "--background-map on"),
+        (a.appearance == super::Switch::On, "--appearance on"),
+        (a.background_map == super::Switch::On, "--background-map on"),
         (a.features.is_some(), "--features"),
         (a.val_every.is_some(), "--val-every"),
     ] {

@@ -68,14 +68,25 @@ pub enum DecoderArg {
     Sh,
 }
 
-/// Whether to learn something only captures need (a colour transform per photo, a
-/// background map).
+/// An option that is on, off, or decided from the data (a colour transform per photo and a
+/// background map, which only captures need; the ground under the box).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum AppearanceArg {
+pub enum Switch {
     /// decided from the data, as the option says.
     Auto,
     On,
     Off,
+}
+
+impl Switch {
+    /// On or off, `auto` standing for what the data decided.
+    pub fn resolve(self, auto: bool) -> bool {
+        match self {
+            Switch::On => true,
+            Switch::Off => false,
+            Switch::Auto => auto,
+        }
+    }
 }
 
 /// How to find the ground plane when the data's up axis is unknown.
@@ -196,21 +207,21 @@ pub struct TrainArgs {
     /// with sparse points (COLMAP), off for renders. Score such a field with `eval`'s
     /// psnr_fitted (a map fitted on each test view's left half, scored on its right half).
     #[arg(long, value_enum, default_value = "auto")]
-    pub appearance: AppearanceArg,
+    pub appearance: Switch,
     /// Learn a colour per direction for what lies beyond the scene box (the far walls, a
     /// window, the sky: an equirectangular map of 64 x 32 texels, starting at --background,
     /// stored in the field file and used by eval and render), so that it does not become
     /// haze inside the box. auto: on for a capture with sparse points (COLMAP), off for
     /// renders (their background is one colour).
     #[arg(long, value_enum, default_value = "auto")]
-    pub background_map: AppearanceArg,
+    pub background_map: Switch,
     /// With a background map: whether the box's bottom face is the ground, so that rays
     /// leaving through it bring black rather than the map (no light comes from under a
     /// floor). auto: on for this project's renders (synth.json: the world stands on z = 0)
     /// and for captures levelled on their floor (--align-ground floor), off otherwise (a
     /// capture posed with no floor found: whatever lies below its box is seen through it).
     #[arg(long, value_enum, default_value = "auto")]
-    pub ground_under_box: AppearanceArg,
+    pub ground_under_box: Switch,
     /// Background that transparent pixels are composited onto, also used behind the field:
     /// white, black, grey or R,G,B in [0, 1]. Stored in the field file.
     #[arg(long, default_value = "white")]
@@ -869,14 +880,13 @@ fn start_trainer(
     let mut tc = train_config(a, kind, res, inputs.background);
     tc.grid = grid;
     let capture = !inputs.all_cams.points.is_empty();
-    if a.appearance == AppearanceArg::On || (a.appearance == AppearanceArg::Auto && capture) {
+    if a.appearance.resolve(capture) {
         tc.appearance_weight = Some(assetfield_field::train::DEFAULT_APPEARANCE_WEIGHT);
         eprintln!(
             "learning a colour transform per training photo (exposure, white balance; --appearance off to take the photos' colours as they are)"
         );
     }
-    if a.background_map == AppearanceArg::On || (a.background_map == AppearanceArg::Auto && capture)
-    {
+    if a.background_map.resolve(capture) {
         tc.background_map = Some(assetfield_field::background::DEFAULT_SIZE);
         eprintln!(
             "learning a background map beyond the box (64 x 32 directions; --background-map off for one colour)"
@@ -885,11 +895,8 @@ fn start_trainer(
         // project (synth.json: the ground at z = 0) or a capture levelled on its floor
         let floor_found =
             alignment.is_some_and(|g| g.method == assetfield_data::align::AlignMethod::Floor);
-        tc.ground_under_box = match a.ground_under_box {
-            AppearanceArg::On => true,
-            AppearanceArg::Off => false,
-            AppearanceArg::Auto => inputs.all_cams.scene_box.is_some() || floor_found,
-        };
+        tc.ground_under_box =
+            a.ground_under_box.resolve(inputs.all_cams.scene_box.is_some() || floor_found);
         if !tc.ground_under_box {
             eprintln!(
                 "no floor under the box: the map takes the rays below it too (--ground-under-box on where the box's bottom is the ground; --align-ground floor levels a capture with sparse points on its floor)"
