@@ -7,7 +7,7 @@ use super::floor::{
 };
 use super::params::DetectParams;
 use crate::error::{MiningError, Result};
-use crate::image::PlaneImage;
+use crate::image::{Mask, PlaneImage};
 use crate::planes::{OpacityVolume, PlaneGrid};
 
 /// Inputs, parameters and the scene-wide measurements of one detection run.
@@ -39,6 +39,10 @@ pub(super) struct Ctx<'a> {
     pub min_texels: usize,
     /// Smallest footprint of an object standing alone, texels (at most `min_texels`).
     pub min_lone_texels: usize,
+    /// The insides of hollow objects: the first-round mask's enclosures too short for a wall
+    /// ([`super::shape::small_enclosures`]; empty until the walls stage sets it). What lies
+    /// in one is its host's inside, neither an object of its own nor one standing on it.
+    pub hollow: Mask,
 }
 
 impl<'a> Ctx<'a> {
@@ -133,13 +137,23 @@ impl<'a> Ctx<'a> {
             tau,
             min_texels,
             min_lone_texels,
+            hollow: Mask::empty(rows, cols)?,
+        })
+    }
+
+    /// Whether every texel of a footprint (`footprint` over `rect`) lies inside a hollow
+    /// object ([`Ctx::hollow`]): then it is that object's inside.
+    pub fn inside_hollow(&self, rect: crate::image::PixelRect, footprint: &Mask) -> bool {
+        (0..rect.rows()).all(|r| {
+            (0..rect.cols())
+                .all(|c| !footprint.get(r, c) || self.hollow.get(rect.r0 + r, rect.c0 + c))
         })
     }
 
     /// `mask` without its specks: components under the smallest object's area, unless one
     /// stands alone ([`crate::morphology::remove_small_unless_alone`]: at least
     /// `min_lone_texels`, and no such component within the field's blur across).
-    pub fn without_specks(&self, mask: &crate::image::Mask) -> Result<crate::image::Mask> {
+    pub fn without_specks(&self, mask: &Mask) -> Result<Mask> {
         crate::morphology::remove_small_unless_alone(
             mask,
             self.min_texels,
@@ -154,11 +168,7 @@ impl<'a> Ctx<'a> {
     }
 
     /// The evidence of the texels set in `footprint` (over `rect`), sorted.
-    pub fn sorted_evidence(
-        &self,
-        rect: crate::image::PixelRect,
-        footprint: &crate::image::Mask,
-    ) -> Vec<f32> {
+    pub fn sorted_evidence(&self, rect: crate::image::PixelRect, footprint: &Mask) -> Vec<f32> {
         let cols = self.grid.cols;
         let mut ev: Vec<f32> = (0..rect.rows())
             .flat_map(|r| (0..rect.cols()).map(move |c| (r, c)))

@@ -12,7 +12,9 @@
 //!    lowest cluster is background (the paper preset clusters the density plane's features
 //!    instead, the largest cluster being background). Specks smaller than the smallest
 //!    object go, walls (thin and long) are cut out, and the regions are the connected
-//!    components (objects nested in another's hole are regions of their own).
+//!    components (objects nested in another's hole are regions of their own, unless the
+//!    hole is shorter than a wall: then it is a hollow object's inside and what the field
+//!    left in it goes).
 //! 3. **Splitting** ([`split`], [`colour`]). Reconstruction blur joins neighbours, so each
 //!    region is cut at thin bridges, then by 3D connectivity (every component standing on
 //!    the ground starts an object), then by colour (pieces of clearly different colour that
@@ -141,13 +143,14 @@ pub fn detect(
     feature: Option<&PlaneImage>,
     params: &DetectParams,
 ) -> Result<Detections> {
-    let cx = Ctx::new(grid, vol, color, params)?;
+    let mut cx = Ctx::new(grid, vol, color, params)?;
     let mask = evidence::binarise(&cx, feature)?;
     check_interrupt()?;
     let mut removed = Vec::new();
     let detections = if params.preset == Preset::Paper {
         paper::detections(&cx, &mask)?
     } else {
+        cx.hollow = walls::hollow_insides(&cx, &mask)?;
         let mask = walls::remove_walls(&cx, mask, &mut removed)?;
         let mut parts = parts_of_regions(&cx, &mask, &mut removed)?;
         if params.stages.merge_fragments {
@@ -254,7 +257,9 @@ fn parts_of_regions(cx: &Ctx, mask: &Mask, removed: &mut Vec<Removed>) -> Result
             .map(|part| if p.stages.smooth { shape::smooth(part, smallest) } else { part })
             .filter_map(Part::tighten)
         {
-            if part.footprint.count() < smallest {
+            // what lies wholly inside a hollow object (the 3D split finds the sheets a field
+            // leaves there standing on the ground) is its inside
+            if part.footprint.count() < smallest || cx.inside_hollow(part.rect, &part.footprint) {
                 continue;
             }
             match filters::judge(cx, &part) {

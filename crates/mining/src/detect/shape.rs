@@ -55,23 +55,20 @@ pub fn fill_holes(mask: &Mask) -> Mask {
     Mask { rows, cols, data: outside.iter().map(|&o| !o).collect() }
 }
 
-/// Fill the *empty* holes of a mask: the holes (background not 4-connected to the image
-/// border) that enclose no texel of the mask. An enclosure with nothing inside is the shell of
-/// one object whose inside the field left empty (a van's sides with no roof learnt); an
-/// enclosure holding objects is a container (a room's walls) and keeps its hole.
-pub(super) fn fill_empty_holes(mask: &Mask) -> Mask {
+/// The holes of a mask (background not 4-connected to the image border), each as its texels
+/// (indices into the mask) and, over its box, its own mask.
+fn holes(mask: &Mask) -> Vec<(Vec<usize>, PixelRect, Mask)> {
     let (rows, cols) = (mask.rows, mask.cols);
     let filled = fill_holes(mask);
     let mut seen = vec![false; rows * cols];
-    let mut out = mask.clone();
     let mut queue = VecDeque::new();
-    let mut hole = Vec::new();
+    let mut out = Vec::new();
     for start in 0..rows * cols {
         if seen[start] || mask.data[start] || !filled.data[start] {
             continue;
         }
         // one hole: 4-connected background inside the mask
-        hole.clear();
+        let mut hole = Vec::new();
         seen[start] = true;
         queue.push_back(start);
         while let Some(i) = queue.pop_front() {
@@ -96,6 +93,18 @@ pub(super) fn fill_empty_holes(mask: &Mask) -> Mask {
         for &i in &hole {
             own.set(i / cols - bb.r0, i % cols - bb.c0, true);
         }
+        out.push((hole, bb, own));
+    }
+    out
+}
+
+/// Fill the *empty* holes of a mask: the holes (background not 4-connected to the image
+/// border) that enclose no texel of the mask. An enclosure with nothing inside is the shell of
+/// one object whose inside the field left empty (a van's sides with no roof learnt); an
+/// enclosure holding objects is a container (a room's walls) and keeps its hole.
+pub(super) fn fill_empty_holes(mask: &Mask) -> Mask {
+    let mut out = mask.clone();
+    for (hole, _, own) in holes(mask) {
         // a hole encloses an island when it has a hole of its own
         if fill_holes(&own).count() == hole.len() {
             for &i in &hole {
@@ -104,6 +113,30 @@ pub(super) fn fill_empty_holes(mask: &Mask) -> Mask {
         }
     }
     out
+}
+
+/// The insides of a mask's small enclosures: every hole whose box's longer side is under
+/// `max_side` texels, with the islands it encloses (texels of the mask inside it). A room's
+/// shell encloses a space as long as its walls, which run along at least
+/// [`super::filters::WALL_MIN_LENGTH`] of the plane; an enclosure shorter than a wall is the
+/// inside of one hollow object (a van whose roof the field painted onto the ground), and the
+/// specks and sheets the field left in it are that object's, not objects of their own.
+pub(super) fn small_enclosures(mask: &Mask, max_side: usize) -> Mask {
+    let mut inside = Mask { rows: mask.rows, cols: mask.cols, data: vec![false; mask.data.len()] };
+    for (_, bb, own) in holes(mask) {
+        if bb.rows().max(bb.cols()) >= max_side {
+            continue;
+        }
+        let enclosed = fill_holes(&own);
+        for r in 0..bb.rows() {
+            for c in 0..bb.cols() {
+                if enclosed.get(r, c) {
+                    inside.set(bb.r0 + r, bb.c0 + c, true);
+                }
+            }
+        }
+    }
+    inside
 }
 
 /// Pixels of `mask` with an 8-neighbour outside it (or on the image edge).

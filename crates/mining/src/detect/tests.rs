@@ -753,6 +753,45 @@ fn hollow_shells_in_contact_are_one_object_each() {
 }
 
 #[test]
+fn what_a_hollow_shell_holds_is_its_own_and_the_room_keeps_what_stands_in_it() {
+    // a room's walls (two texels thick all round) around three long shells in contact, end
+    // to end, whose tops the field did not learn and whose insides hold sheets it left there
+    // instead (a white van's roof painted onto the ground, the rest drawn as curtains), and a
+    // box standing free in the room: the shells are one object each and not a wall, the
+    // sheets no objects, the box a box, the room's walls walls
+    let (rows, cols) = (74, 114);
+    let mut v = floor_volume(rows, cols, 30);
+    fill(&mut v, (0, rows), (0, cols), (2, 20), 0.95);
+    fill(&mut v, (2, rows - 2), (2, cols - 2), (2, 20), 0.0);
+    let shell = |v: &mut OpacityVolume, r: (usize, usize), c: (usize, usize)| {
+        fill(v, r, c, (2, 16), 0.95);
+        fill(v, (r.0 + 3, r.1 - 3), (c.0 + 3, c.1 - 3), (2, 16), 0.0);
+        // a sheet inside, as tall as the shell
+        fill(v, (r.0 + 8, r.0 + 10), (c.0 + 8, c.1 - 8), (2, 15), 0.95);
+    };
+    shell(&mut v, (7, 27), (7, 47));
+    shell(&mut v, (27, 47), (22, 62));
+    shell(&mut v, (7, 27), (47, 87));
+    fill(&mut v, (55, 65), (80, 90), (2, 10), 0.95); // the box
+    let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
+    let boxes = rects(&d);
+    for want in [
+        PixelRect::new(7, 7, 27, 47),
+        PixelRect::new(27, 22, 47, 62),
+        PixelRect::new(7, 47, 27, 87),
+        PixelRect::new(55, 80, 65, 90),
+    ] {
+        assert!(boxes.iter().any(|&r| within_a_texel(r, want)), "{want:?} in {boxes:?}");
+    }
+    assert_eq!(boxes.len(), 4, "{boxes:?} removed {:?}", d.removed);
+    assert!(
+        d.removed.iter().any(|r| matches!(r.reason, RemovalReason::Wall { .. })),
+        "{:?}",
+        d.removed
+    );
+}
+
+#[test]
 fn a_wall_corner_closed_off_by_a_streak_is_still_a_wall() {
     // walls along two sides (an L, two texels thick) and a one-texel streak of haze across
     // the corner: the streak closes an empty triangle, which is no hollow object, for most

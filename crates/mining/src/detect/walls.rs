@@ -1,23 +1,39 @@
 //! Stage 2b: walls, even where objects lean on them. A wall is a thin structure that an
 //! opening of its half thickness removes and that runs a long way; it is cut out of the
 //! first-round mask before regions are formed, so that a chair against a wall stays a chair.
-//! An enclosure with nothing inside it is not a wall but the sides of one hollow object.
+//! An enclosure with nothing inside it is not a wall but the sides of one hollow object, and
+//! an enclosure shorter than a wall can be is one object's inside, whatever the field left in
+//! it.
 
 use super::Removed;
 use super::context::Ctx;
 use super::filters::RemovalReason;
-use super::shape::fill_empty_holes;
+use super::shape::{fill_empty_holes, small_enclosures};
 use crate::contours::components;
 use crate::error::Result;
 use crate::image::Mask;
 
-/// Remove the walls from the first-round mask, recording each.
+/// The insides of the first-round mask's hollow objects ([`Ctx::hollow`]): its enclosures
+/// too short for a wall, empty when walls are not looked for.
+pub(super) fn hollow_insides(cx: &Ctx, mask: &Mask) -> Result<Mask> {
+    if !cx.p.walls_on() {
+        return Mask::empty(mask.rows, mask.cols);
+    }
+    let longest = mask.rows.max(mask.cols) as f32;
+    Ok(small_enclosures(mask, (super::filters::WALL_MIN_LENGTH * longest).ceil() as usize))
+}
+
+/// Remove the walls from the first-round mask, recording each; what lies inside a hollow
+/// object ([`Ctx::hollow`]) goes with them.
 pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> Result<Mask> {
     let p = cx.p;
     if !p.walls_on() {
         return Ok(mask);
     }
     let (rows, cols) = (mask.rows, mask.cols);
+    // what an enclosure too short for a wall holds is its host's inside
+    let mask = Mask::from_fn(rows, cols, |rr, cc| mask.get(rr, cc) && !cx.hollow.get(rr, cc));
+    let longest = rows.max(cols) as f32;
     let r = half_thickness(cx);
     let near_core_plain = near_core(&mask, r)?;
     let filled = fill_empty_holes(&mask);
@@ -43,7 +59,6 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
                 [i]
     });
     let mut walls = Mask::empty(rows, cols)?;
-    let longest = rows.max(cols) as f32;
     for reg in components(&thin)? {
         let length = reg.bbox.rows().max(reg.bbox.cols()) as f32 / longest;
         if length >= super::filters::WALL_MIN_LENGTH {
