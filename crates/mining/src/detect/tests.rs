@@ -138,6 +138,31 @@ fn floor_volume(rows: usize, cols: usize, nz: usize) -> OpacityVolume {
     v
 }
 
+/// [`floor_volume`] 30 levels high with a room's walls round it: two texels thick, levels
+/// 2..20.
+fn walled_room(rows: usize, cols: usize) -> OpacityVolume {
+    let mut v = floor_volume(rows, cols, 30);
+    fill(&mut v, (0, rows), (0, cols), (2, 20), 0.95);
+    fill(&mut v, (2, rows - 2), (2, cols - 2), (2, 20), 0.0);
+    v
+}
+
+/// The sides of a long object whose top the field did not learn, over rows `r` and columns
+/// `c`: walls three texels thick, levels 2..16, nothing inside.
+fn roofless_shell(v: &mut OpacityVolume, r: (usize, usize), c: (usize, usize)) {
+    fill(v, r, c, (2, 16), 0.95);
+    fill(v, (r.0 + 3, r.1 - 3), (c.0 + 3, c.1 - 3), (2, 16), 0.0);
+}
+
+/// The detections are `want`, each within a texel, and nothing else.
+fn assert_found_exactly(d: &Detections, want: &[PixelRect]) {
+    let boxes = rects(d);
+    for &w in want {
+        assert!(boxes.iter().any(|&r| within_a_texel(r, w)), "{w:?} in {boxes:?}");
+    }
+    assert_eq!(boxes.len(), want.len(), "{boxes:?} removed {:?}", d.removed);
+}
+
 /// Whether two boxes agree within one texel on every side.
 fn within_a_texel(r: PixelRect, want: PixelRect) -> bool {
     r.r0.abs_diff(want.r0) <= 1
@@ -700,9 +725,7 @@ fn a_roofless_shell_is_one_object_and_the_room_s_walls_around_it_are_walls() {
     // object whose top the field did not learn (a white van roof under a white sky): its
     // sides are thin and as long as the room's walls, but nothing stands inside them
     let (rows, cols) = (60, 80);
-    let mut v = floor_volume(rows, cols, 30);
-    fill(&mut v, (0, rows), (0, cols), (2, 20), 0.95);
-    fill(&mut v, (2, rows - 2), (2, cols - 2), (2, 20), 0.0);
+    let mut v = walled_room(rows, cols);
     fill(&mut v, (40, 50), (30, 40), (2, 10), 0.95); // the box
     fill(&mut v, (8, 26), (10, 60), (2, 16), 0.95); // the shell, 18 x 50 texels
     fill(&mut v, (10, 24), (12, 58), (2, 16), 0.0);
@@ -726,30 +749,25 @@ fn hollow_shells_in_contact_are_one_object_each() {
     // shells are one object each, the box stays a box, the gapped top stays one object
     let (rows, cols) = (70, 110);
     let mut v = floor_volume(rows, cols, 30);
-    let shell = |v: &mut OpacityVolume, r: (usize, usize), c: (usize, usize)| {
-        fill(v, r, c, (2, 16), 0.95);
-        fill(v, (r.0 + 3, r.1 - 3), (c.0 + 3, c.1 - 3), (2, 16), 0.0);
-    };
-    shell(&mut v, (5, 25), (5, 45));
-    shell(&mut v, (25, 45), (20, 60)); // touches the first along 25 texels
-    shell(&mut v, (5, 25), (45, 85)); // and the third
+    roofless_shell(&mut v, (5, 25), (5, 45));
+    roofless_shell(&mut v, (25, 45), (20, 60)); // touches the first along 25 texels
+    roofless_shell(&mut v, (5, 25), (45, 85)); // and the third
     fill(&mut v, (10, 20), (1, 5), (2, 8), 0.95); // a box against the first shell
     fill(&mut v, (52, 66), (10, 50), (2, 10), 0.95); // a table top
     for c in [18, 26, 34] {
         fill(&mut v, (56, 62), (c, c + 3), (2, 10), 0.0); // with gaps in it
     }
     let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
-    let boxes = rects(&d);
-    for want in [
-        PixelRect::new(5, 5, 25, 45),
-        PixelRect::new(25, 20, 45, 60),
-        PixelRect::new(5, 45, 25, 85),
-        PixelRect::new(10, 1, 20, 5),
-        PixelRect::new(52, 10, 66, 50),
-    ] {
-        assert!(boxes.iter().any(|&r| within_a_texel(r, want)), "{want:?} in {boxes:?}");
-    }
-    assert_eq!(boxes.len(), 5, "{boxes:?} removed {:?}", d.removed);
+    assert_found_exactly(
+        &d,
+        &[
+            PixelRect::new(5, 5, 25, 45),
+            PixelRect::new(25, 20, 45, 60),
+            PixelRect::new(5, 45, 25, 85),
+            PixelRect::new(10, 1, 20, 5),
+            PixelRect::new(52, 10, 66, 50),
+        ],
+    );
 }
 
 #[test]
@@ -760,12 +778,9 @@ fn what_a_hollow_shell_holds_is_its_own_and_the_room_keeps_what_stands_in_it() {
     // box standing free in the room: the shells are one object each and not a wall, the
     // sheets no objects, the box a box, the room's walls walls
     let (rows, cols) = (74, 114);
-    let mut v = floor_volume(rows, cols, 30);
-    fill(&mut v, (0, rows), (0, cols), (2, 20), 0.95);
-    fill(&mut v, (2, rows - 2), (2, cols - 2), (2, 20), 0.0);
+    let mut v = walled_room(rows, cols);
     let shell = |v: &mut OpacityVolume, r: (usize, usize), c: (usize, usize)| {
-        fill(v, r, c, (2, 16), 0.95);
-        fill(v, (r.0 + 3, r.1 - 3), (c.0 + 3, c.1 - 3), (2, 16), 0.0);
+        roofless_shell(v, r, c);
         // a sheet inside, as tall as the shell
         fill(v, (r.0 + 8, r.0 + 10), (c.0 + 8, c.1 - 8), (2, 15), 0.95);
     };
@@ -774,16 +789,15 @@ fn what_a_hollow_shell_holds_is_its_own_and_the_room_keeps_what_stands_in_it() {
     shell(&mut v, (7, 27), (47, 87));
     fill(&mut v, (55, 65), (80, 90), (2, 10), 0.95); // the box
     let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
-    let boxes = rects(&d);
-    for want in [
-        PixelRect::new(7, 7, 27, 47),
-        PixelRect::new(27, 22, 47, 62),
-        PixelRect::new(7, 47, 27, 87),
-        PixelRect::new(55, 80, 65, 90),
-    ] {
-        assert!(boxes.iter().any(|&r| within_a_texel(r, want)), "{want:?} in {boxes:?}");
-    }
-    assert_eq!(boxes.len(), 4, "{boxes:?} removed {:?}", d.removed);
+    assert_found_exactly(
+        &d,
+        &[
+            PixelRect::new(7, 7, 27, 47),
+            PixelRect::new(27, 22, 47, 62),
+            PixelRect::new(7, 47, 27, 87),
+            PixelRect::new(55, 80, 65, 90),
+        ],
+    );
     assert!(
         d.removed.iter().any(|r| matches!(r.reason, RemovalReason::Wall { .. })),
         "{:?}",
