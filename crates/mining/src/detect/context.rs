@@ -7,7 +7,7 @@ use super::floor::{
 };
 use super::params::DetectParams;
 use crate::error::{MiningError, Result};
-use crate::image::{Mask, PlaneImage};
+use crate::image::{Mask, PixelRect, PlaneImage};
 use crate::planes::{OpacityVolume, PlaneGrid};
 
 /// Inputs, parameters and the scene-wide measurements of one detection run.
@@ -143,7 +143,7 @@ impl<'a> Ctx<'a> {
 
     /// Whether every texel of a footprint (`footprint` over `rect`) lies inside a hollow
     /// object ([`Ctx::hollow`]): then it is that object's inside.
-    pub fn inside_hollow(&self, rect: crate::image::PixelRect, footprint: &Mask) -> bool {
+    pub fn inside_hollow(&self, rect: PixelRect, footprint: &Mask) -> bool {
         (0..rect.rows()).all(|r| {
             (0..rect.cols())
                 .all(|c| !footprint.get(r, c) || self.hollow.get(rect.r0 + r, rect.c0 + c))
@@ -168,7 +168,7 @@ impl<'a> Ctx<'a> {
     }
 
     /// The evidence of the texels set in `footprint` (over `rect`), sorted.
-    pub fn sorted_evidence(&self, rect: crate::image::PixelRect, footprint: &Mask) -> Vec<f32> {
+    pub fn sorted_evidence(&self, rect: PixelRect, footprint: &Mask) -> Vec<f32> {
         let cols = self.grid.cols;
         let mut ev: Vec<f32> = (0..rect.rows())
             .flat_map(|r| (0..rect.cols()).map(move |c| (r, c)))
