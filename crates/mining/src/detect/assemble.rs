@@ -21,10 +21,8 @@ pub(super) fn assemble(cx: &Ctx, parts: &[Part], second: SecondRound) -> Result<
     let mut detections: Vec<Detection> = Vec::new();
     for p in parts {
         check_interrupt()?;
-        let (mut children, surface) =
+        let (children, surface) =
             if cx.p.stages.unpack { second(cx, p) } else { (Vec::new(), None) };
-        // what lies wholly inside a hollow object stands in it, not on it: its inside
-        children.retain(|ch| !cx.inside_hollow(ch.rect, &ch.footprint));
         let id = detections.len();
         tracing::debug!(id, rect = ?p.rect, n = p.footprint.count(), kmin = p.kmin, kmax = p.kmax, children = children.len(), "detection");
         let mut own = p.footprint.clone();

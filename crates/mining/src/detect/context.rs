@@ -41,7 +41,7 @@ pub(super) struct Ctx<'a> {
     pub min_lone_texels: usize,
     /// The insides of hollow objects: the first-round mask's enclosures too short for a wall
     /// ([`super::shape::small_enclosures`]; empty until the walls stage sets it). What lies
-    /// in one is its host's inside, neither an object of its own nor one standing on it.
+    /// in one is its host's inside, not an object of its own.
     pub hollow: Mask,
 }
 
