@@ -9,16 +9,17 @@
 //! free-standing detection `R` against every other `T` that is alike: its label histogram
 //! (colours) and its vertical profile (how its occupied voxels spread over the levels above
 //! its base: a chest is solid from the floor up, a chair is a seat on legs and a back) both
-//! within the grouping's minimum separation. `R`'s minimum-area rectangle must then be `k`
-//! of `T`'s stacked along one of `T`'s sides and its footprint `k` times `T`'s, each within
+//! within the divergence copies may have. `R`'s minimum-area rectangle must then be `k` of
+//! `T`'s stacked along one of `T`'s sides and its footprint `k` times `T`'s, each within
 //! the grouping's tolerance of a length (the reconstruction noise between two instances of
 //! one object). `R` is cut across the stacking direction into `k` equal slabs, and each slab
 //! must again be `T`'s rectangle.
 //!
-//! No value of its own is tuned: lengths compare within
+//! Lengths compare within
 //! [`GroupOptions::length_tolerance`](crate::group::GroupOptions::length_tolerance) (a log
 //! ratio), colours and profiles (Jensen-Shannon divergences, bits) within
-//! [`GroupOptions::min_separation`](crate::group::GroupOptions::min_separation). What it
+//! [`GroupOptions::copy_divergence`](crate::group::GroupOptions::copy_divergence), and a
+//! region is tested for at most [`MAX_COPIES`] copies: the tuned values it uses. What it
 //! cannot tell apart is a single object that really is `k` times another (a long table
 //! beside a square one of the same height and finish): it is split.
 

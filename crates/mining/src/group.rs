@@ -83,10 +83,18 @@ pub struct GroupOptions {
     #[serde(alias = "height_tolerance")]
     pub length_tolerance: f64,
     /// Smallest merge height (JSD in bits plus the shape term) that can separate categories
-    /// in the automatic cuts: two groups of objects closer than this are one category.
-    /// Between instances of one object the distance is reconstruction noise (a few
-    /// hundredths); 0.12 is where the suite's nearest distinct categories begin.
+    /// in the automatic cuts and across scenes ([`crate::regroup`]): two groups of objects
+    /// closer than this are one category. Between instances of one object the distance is
+    /// reconstruction noise, which grows where the field is young or the renderer shades
+    /// copies differently (up to 0.25 on the basis: a short run's stools, another renderer's
+    /// flowers); the basis's nearest distinct categories begin above 0.35.
     pub min_separation: f64,
+    /// The most two copies of one object differ in colour or in vertical profile (JSD in
+    /// bits, each term alone): [`crate::copies`] cuts a detection into copies of another only
+    /// within it. Stricter than [`Self::min_separation`]: a false copy is a false object,
+    /// where a category split only costs the grouping.
+    #[serde(default = "copy_divergence")]
+    pub copy_divergence: f64,
     /// At most this many samples fit the K-means codebook (the rest are only labelled).
     pub max_samples: usize,
     /// Cut a detection that is, in shape and colour, `k` copies of another into `k`
@@ -106,12 +114,17 @@ impl Default for GroupOptions {
             shape_weight: 1.0,
             profile_weight: 1.0,
             length_tolerance: 0.15, // tuned: group.length_tolerance
-            min_separation: 0.12,   // tuned: group.min_separation
-            max_samples: 40_000,    // fixed: a sample budget (80,000 mined the same)
+            min_separation: 0.25,   // tuned: group.min_separation
+            copy_divergence: copy_divergence(),
+            max_samples: 40_000, // fixed: a sample budget (80,000 mined the same)
             split_copies: true,
             seed: crate::kmeans::DEFAULT_SEED,
         }
     }
+}
+
+fn copy_divergence() -> f64 {
+    0.12 // tuned: group.copy_divergence
 }
 
 fn yes() -> bool {

@@ -802,7 +802,7 @@ impl Context<'_> {
                         .unwrap_or(f64::INFINITY)
                         .max(profile_jsd(&sharp[i], &sharp[j]))
                 },
-                g.min_separation,
+                g.copy_divergence,
                 g.length_tolerance,
             )
         } else {

@@ -12,8 +12,9 @@
 //! coinciding, the canvas covering the instance and (for [`CompareRegion::Union`]) padded to
 //! hold the rotated template's diagonal.
 //!
-//! Search: a coarse scan over `[0, period)` in `step_deg` steps (in parallel). From each of
-//! the `starts` lowest coarse minima: golden-section refinement of the angle, then the
+//! Search: a coarse scan over `[0, period)` in `step_deg` steps (in parallel). From each
+//! coarse minimum lower than the scan's median (every basin better than a typical angle, at
+//! most `starts` of them when bounded): golden-section refinement of the angle, then the
 //! sub-texel offset (a 5 x 5 grid over `±max_offset`), then three rounds alternating a
 //! compass search of the offset (down to 1/32 texel) with golden-section passes on the angle
 //! over shrinking brackets; the lowest refined residual wins. Each residual evaluation is a
@@ -60,15 +61,13 @@ pub struct YawOptions {
     pub align_centroids: bool,
     /// Which texels are compared.
     pub region: CompareRegion,
-    /// How many of the lowest coarse minima are refined (at least 1); the best refined pose
-    /// wins. More starts guard against near-symmetric shapes whose coarse ranking at zero
-    /// offset is wrong, at the cost of one refinement each.
-    #[serde(default = "default_starts")]
-    pub starts: usize,
-}
-
-fn default_starts() -> usize {
-    3 // tuned: pose.yaw.starts
+    /// At most how many coarse minima are refined, lowest first (at least 1; `None`: every
+    /// one lower than the scan's median); the best refined pose wins. Refining every basin
+    /// better than a typical angle guards against near-symmetric shapes whose coarse ranking
+    /// at zero offset is wrong (a laptop seen the other way round), at the cost of one
+    /// refinement each.
+    #[serde(default)]
+    pub starts: Option<usize>,
 }
 
 /// The search mining runs ([`crate::pose::PoseOptions`] takes it as it is): a 4-degree coarse
@@ -85,7 +84,7 @@ impl Default for YawOptions {
             max_offset: 0.5 * crate::detect::DetectParams::default().blur_levels as f32,
             align_centroids: true,
             region: CompareRegion::Overlap,
-            starts: default_starts(),
+            starts: None,
         }
     }
 }
@@ -144,7 +143,7 @@ pub fn estimate_yaw_weighted(
     // a half-texel misalignment can rank a near-symmetric wrong turn (a laptop seen the
     // other way round) just below the right one, which only the offset search exposes.
     let mut best: Option<Pose> = None;
-    for start in coarse_minima(&coarse, opts.starts.max(1)) {
+    for start in coarse_minima(&coarse, opts.starts.unwrap_or(usize::MAX).max(1)) {
         let pose = refine(
             &p,
             Pose { theta: start as f64 * step, delta: (0.0, 0.0), r: coarse[start] },
@@ -224,10 +223,11 @@ fn refine(p: &Problem<'_>, start: Pose, step: f64, tol: f64, m: f32) -> Pose {
     best
 }
 
-/// Indices of the `k` lowest local minima of a circular scan (non-finite values count as
-/// infinite), lowest first; the global minimum always comes first. A flat stretch counts
-/// once (its first index), and only if the nearest different values on both sides are
-/// higher: a shoulder on the way down is not a minimum.
+/// Indices of the local minima of a circular scan lower than its median, at most `k`, lowest
+/// first (non-finite values count as infinite); the global minimum always comes first,
+/// whatever the median. A flat stretch counts once (its first index), and only if the
+/// nearest different values on both sides are higher: a shoulder on the way down is not a
+/// minimum.
 fn coarse_minima(r: &[f64], k: usize) -> Vec<usize> {
     let n = r.len();
     let v = |i: usize| if r[i].is_finite() { r[i] } else { f64::INFINITY };
@@ -248,7 +248,13 @@ fn coarse_minima(r: &[f64], k: usize) -> Vec<usize> {
         minima.extend((0..n).find(|&i| v(i).is_finite()));
     }
     minima.sort_by(|&a, &b| r[a].total_cmp(&r[b]).then(a.cmp(&b)));
-    minima.truncate(k);
+    // a basin worth refining is better than a typical angle: below the scan's median (the
+    // majority, not a tuned value)
+    let mut finite: Vec<f64> = r.iter().copied().filter(|x| x.is_finite()).collect();
+    finite.sort_by(f64::total_cmp);
+    let median = finite.get(finite.len() / 2).copied().unwrap_or(f64::INFINITY);
+    let below = minima.iter().filter(|&&i| r[i] < median).count();
+    minima.truncate(below.clamp(1, k.max(1)));
     minima
 }
 
@@ -767,7 +773,7 @@ mod tests {
             for v in &mut inst.data {
                 *v += 0.08 * (lcg(&mut s) - 0.5);
             }
-            let single = YawOptions { starts: 1, ..YawOptions::default() };
+            let single = YawOptions { starts: Some(1), ..YawOptions::default() };
             let fit1 = estimate_yaw(&template, &inst, &single).unwrap();
             let fit3 = estimate_yaw(&template, &inst, &YawOptions::default()).unwrap();
             assert!(fit3.residual <= fit1.residual, "seed {seed}: {fit3:?} vs {fit1:?}");
@@ -776,14 +782,18 @@ mod tests {
         }
         // Refining only the best coarse angle turns several of them the wrong way round.
         assert!(wrong_single >= 3, "single start wrong {wrong_single} times");
-        assert_eq!(wrong_multi, 0, "three starts wrong {wrong_multi} times");
+        assert_eq!(wrong_multi, 0, "every deep basin refined: wrong {wrong_multi} times");
     }
 
     #[test]
     fn coarse_minima_are_circular_local_minima_lowest_first() {
         let r = [0.5, 3.0, 1.0, 2.0, 0.2, 0.2, 4.0, f64::INFINITY, 0.9];
-        // 0.5 at index 0 has 0.9 before it (circularly): a minimum; the flat 0.2 counts once
-        assert_eq!(coarse_minima(&r, 5), vec![4, 0, 2]);
+        // 0.5 at index 0 has 0.9 before it (circularly): a minimum; the flat 0.2 counts once;
+        // the minimum 1.0 at index 2 is the scan's median, no better than a typical angle
+        assert_eq!(coarse_minima(&r, 5), vec![4, 0]);
+        assert_eq!(coarse_minima(&r, usize::MAX), vec![4, 0]);
+        // below the median: both dips of a scan mostly high
+        assert_eq!(coarse_minima(&[0.1, 5.0, 5.0, 0.3, 5.0, 5.0, 0.4, 5.0], 9), vec![0, 3, 6]);
         assert_eq!(coarse_minima(&r, 1), vec![4]);
         assert_eq!(coarse_minima(&[1.0, 1.0, 1.0], 3), vec![0]);
         assert_eq!(coarse_minima(&[f64::INFINITY, 2.0], 3), vec![1]);

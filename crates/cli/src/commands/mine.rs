@@ -165,7 +165,7 @@ pub struct MineArgs {
     #[arg(long, conflicts_with = "distance")]
     pub categories: Option<usize>,
     /// How the number of categories is chosen when neither --categories nor --distance is
-    /// given: separation (every group of objects at least the minimum separation, 0.12,
+    /// given: separation (every group of objects at least the minimum separation, 0.25,
     /// apart is a category), silhouette (among those cuts, the one of highest mean
     /// silhouette: each object's distance to its own category against the nearest other one)
     /// or largest-ratio (where the next merge height is largest relative to the previous
@@ -262,7 +262,7 @@ pub enum LinkageArg {
 /// `--auto-cut`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum AutoCutArg {
-    /// Every group of objects at least the minimum separation (0.12) apart.
+    /// Every group of objects at least the minimum separation (0.25) apart.
     Separation,
     /// The cut of highest mean silhouette.
     Silhouette,
