@@ -86,8 +86,9 @@ pub struct GroupOptions {
     /// in the automatic cuts and across scenes ([`crate::regroup`]): two groups of objects
     /// closer than this are one category. Between instances of one object the distance is
     /// reconstruction noise, which grows where the field is young or the renderer shades
-    /// copies differently (up to 0.25 on the basis: a short run's stools, another renderer's
-    /// flowers); the basis's nearest distinct categories begin above 0.35.
+    /// copies differently (0.15-0.3 on the basis: a short run's stools, another renderer's
+    /// crates; a few potted flowers further still); from a cut of 0.35 up, distinct
+    /// categories of the basis merge.
     pub min_separation: f64,
     /// The most two copies of one object differ in colour or in vertical profile (JSD in
     /// bits, each term alone): [`crate::copies`] cuts a detection into copies of another only

@@ -792,7 +792,7 @@ mod tests {
         // the minimum 1.0 at index 2 is the scan's median, no better than a typical angle
         assert_eq!(coarse_minima(&r, 5), vec![4, 0]);
         assert_eq!(coarse_minima(&r, usize::MAX), vec![4, 0]);
-        // below the median: both dips of a scan mostly high
+        // a scan mostly high: every dip lies below its median
         assert_eq!(coarse_minima(&[0.1, 5.0, 5.0, 0.3, 5.0, 5.0, 0.4, 5.0], 9), vec![0, 3, 6]);
         assert_eq!(coarse_minima(&r, 1), vec![4]);
         assert_eq!(coarse_minima(&[1.0, 1.0, 1.0], 3), vec![0]);
