@@ -60,11 +60,7 @@ fn floor_objects_walls_and_supported_objects() {
     let boxes: Vec<(PixelRect, Option<usize>)> =
         d.detections.iter().map(|x| (x.rect, x.parent)).collect();
     assert_eq!(d.detections.len(), 4, "{boxes:?} removed {:?}", d.removed);
-    assert!(
-        d.removed.iter().any(|r| matches!(r.reason, RemovalReason::Wall { .. })),
-        "{:?}",
-        d.removed
-    );
+    assert_a_wall_removed(&d);
     let on_table = d.detections.iter().find(|x| x.parent.is_some()).unwrap();
     assert_eq!(on_table.rect, PixelRect::new(25, 20, 29, 26));
     let table = &d.detections[on_table.parent.unwrap()];
@@ -147,11 +143,31 @@ fn walled_room(rows: usize, cols: usize) -> OpacityVolume {
     v
 }
 
-/// The sides of a long object whose top the field did not learn, over rows `r` and columns
-/// `c`: walls three texels thick, levels 2..16, nothing inside.
-fn roofless_shell(v: &mut OpacityVolume, r: (usize, usize), c: (usize, usize)) {
-    fill(v, r, c, (2, 16), 0.95);
-    fill(v, (r.0 + 3, r.1 - 3), (c.0 + 3, c.1 - 3), (2, 16), 0.0);
+/// The sides of a long object whose top the field did not learn, over box `b`: walls three
+/// texels thick, levels 2..16, nothing inside.
+fn roofless_shell(v: &mut OpacityVolume, b: PixelRect) {
+    fill(v, (b.r0, b.r1), (b.c0, b.c1), (2, 16), 0.95);
+    fill(v, (b.r0 + 3, b.r1 - 3), (b.c0 + 3, b.c1 - 3), (2, 16), 0.0);
+}
+
+/// The boxes of three long objects (20 x 40 texels) in contact with their top-left corner at
+/// `(r, c)`: the second below the first, touching it along 25 texels, the third continuing
+/// the first end to end.
+fn three_shells_in_contact(r: usize, c: usize) -> [PixelRect; 3] {
+    [
+        PixelRect::new(r, c, r + 20, c + 40),
+        PixelRect::new(r + 20, c + 15, r + 40, c + 55),
+        PixelRect::new(r, c + 40, r + 20, c + 80),
+    ]
+}
+
+/// Something was removed as a wall.
+fn assert_a_wall_removed(d: &Detections) {
+    assert!(
+        d.removed.iter().any(|r| matches!(r.reason, RemovalReason::Wall { .. })),
+        "{:?}",
+        d.removed
+    );
 }
 
 /// The detections are `want`, each within a texel, and nothing else.
@@ -730,15 +746,8 @@ fn a_roofless_shell_is_one_object_and_the_room_s_walls_around_it_are_walls() {
     fill(&mut v, (8, 26), (10, 60), (2, 16), 0.95); // the shell, 18 x 50 texels
     fill(&mut v, (10, 24), (12, 58), (2, 16), 0.0);
     let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
-    let boxes = rects(&d);
-    assert!(boxes.iter().any(|&r| within_a_texel(r, PixelRect::new(8, 10, 26, 60))), "{boxes:?}");
-    assert!(boxes.iter().any(|&r| within_a_texel(r, PixelRect::new(40, 30, 50, 40))), "{boxes:?}");
-    assert_eq!(boxes.len(), 2, "{boxes:?} removed {:?}", d.removed);
-    assert!(
-        d.removed.iter().any(|r| matches!(r.reason, RemovalReason::Wall { .. })),
-        "{:?}",
-        d.removed
-    );
+    assert_found_exactly(&d, &[PixelRect::new(8, 10, 26, 60), PixelRect::new(40, 30, 50, 40)]);
+    assert_a_wall_removed(&d);
 }
 
 #[test]
@@ -749,25 +758,18 @@ fn hollow_shells_in_contact_are_one_object_each() {
     // shells are one object each, the box stays a box, the gapped top stays one object
     let (rows, cols) = (70, 110);
     let mut v = floor_volume(rows, cols, 30);
-    roofless_shell(&mut v, (5, 25), (5, 45));
-    roofless_shell(&mut v, (25, 45), (20, 60)); // touches the first along 25 texels
-    roofless_shell(&mut v, (5, 25), (45, 85)); // and the third
+    let shells = three_shells_in_contact(5, 5);
+    for s in shells {
+        roofless_shell(&mut v, s);
+    }
     fill(&mut v, (10, 20), (1, 5), (2, 8), 0.95); // a box against the first shell
     fill(&mut v, (52, 66), (10, 50), (2, 10), 0.95); // a table top
     for c in [18, 26, 34] {
         fill(&mut v, (56, 62), (c, c + 3), (2, 10), 0.0); // with gaps in it
     }
     let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
-    assert_found_exactly(
-        &d,
-        &[
-            PixelRect::new(5, 5, 25, 45),
-            PixelRect::new(25, 20, 45, 60),
-            PixelRect::new(5, 45, 25, 85),
-            PixelRect::new(10, 1, 20, 5),
-            PixelRect::new(52, 10, 66, 50),
-        ],
-    );
+    let others = [PixelRect::new(10, 1, 20, 5), PixelRect::new(52, 10, 66, 50)];
+    assert_found_exactly(&d, &[&shells[..], &others].concat());
 }
 
 #[test]
@@ -779,30 +781,16 @@ fn what_a_hollow_shell_holds_is_its_own_and_the_room_keeps_what_stands_in_it() {
     // sheets no objects, the box a box, the room's walls walls
     let (rows, cols) = (74, 114);
     let mut v = walled_room(rows, cols);
-    let shell = |v: &mut OpacityVolume, r: (usize, usize), c: (usize, usize)| {
-        roofless_shell(v, r, c);
+    let shells = three_shells_in_contact(7, 7);
+    for s in shells {
+        roofless_shell(&mut v, s);
         // a sheet inside, as tall as the shell
-        fill(v, (r.0 + 8, r.0 + 10), (c.0 + 8, c.1 - 8), (2, 15), 0.95);
-    };
-    shell(&mut v, (7, 27), (7, 47));
-    shell(&mut v, (27, 47), (22, 62));
-    shell(&mut v, (7, 27), (47, 87));
+        fill(&mut v, (s.r0 + 8, s.r0 + 10), (s.c0 + 8, s.c1 - 8), (2, 15), 0.95);
+    }
     fill(&mut v, (55, 65), (80, 90), (2, 10), 0.95); // the box
     let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
-    assert_found_exactly(
-        &d,
-        &[
-            PixelRect::new(7, 7, 27, 47),
-            PixelRect::new(27, 22, 47, 62),
-            PixelRect::new(7, 47, 27, 87),
-            PixelRect::new(55, 80, 65, 90),
-        ],
-    );
-    assert!(
-        d.removed.iter().any(|r| matches!(r.reason, RemovalReason::Wall { .. })),
-        "{:?}",
-        d.removed
-    );
+    assert_found_exactly(&d, &[&shells[..], &[PixelRect::new(55, 80, 65, 90)]].concat());
+    assert_a_wall_removed(&d);
 }
 
 #[test]
