@@ -8,14 +8,18 @@
 //! histogram of labels over its own samples; two detections are compared with the
 //! Jensen-Shannon divergence of their histograms **plus a shape term**, since objects with
 //! the same colours but different shapes (two table sizes, a chair and a stool of the same
-//! red) have near-identical histograms:
+//! red, a long dresser and a round table of one wood) have near-identical histograms:
 //!
 //! ```text
-//! d(i, j) = JSD(h_i, h_j) + w * max(0, max(|ln A_i/A_j|, |ln H_i/H_j|) - tol)
+//! d(i, j) = JSD(h_i, h_j)
+//!         + w * max(0, |ln A_i/A_j| - 2 tol, |ln H_i/H_j| - tol, |ln E_i/E_j| - 2 tol)
 //! ```
 //!
-//! with `A` the footprint area, `H` the height above the object's base, `w` the shape weight
-//! and `tol` a dead zone for reconstruction noise. Average-linkage agglomerative clustering
+//! with `A` the footprint area, `H` the height above the object's base, `E` the footprint's
+//! elongation (its long side over its short side, from its second moments: [`elongation`]),
+//! `w` the shape weight and `tol` a dead zone for reconstruction noise (twice it for an area
+//! and an elongation, which carry the noise of two lengths). The vertical-profile term
+//! ([`GroupOptions::profile_weight`]) is added to it. Average-linkage agglomerative clustering
 //! follows; the dendrogram is cut at a given number of categories, at a distance, or
 //! automatically at [`GroupOptions::min_separation`] ([`separation_cut`]): two groups of
 //! objects further apart than the reconstruction noise between copies of one object are two
@@ -162,16 +166,70 @@ pub struct Shape {
     /// Height of the top above the base ([`crate::detect::Detection::shape_top`]: haze
     /// specks above the object do not count).
     pub height: f32,
+    /// The footprint's long side over its short side, those of its minimum-area rectangle
+    /// (rotation invariant; 1 for a square or a disc): a long dresser and a round table of one
+    /// area, height and finish differ here. 1 (no term) where unknown.
+    #[serde(default = "one_f32")]
+    pub elongation: f32,
+}
+
+fn one_f32() -> f32 {
+    1.0
 }
 
 impl Shape {
+    /// A shape of `area` and `height` whose footprint is as long as wide.
+    pub fn round(area: f32, height: f32) -> Shape {
+        Shape { area, height, elongation: 1.0 }
+    }
+
     /// The shape of a detection on a grid with the given texel size.
     pub fn of(d: &crate::detect::Detection, texel: [f32; 2]) -> Shape {
         Shape {
             area: hull_area(&d.footprint) * texel[0] * texel[1],
             height: (d.shape_top - d.base).max(0.0),
+            elongation: elongation(&d.footprint),
         }
     }
+}
+
+/// How much longer a footprint is than wide: the square root of the ratio of the principal
+/// second moments of its texels (1 for a disc or a square, 3 for a solid 3 x 1 rectangle;
+/// at least 1; 1 for an empty mask). Moments weigh every texel, so a leaf or a blurred
+/// corner moves it less than it moves a bounding rectangle. Measured in texels: the planes'
+/// texels are square to within the rounding of the grid's size.
+pub fn elongation(mask: &crate::image::Mask) -> f32 {
+    let (mut n, mut sr, mut sc) = (0f64, 0f64, 0f64);
+    for r in 0..mask.rows {
+        for c in 0..mask.cols {
+            if mask.get(r, c) {
+                n += 1.0;
+                sr += r as f64;
+                sc += c as f64;
+            }
+        }
+    }
+    if n == 0.0 {
+        return 1.0;
+    }
+    let (mr, mc) = (sr / n, sc / n);
+    // a texel is a unit square: each adds its own second moment, 1/12 along each axis
+    let (mut vrr, mut vcc, mut vrc) = (1.0 / 12.0, 1.0 / 12.0, 0f64); // fixed: a unit square's second moment
+    for r in 0..mask.rows {
+        for c in 0..mask.cols {
+            if mask.get(r, c) {
+                let (dr, dc) = (r as f64 - mr, c as f64 - mc);
+                vrr += dr * dr / n;
+                vcc += dc * dc / n;
+                vrc += dr * dc / n;
+            }
+        }
+    }
+    // the eigenvalues of the 2 x 2 covariance: mean +- the root
+    let (mean, half) = (0.5 * (vrr + vcc), 0.5 * (vrr - vcc));
+    let root = (half * half + vrc * vrc).sqrt();
+    let (big, small) = (mean + root, (mean - root).max(1e-12));
+    (big / small).sqrt().max(1.0) as f32
 }
 
 /// Area (in texels) of the convex hull of the cells of a mask (each set texel a unit square).
@@ -190,10 +248,15 @@ pub fn hull_area(mask: &crate::image::Mask) -> f32 {
 }
 
 /// The shape term (before its weight): how far the log ratio of the heights exceeds the
-/// length tolerance, or that of the footprint areas twice it (an area is a length squared).
+/// length tolerance, or that of the footprint areas or of the elongations twice it (an area
+/// is a length squared, an elongation a ratio of two lengths); the largest of the three.
 pub fn shape_distance(a: Shape, b: Shape, length_tol: f64) -> f64 {
     let lr = |x: f32, y: f32| (f64::from(x.max(1e-6)) / f64::from(y.max(1e-6))).ln().abs();
-    (lr(a.area, b.area) - 2.0 * length_tol).max(lr(a.height, b.height) - length_tol).max(0.0)
+    // an elongation is a ratio of two lengths: its noise is two lengths', as an area's
+    (lr(a.area, b.area) - 2.0 * length_tol)
+        .max(lr(a.height, b.height) - length_tol)
+        .max(lr(a.elongation, b.elongation) - 2.0 * length_tol)
+        .max(0.0)
 }
 
 /// Number of merges to apply: the cut lies where the next merge height is largest relative
@@ -858,7 +921,7 @@ mod tests {
         // two red, one blue, one red again, one blue: two categories
         let (red, blue) = ([1.0, 0.0], [0.0, 1.0]);
         let s = samples(&[red, red, blue, red, blue], 50);
-        let shapes = vec![Shape { area: 1.0, height: 1.0 }; 5];
+        let shapes = vec![Shape::round(1.0, 1.0); 5];
         let opts = GroupOptions { labels: 4, ..Default::default() };
         let g = group_samples(&s, 5, &shapes, &opts).unwrap();
         assert_eq!(g.n_categories, 2, "{}", g.cut);
@@ -934,7 +997,7 @@ mod tests {
             let t = (i as f32 * 0.618_034).fract();
             s.push(i % 3, 0.5 + t, &[t, (i % 3) as f32 + 0.3 * t]);
         }
-        let shapes = vec![Shape { area: 1.0, height: 1.0 }; 3];
+        let shapes = vec![Shape::round(1.0, 1.0); 3];
         let opts = GroupOptions { labels: 6, ..Default::default() };
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
@@ -963,11 +1026,45 @@ mod tests {
 
     #[test]
     fn shape_term_has_a_dead_zone() {
-        let a = Shape { area: 1.0, height: 1.0 };
-        assert_eq!(shape_distance(a, Shape { area: 1.3, height: 0.95 }, 0.15), 0.0);
-        let d = shape_distance(a, Shape { area: 2.0, height: 1.0 }, 0.15);
+        let a = Shape::round(1.0, 1.0);
+        assert_eq!(shape_distance(a, Shape::round(1.3, 0.95), 0.15), 0.0);
+        let d = shape_distance(a, Shape::round(2.0, 1.0), 0.15);
         assert!((d - (2f64.ln() - 0.3)).abs() < 1e-6);
-        let d = shape_distance(a, Shape { area: 1.0, height: 0.5 }, 0.15);
+        let d = shape_distance(a, Shape::round(1.0, 0.5), 0.15);
         assert!((d - (2f64.ln() - 0.15)).abs() < 1e-6);
+        // an elongation is a ratio of two lengths: the area's dead zone
+        let long = |e: f32| Shape { elongation: e, ..a };
+        assert_eq!(shape_distance(a, long(1.3), 0.15), 0.0);
+        let d = shape_distance(a, long(3.0), 0.15);
+        assert!((d - (3f64.ln() - 0.3)).abs() < 1e-6, "{d}");
+        // the largest term counts, not their sum
+        let d = shape_distance(a, Shape { area: 2.0, height: 1.0, elongation: 3.0 }, 0.15);
+        assert!((d - (3f64.ln() - 0.3)).abs() < 1e-6, "{d}");
+    }
+
+    #[test]
+    fn elongation_of_footprints_whatever_their_turn() {
+        use crate::image::Mask;
+        let disc = Mask::from_fn(21, 21, |r, c| {
+            (r as f32 - 10.0).powi(2) + (c as f32 - 10.0).powi(2) <= 100.0
+        });
+        assert!((elongation(&disc) - 1.0).abs() < 0.02, "{}", elongation(&disc));
+        assert_eq!(elongation(&Mask::from_fn(6, 6, |_, _| true)), 1.0);
+        // a solid 30 x 10 rectangle, upright and turned by about 30 degrees
+        let upright = Mask::from_fn(10, 30, |_, _| true);
+        assert!((elongation(&upright) - 3.0).abs() < 0.01, "{}", elongation(&upright));
+        let (ca, sa) = (30f32.to_radians().cos(), 30f32.to_radians().sin());
+        let turned = Mask::from_fn(40, 40, |r, c| {
+            let (x, y) = (c as f32 + 0.5 - 20.0, r as f32 + 0.5 - 20.0);
+            (x * ca + y * sa).abs() <= 15.0 && (-x * sa + y * ca).abs() <= 5.0
+        });
+        assert!((elongation(&turned) - 3.0).abs() < 0.1, "{}", elongation(&turned));
+        // a one-texel leaf sticking out of a disc moves it little
+        let leaf = Mask::from_fn(21, 26, |r, c| {
+            disc.data.get(r * 21 + c).is_some_and(|&d| d && c < 21) || (r == 10 && c >= 21)
+        });
+        assert!(elongation(&leaf) < 1.1, "{}", elongation(&leaf));
+        // no texels: no term
+        assert_eq!(elongation(&Mask::from_fn(3, 3, |_, _| false)), 1.0);
     }
 }

@@ -20,7 +20,9 @@ use std::collections::BTreeSet;
 use crate::agglomerative::{DistanceMatrix, Merge};
 use crate::copies::blurred;
 use crate::error::{MiningError, Result, check_interrupt};
-use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples_with, hull_area};
+use crate::group::{
+    GroupOptions, Grouping, Samples, Shape, elongation, group_samples_with, hull_area,
+};
 use crate::image::{Mask, PlaneImage};
 use crate::medoid::medoid;
 use crate::planes::OpacityVolume;
@@ -114,7 +116,11 @@ fn describe(lib: &Library, e: &Entry, blur: usize) -> Result<Described> {
     Ok(Described {
         colour,
         weights,
-        shape: Shape { area: hull_area(&mask) * t.0 * t.1, height: e.extent.2 },
+        shape: Shape {
+            area: hull_area(&mask) * t.0 * t.1,
+            height: e.extent.2,
+            elongation: elongation(&mask),
+        },
         // normalised by the blur
         profile: blurred(&profile, blur),
     })

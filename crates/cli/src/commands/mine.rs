@@ -176,9 +176,9 @@ pub struct MineArgs {
     /// Cut the dendrogram at this distance (JSD in bits plus the shape term) instead.
     #[arg(long, value_name = "T")]
     pub distance: Option<f64>,
-    /// Weight of the shape term of the grouping distance (footprint area and height log
-    /// ratios beyond a tolerance; separates objects of the same colours but different
-    /// sizes). 0 = label histograms only, as in the paper.
+    /// Weight of the shape term of the grouping distance (footprint area, height and
+    /// elongation log ratios beyond a tolerance; separates objects of the same colours but
+    /// different sizes or outlines). 0 = label histograms only, as in the paper.
     #[arg(long, default_value_t = 1.0)]
     pub shape_weight: f64,
     /// Weight of the vertical-profile term of the grouping distance: the Jensen-Shannon
