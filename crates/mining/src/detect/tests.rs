@@ -449,6 +449,30 @@ fn objects_on_a_solid_body_unpack_but_specks_do_not() {
 }
 
 #[test]
+fn what_covers_most_of_a_solid_body_is_its_own_shape() {
+    // a car-like solid body (levels 2..=12 over 60 x 100 texels, a fifth of the plane) and
+    // on it a dark cabin whose glass the field leaves empty (opaque pillars and sills round
+    // its outline, two texels thick), bonnet and boot free around it: over 55% of the
+    // footprint the cabin is the body's own shape (one object); over 40% of it, an object
+    // standing on the body
+    let body = |cabin: (std::ops::Range<usize>, std::ops::Range<usize>)| {
+        let mut v = floor_volume(140, 220, 24);
+        fill(&mut v, (40, 100), (60, 160), (2, 13), 0.95);
+        let (r, c) = (&cabin.0, &cabin.1);
+        fill(&mut v, (r.start, r.end), (c.start, c.end), (13, 20), 0.95);
+        fill(&mut v, (r.start + 2, r.end - 2), (c.start + 2, c.end - 2), (13, 20), 0.0);
+        let color = painted(140, 220, cabin, [0.1; 3], [0.8, 0.1, 0.1]);
+        detect_small(&v, &color)
+    };
+    let cabin = (46..94, 85..154);
+    assert!(cabin.0.len() * cabin.1.len() * 100 > 55 * 60 * 100, "over half the footprint");
+    let d = body(cabin);
+    assert_eq!(d.detections.len(), 1, "{:?}", rects(&d));
+    let d = body((50..90, 90..150));
+    assert_eq!(only_child(&d).rect, PixelRect::new(50, 90, 90, 150));
+}
+
+#[test]
 fn a_crate_covering_most_of_a_thin_slab_unpacks() {
     // a pallet: runners (levels 2..=3) under a deck (level 3), 1.0 x 1.2 m; a crate of
     // 0.8 x 0.8 m on it (levels 4..=19) covers 53% of it, with a 0.1 m margin

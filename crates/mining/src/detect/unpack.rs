@@ -10,7 +10,8 @@
 //! on a pallet, a lamp on a side table, flowers on a counter). A thin slab may have little
 //! of it free (a crate fills its pallet's deck), and so may a solid support with an object
 //! held above it on a stem (a lamp whose shade covers most of a side table:
-//! [`held_on_a_stem`]).
+//! [`held_on_a_stem`]); otherwise what covers most of a solid body's footprint is the body's
+//! own shape (a car's cabin between its bonnet and its boot).
 
 use super::context::Ctx;
 use super::evidence::kmeans_threshold;
@@ -202,6 +203,12 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     let mut children = Vec::new();
     for sd in seeds.iter().filter(|g| g.depth == 0) {
         if let Some((comp, kmax)) = seeded.grow(sd) {
+            // on a solid body, what covers most of its footprint is the body's own shape (a
+            // car's cabin between its bonnet and its boot), unless held above it on a stem
+            if s.solid && !waist && more_than(comp.count(), MOST, n) {
+                tracing::debug!(?rect, count = comp.count(), n, "covers most of a solid body");
+                continue;
+            }
             or_into(&mut seeded.taken, &comp);
             children.extend(Child::cut(rect, &comp, kmax));
         }
