@@ -166,9 +166,9 @@ pub struct Shape {
     /// Height of the top above the base ([`crate::detect::Detection::shape_top`]: haze
     /// specks above the object do not count).
     pub height: f32,
-    /// The footprint's long side over its short side, those of its minimum-area rectangle
-    /// (rotation invariant; 1 for a square or a disc): a long dresser and a round table of one
-    /// area, height and finish differ here. 1 (no term) where unknown.
+    /// How much longer than wide the footprint is ([`elongation`]: from the second moments of
+    /// its texels, rotation invariant, 1 for a square or a disc): a long dresser and a round
+    /// table of one height and finish differ here. 1 (no term) where unknown.
     #[serde(default = "one_f32")]
     pub elongation: f32,
 }
