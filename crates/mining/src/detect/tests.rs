@@ -613,6 +613,16 @@ fn fragments_of_one_object_merge_but_neighbours_do_not() {
     let a = part(0, 0, 8, 8, |_, _| true);
     let b = part(0, 8, 8, 8, |_, _| true);
     assert!(fragments_merged(&a, &b, 1, 0.9).is_none());
+    // a less convex object (the seat with two opposite corners cut off, 4 x 4 each) cut
+    // along the same ragged line: its union is under the one-object bound, but more
+    // convex than either fragment, which complete each other
+    let notched = |r: usize, c: usize| !((r < 4 && c < 4) || (r >= 8 && c >= 8));
+    let left = part(10, 10, 12, 8, |r, c| c < cut(r) && notched(r, c));
+    let right = part(10, 15, 12, 7, |r, c| c + 5 >= cut(r) && notched(r, c + 5));
+    let m = fragments_merged(&left, &right, 1, 0.9).expect("fragments merge");
+    assert_eq!(m.footprint.count(), 144 - 32);
+    let solidity = m.footprint.count() as f32 / crate::group::hull_area(&m.footprint);
+    assert!(solidity < 0.9, "{solidity}");
 }
 
 #[test]
