@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 
 use crate::agglomerative::DistanceMatrix;
 use crate::copies::{CopySplit, blurred, profile_jsd, split_copies, vertical_profile};
-use crate::detect::{DetectParams, Detections, FloorBand, detect};
+use crate::detect::{DetectParams, Detections, FloorBand, detect_with_color_axis};
 use crate::error::{MiningError, Result, check_interrupt};
 use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples_with};
 use crate::image::{Mask, PlaneImage};
@@ -754,8 +754,14 @@ impl Context<'_> {
         } else {
             None
         };
-        let dets =
-            detect(&self.planes.grid, self.vol, &self.planes.color, det_feature, &opts.detect)?;
+        let dets = detect_with_color_axis(
+            &self.planes.grid,
+            self.vol,
+            &self.planes.color,
+            self.planes.color_axis.as_deref(),
+            det_feature,
+            &opts.detect,
+        )?;
         if dets.detections.is_empty() {
             return Err(nothing_found(&dets, field_path));
         }

@@ -135,6 +135,10 @@ pub struct FieldPlanes {
     pub density: PlaneImage,
     /// `color.plane`: `[rows][cols][Nc]` (I-AssetField: the integrated colour plane).
     pub color: PlaneImage,
+    /// `color.axis`: `[nz][Nc]`, S-AssetField's vertical colour axis (a colour feature at
+    /// height `k` is the plane's times the axis's, channel by channel); `None` for
+    /// I-AssetField, whose colour plane has no axis.
+    pub color_axis: Option<Vec<f32>>,
 }
 
 /// Refuse fields without a ground plane representation (the VM baseline).
@@ -189,7 +193,13 @@ pub fn field_planes(field: &Field) -> Result<FieldPlanes> {
             });
         }
     }
-    Ok(FieldPlanes { kind: field.config.kind, grid, density, color })
+    let color_axis = match field.params.spec("color.axis") {
+        Some(spec) if spec.shape == [field.config.res[2], color.ch] => {
+            Some(field.params.data[spec.offset..spec.offset + spec.len].to_vec())
+        }
+        _ => None,
+    };
+    Ok(FieldPlanes { kind: field.config.kind, grid, density, color, color_axis })
 }
 
 fn tensor<'a>(field: &'a Field, name: &str, shape: &[usize], purpose: &str) -> Result<&'a [f32]> {
@@ -513,6 +523,13 @@ mod tests {
         assert_eq!((sp.rows, sp.cols, sp.ch), (8, 8, 5));
         assert_eq!((p.density.rows, p.density.cols, p.density.ch), (8, 8, 16));
         assert_eq!(p.color.ch, 48);
+        assert!(p.color_axis.is_none(), "I-AssetField's colour plane has no axis");
+        // S-AssetField: the colour axis, one row of colour channels per level
+        let fs = Field::new(FieldConfig::new(ModelKind::Standard, aabb, 8), 1);
+        let ps = field_planes(&fs).unwrap();
+        let axis = ps.color_axis.as_ref().expect("S-AssetField's colour axis");
+        assert_eq!(axis.len(), fs.config.res[2] * ps.color.ch);
+        assert_eq!(axis.len(), OpacityVolume::from_field(&fs).unwrap().nz * ps.color.ch);
     }
 
     #[test]

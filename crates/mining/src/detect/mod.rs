@@ -143,7 +143,33 @@ pub fn detect(
     feature: Option<&PlaneImage>,
     params: &DetectParams,
 ) -> Result<Detections> {
+    detect_with_color_axis(grid, vol, color, None, feature, params)
+}
+
+/// [`detect`] with the colour plane's vertical axis (`[vol.nz][color.ch]`, S-AssetField's
+/// `color.axis`): the second round then also compares colours as the field decodes them at
+/// the height of what stands on a surface, not only as the plane holds them for the whole
+/// column (a table leg's colour shows in the plane over it). An axis of another shape is an
+/// error.
+pub fn detect_with_color_axis(
+    grid: &PlaneGrid,
+    vol: &OpacityVolume,
+    color: &PlaneImage,
+    color_axis: Option<&[f32]>,
+    feature: Option<&PlaneImage>,
+    params: &DetectParams,
+) -> Result<Detections> {
+    if let Some(axis) = color_axis
+        && axis.len() != vol.nz * color.ch
+    {
+        return Err(crate::error::MiningError::SizeMismatch {
+            what: "colour axis vs volume levels x colour channels",
+            left: axis.len(),
+            right: vol.nz * color.ch,
+        });
+    }
     let mut cx = Ctx::new(grid, vol, color, params)?;
+    cx.color_axis = color_axis;
     let mask = evidence::binarise(&cx, feature)?;
     check_interrupt()?;
     let mut removed = Vec::new();

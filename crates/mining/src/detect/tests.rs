@@ -4,6 +4,7 @@
 use super::merge::fragments_merged;
 use super::shape::{Part, is_thin};
 use super::split::stands;
+use super::unpack::height_weights;
 use super::*;
 use crate::image::{Mask, PixelRect};
 use assetfield_core::Rect2;
@@ -1050,6 +1051,46 @@ fn a_shadow_on_the_table_is_not_part_of_what_casts_it() {
     let d2 = detect_small(&v2, &color);
     let r2 = only_child(&d2).rect;
     assert!(within_a_texel(r2, PixelRect::new(17, 27, 29, 39)), "{r2:?}");
+}
+
+#[test]
+fn colours_at_a_height_weigh_each_channel_by_its_axis_there() {
+    // three channels over 4 levels: one the field uses at every height, one only low (a
+    // table's legs), one only high (what stands on the table)
+    let axis = [
+        1.0, 2.0, 0.0, //
+        1.0, 2.0, 0.0, //
+        1.0, 0.0, 3.0, //
+        1.0, 0.0, 3.0, //
+    ];
+    let rms = |v: [f32; 4]| (v.iter().map(|x| x * x).sum::<f32>() / 4.0).sqrt();
+    let w = height_weights(&axis, 3, 2, 3);
+    assert!((w[0] - 1.0).abs() < 1e-6, "{w:?}");
+    assert_eq!(w[1], 0.0, "a channel of the legs says nothing up there");
+    assert!((w[2] - 3.0 / rms([0.0, 0.0, 3.0, 3.0])).abs() < 1e-6, "{w:?}");
+    // levels past the axis clamp to its top; a range ending below its start is its start
+    assert_eq!(height_weights(&axis, 3, 3, 9), height_weights(&axis, 3, 3, 3));
+    assert_eq!(height_weights(&axis, 3, 1, 0), height_weights(&axis, 3, 1, 1));
+    // a channel that is zero everywhere weighs nothing; no axis rows: no weighting
+    assert_eq!(height_weights(&[0.0, 1.0], 2, 0, 0), vec![0.0, 1.0]);
+    assert_eq!(height_weights(&[], 3, 0, 0), vec![1.0; 3]);
+}
+
+#[test]
+fn the_colour_axis_must_match_the_volume_and_the_plane() {
+    let mut v = floor_volume(60, 80, 24);
+    thin_table(&mut v);
+    fill(&mut v, (20, 26), (30, 36), (9, 16), 0.95);
+    let color = painted(60, 80, (20..26, 30..36), [0.2, 0.2, 0.7], [0.9, 0.9, 0.85]);
+    let grid = PlaneGrid { cols: 80, rows: 60, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+    let opts = params();
+    let err = detect_with_color_axis(&grid, &v, &color, Some(&[1.0; 10]), None, &opts);
+    assert!(matches!(err, Err(crate::MiningError::SizeMismatch { .. })), "{err:?}");
+    // an axis that is the same at every height finds what the plane alone finds
+    let flat = vec![1.0f32; 24 * 3];
+    let d = detect_with_color_axis(&grid, &v, &color, Some(&flat), None, &opts).unwrap();
+    assert_eq!(rects(&d), rects(&detect_small(&v, &color)));
+    assert!(within_a_texel(only_child(&d).rect, PixelRect::new(20, 30, 26, 36)));
 }
 
 #[test]

@@ -69,6 +69,28 @@ impl Child {
     }
 }
 
+/// Per colour channel, the colour axis (`axis[k * ch + c]`, one row per volume level) averaged
+/// over the levels `from..=to` (clamped to the axis; `to` below `from` counts as `from`) and
+/// divided by the channel's root mean square over all levels: the plane's feature times it
+/// is the colour feature the field decodes at those heights, each channel on the scale it
+/// has over the whole column (a channel the field hardly uses anywhere stays small).
+pub(super) fn height_weights(axis: &[f32], ch: usize, from: usize, to: usize) -> Vec<f32> {
+    let nz = axis.len().checked_div(ch).unwrap_or(0);
+    if nz == 0 {
+        return vec![1.0; ch];
+    }
+    let k0 = from.min(nz - 1);
+    let k1 = to.clamp(k0, nz - 1);
+    let n = (k1 - k0 + 1) as f32;
+    (0..ch)
+        .map(|c| {
+            let rms = ((0..nz).map(|k| axis[k * ch + c].powi(2)).sum::<f32>() / nz as f32).sqrt();
+            let mean = (k0..=k1).map(|k| axis[k * ch + c]).sum::<f32>() / n;
+            if rms > 0.0 { mean / rms } else { 0.0 }
+        })
+        .collect()
+}
+
 /// Background subtraction inside a window: the surface model is the coordinate-wise median
 /// of the points (the surface dominates the window); the distances to it are split in two by
 /// a 1-D K-means, and the far cluster (plus the seed) is the object. Returns, per point,
@@ -412,6 +434,9 @@ impl Seeded<'_> {
         let win = sb.expand(sb.rows().max(sb.cols()), h, w);
         let mut idx = Vec::new();
         let mut pts = Vec::new();
+        // the colours at the height of what stands on the surface, beside the column's
+        let ch = cx.color.ch;
+        let at_height = cx.color_axis.map(|a| height_weights(a, ch, hi + 1, top.unwrap_or(hi + 1)));
         for r in win.r0..win.r1 {
             for c in win.c0..win.c1 {
                 if interior.get(r, c)
@@ -419,11 +444,15 @@ impl Seeded<'_> {
                 {
                     idx.push((r, c));
                     pts.extend_from_slice(v);
+                    if let Some(wt) = &at_height {
+                        pts.extend(v.iter().zip(wt).map(|(x, y)| x * y));
+                    }
                 }
             }
         }
         let seedf: Vec<bool> = idx.iter().map(|&(r, c)| at(r, c)).collect();
-        let mut labels = far_from_surface(&pts, cx.color.ch, &seedf);
+        let dim = if at_height.is_some() { 2 * ch } else { ch };
+        let mut labels = far_from_surface(&pts, dim, &seedf);
         let lift: Vec<f32> = idx
             .iter()
             .map(|&(r, c)| window_max(vol.column(rect.r0 + r, rect.c0 + c), hi + 1, thin))
