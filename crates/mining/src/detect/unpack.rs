@@ -4,7 +4,8 @@
 //! above it, every blob away from the rim that is opaque seen from above the surface's blur
 //! (the first round's evidence, with the surface as the floor) seeds a background
 //! subtraction of the colour features around it (K-means on the distances to the surface's
-//! median colour). What joins the seed must also rise off the surface (a shadow only
+//! median colour; with S-AssetField's colour axis, the colours at the height of what stands
+//! there too: [`height_weights`]). What joins the seed must also rise off the surface (a shadow only
 //! differs in colour) and be a body, not a strip; the connected result, when enclosed by
 //! free surface, becomes a detection supported by the object (laptops on a table, a crate
 //! on a pallet, a lamp on a side table, flowers on a counter). A thin slab may have little
