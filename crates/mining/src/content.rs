@@ -77,6 +77,15 @@ impl Orientation {
     }
 }
 
+/// The eigenvalues of the symmetric 2 x 2 matrix `[[xx, xy], [xy, yy]]`, larger first: half
+/// the trace plus and minus the root of the squared half difference plus the squared
+/// off-diagonal term.
+pub(crate) fn symmetric_2x2_eigenvalues(xx: f64, xy: f64, yy: f64) -> (f64, f64) {
+    let (mean, half) = (0.5 * (xx + yy), 0.5 * (xx - yy));
+    let root = (half * half + xy * xy).sqrt();
+    (mean + root, mean - root)
+}
+
 /// The content's spread, weighting every voxel by its opacity; `None` for an empty volume.
 /// `voxel` is the voxel size (x, y, z), world units.
 pub fn orientation(vol: &OpacityVolume, voxel: [f32; 3]) -> Option<Orientation> {
@@ -111,10 +120,8 @@ pub fn orientation(vol: &OpacityVolume, voxel: [f32; 3]) -> Option<Orientation> 
     let cov = |a: usize, b: usize| s[a][b] / w - mean[a] * mean[b];
     let (xx, xy, yy, zz) = (cov(0, 0), cov(0, 1), cov(1, 1), cov(2, 2));
     // the horizontal covariance's eigenvalues and the thinnest direction
-    let half_trace = 0.5 * (xx + yy);
-    // fixed: the eigenvalues of a symmetric 2 x 2 matrix
-    let root = (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
-    let (long, thin) = ((half_trace + root).max(0.0), (half_trace - root).max(0.0));
+    let (long, thin) = symmetric_2x2_eigenvalues(xx, xy, yy);
+    let (long, thin) = (long.max(0.0), thin.max(0.0));
     let angle = 0.5 * (2.0 * xy).atan2(xx - yy) + std::f64::consts::FRAC_PI_2;
     Some(Orientation {
         vertical: zz.max(0.0).sqrt() as f32,

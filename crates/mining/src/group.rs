@@ -185,10 +185,15 @@ impl Shape {
 
     /// The shape of a detection on a grid with the given texel size.
     pub fn of(d: &crate::detect::Detection, texel: [f32; 2]) -> Shape {
+        Shape::of_footprint(&d.footprint, texel, (d.shape_top - d.base).max(0.0))
+    }
+
+    /// The shape of a footprint (texels of `texel` world size) rising `height` above its base.
+    pub fn of_footprint(footprint: &crate::image::Mask, texel: [f32; 2], height: f32) -> Shape {
         Shape {
-            area: hull_area(&d.footprint) * texel[0] * texel[1],
-            height: (d.shape_top - d.base).max(0.0),
-            elongation: elongation(&d.footprint),
+            area: hull_area(footprint) * texel[0] * texel[1],
+            height,
+            elongation: elongation(footprint),
         }
     }
 }
@@ -225,11 +230,8 @@ pub fn elongation(mask: &crate::image::Mask) -> f32 {
             }
         }
     }
-    // the eigenvalues of the 2 x 2 covariance: mean +- the root
-    let (mean, half) = (0.5 * (vrr + vcc), 0.5 * (vrr - vcc));
-    let root = (half * half + vrc * vrc).sqrt();
-    let (big, small) = (mean + root, (mean - root).max(1e-12));
-    (big / small).sqrt().max(1.0) as f32
+    let (big, small) = crate::content::symmetric_2x2_eigenvalues(vrr, vrc, vcc);
+    (big / small.max(1e-12)).sqrt().max(1.0) as f32
 }
 
 /// Area (in texels) of the convex hull of the cells of a mask (each set texel a unit square).

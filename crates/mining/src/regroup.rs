@@ -20,9 +20,7 @@ use std::collections::BTreeSet;
 use crate::agglomerative::{DistanceMatrix, Merge};
 use crate::copies::blurred;
 use crate::error::{MiningError, Result, check_interrupt};
-use crate::group::{
-    GroupOptions, Grouping, Samples, Shape, elongation, group_samples_with, hull_area,
-};
+use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples_with};
 use crate::image::{Mask, PlaneImage};
 use crate::medoid::medoid;
 use crate::planes::OpacityVolume;
@@ -116,11 +114,7 @@ fn describe(lib: &Library, e: &Entry, blur: usize) -> Result<Described> {
     Ok(Described {
         colour,
         weights,
-        shape: Shape {
-            area: hull_area(&mask) * t.0 * t.1,
-            height: e.extent.2,
-            elongation: elongation(&mask),
-        },
+        shape: Shape::of_footprint(&mask, [t.0, t.1], e.extent.2),
         // normalised by the blur
         profile: blurred(&profile, blur),
     })
