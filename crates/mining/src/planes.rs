@@ -193,12 +193,14 @@ pub fn field_planes(field: &Field) -> Result<FieldPlanes> {
             });
         }
     }
-    let color_axis = match field.params.spec("color.axis") {
-        Some(spec) if spec.shape == [field.config.res[2], color.ch] => {
-            Some(field.params.data[spec.offset..spec.offset + spec.len].to_vec())
-        }
-        _ => None,
-    };
+    // S-AssetField's colour plane has an axis; I-AssetField's integrated plane has none
+    let color_axis = (field.config.kind == ModelKind::Standard)
+        .then(|| {
+            let shape = [field.config.res[2], color.ch];
+            tensor(field, "color.axis", &shape, "the colours at a height (the second round)")
+        })
+        .transpose()?
+        .map(<[f32]>::to_vec);
     Ok(FieldPlanes { kind: field.config.kind, grid, density, color, color_axis })
 }
 

@@ -143,7 +143,7 @@ pub fn estimate_yaw_weighted(
     // a half-texel misalignment can rank a near-symmetric wrong turn (a laptop seen the
     // other way round) just below the right one, which only the offset search exposes.
     let mut best: Option<Pose> = None;
-    for start in coarse_minima(&coarse, opts.starts.unwrap_or(usize::MAX).max(1)) {
+    for start in coarse_minima(&coarse, opts.starts.unwrap_or(usize::MAX)) {
         let pose = refine(
             &p,
             Pose { theta: start as f64 * step, delta: (0.0, 0.0), r: coarse[start] },

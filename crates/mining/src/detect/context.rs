@@ -43,10 +43,11 @@ pub(super) struct Ctx<'a> {
     /// ([`super::shape::small_enclosures`]; empty until the walls stage sets it). What lies
     /// in one is its host's inside, not an object of its own.
     pub hollow: Mask,
-    /// The colour plane's vertical axis, `[vol.nz][color.ch]` (S-AssetField: a colour
-    /// feature at height `k` is the plane's feature times the axis's, channel by channel);
-    /// `None` for a colour plane without one (I-AssetField's integrated plane).
-    pub color_axis: Option<&'a [f32]>,
+    /// The colour plane's vertical axis, `[vol.nz][color.ch]`, each channel divided by its
+    /// root mean square ([`super::unpack::normalised_axis`]; S-AssetField: a colour feature
+    /// at height `k` is the plane's feature times the axis's, channel by channel); `None` for
+    /// a colour plane without one (I-AssetField's integrated plane).
+    pub color_axis: Option<Vec<f32>>,
 }
 
 impl<'a> Ctx<'a> {

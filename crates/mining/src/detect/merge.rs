@@ -1,10 +1,9 @@
 //! Stage 5: merging. Fragments that a colour split cut out of one object (two halves of a
 //! chair's seat) merge again: their footprints touch, they reach the same height and their
 //! union is more convex than either fragment, or as convex as one object and as the less
-//! convex fragment. After
-//! unpacking, an object found twice (as a piece of the ground and standing on its host)
-//! keeps only the second, and an object nested in or partly under a larger one leaves the
-//! larger one's own texels.
+//! convex fragment. After unpacking, an object found twice (as a piece of the ground and
+//! standing on its host) keeps only the second, and an object nested in or partly under a
+//! larger one leaves the larger one's own texels.
 
 use super::Detection;
 use super::context::Ctx;
@@ -17,10 +16,11 @@ use crate::image::Mask;
 /// convex than either fragment (they complete each other), or at least as convex as one
 /// object (solidity at least `one_object_solidity`, the colour split's bound for a part that
 /// is one object whatever its colours) and as the less convex fragment (two objects side by
-/// side make a union less convex than either). A colour split can cut a chair's seat in two; a chair beside a table makes a
-/// concave union, a chair pushed under a desk rises above it, and both stay apart. (Four
-/// more tests, each with its value (box overlap, common texels, touching length, a margin
-/// of convexity), changed nothing on any dev or validation field and went.)
+/// side make a union less convex than either). A colour split can cut a chair's seat in two;
+/// a chair beside a table makes a concave union, a chair pushed under a desk rises above it,
+/// and both stay apart. (Four more tests, each with its value (box overlap, common texels,
+/// touching length, a margin of convexity), changed nothing on any dev or validation field
+/// and went.)
 pub(super) fn fragments_merged(
     a: &Part,
     b: &Part,

@@ -169,7 +169,7 @@ pub fn detect_with_color_axis(
         });
     }
     let mut cx = Ctx::new(grid, vol, color, params)?;
-    cx.color_axis = color_axis;
+    cx.color_axis = color_axis.map(|a| unpack::normalised_axis(a, color.ch));
     let mask = evidence::binarise(&cx, feature)?;
     check_interrupt()?;
     let mut removed = Vec::new();

@@ -4,7 +4,7 @@
 use super::merge::fragments_merged;
 use super::shape::{Part, is_thin};
 use super::split::stands;
-use super::unpack::height_weights;
+use super::unpack::{height_weights, normalised_axis};
 use super::*;
 use crate::image::{Mask, PixelRect};
 use assetfield_core::Rect2;
@@ -1064,6 +1064,7 @@ fn colours_at_a_height_weigh_each_channel_by_its_axis_there() {
         1.0, 0.0, 3.0, //
     ];
     let rms = |v: [f32; 4]| (v.iter().map(|x| x * x).sum::<f32>() / 4.0).sqrt();
+    let axis = normalised_axis(&axis, 3);
     let w = height_weights(&axis, 3, 2, 3);
     assert!((w[0] - 1.0).abs() < 1e-6, "{w:?}");
     assert_eq!(w[1], 0.0, "a channel of the legs says nothing up there");
@@ -1072,8 +1073,8 @@ fn colours_at_a_height_weigh_each_channel_by_its_axis_there() {
     assert_eq!(height_weights(&axis, 3, 3, 9), height_weights(&axis, 3, 3, 3));
     assert_eq!(height_weights(&axis, 3, 1, 0), height_weights(&axis, 3, 1, 1));
     // a channel that is zero everywhere weighs nothing; no axis rows: no weighting
-    assert_eq!(height_weights(&[0.0, 1.0], 2, 0, 0), vec![0.0, 1.0]);
-    assert_eq!(height_weights(&[], 3, 0, 0), vec![1.0; 3]);
+    assert_eq!(height_weights(&normalised_axis(&[0.0, 1.0], 2), 2, 0, 0), vec![0.0, 1.0]);
+    assert_eq!(height_weights(&normalised_axis(&[], 3), 3, 0, 0), vec![1.0; 3]);
 }
 
 #[test]

@@ -5,8 +5,8 @@
 //! (the first round's evidence, with the surface as the floor) seeds a background
 //! subtraction of the colour features around it (K-means on the distances to the surface's
 //! median colour; with S-AssetField's colour axis, the colours at the height of what stands
-//! there too: [`height_weights`]). What joins the seed must also rise off the surface (a shadow only
-//! differs in colour) and be a body, not a strip; the connected result, when enclosed by
+//! there too: [`height_weights`]). What joins the seed must also rise off the surface (a
+//! shadow only differs in colour) and be a body, not a strip; the connected result, when enclosed by
 //! free surface, becomes a detection supported by the object (laptops on a table, a crate
 //! on a pallet, a lamp on a side table, flowers on a counter). A thin slab may have little
 //! of it free (a crate fills its pallet's deck), and so may a solid support with an object
@@ -70,11 +70,24 @@ impl Child {
     }
 }
 
-/// Per colour channel, the colour axis (`axis[k * ch + c]`, one row per volume level) averaged
-/// over the levels `from..=to` (clamped to the axis; `to` below `from` counts as `from`) and
-/// divided by the channel's root mean square over all levels: the plane's feature times it
-/// is the colour feature the field decodes at those heights, each channel on the scale it
-/// has over the whole column (a channel the field hardly uses anywhere stays small).
+/// The colour axis (`axis[k * ch + c]`, one row per volume level) with every channel divided
+/// by its root mean square over all levels (a channel that is zero everywhere stays zero):
+/// each channel on the scale it has over the whole column. Computed once per field.
+pub(super) fn normalised_axis(axis: &[f32], ch: usize) -> Vec<f32> {
+    let nz = axis.len().checked_div(ch).unwrap_or(0);
+    let rms: Vec<f32> = (0..ch)
+        .map(|c| ((0..nz).map(|k| axis[k * ch + c].powi(2)).sum::<f32>() / nz as f32).sqrt())
+        .collect();
+    axis.iter()
+        .enumerate()
+        .map(|(i, &a)| if rms[i % ch] > 0.0 { a / rms[i % ch] } else { 0.0 })
+        .collect()
+}
+
+/// Per colour channel, a [`normalised_axis`] averaged over the levels `from..=to` (clamped to
+/// the axis; `to` below `from` counts as `from`): the plane's feature times it is the colour
+/// feature the field decodes at those heights (a channel the field hardly uses anywhere
+/// stays small). No axis rows: every weight 1.
 pub(super) fn height_weights(axis: &[f32], ch: usize, from: usize, to: usize) -> Vec<f32> {
     let nz = axis.len().checked_div(ch).unwrap_or(0);
     if nz == 0 {
@@ -83,13 +96,7 @@ pub(super) fn height_weights(axis: &[f32], ch: usize, from: usize, to: usize) ->
     let k0 = from.min(nz - 1);
     let k1 = to.clamp(k0, nz - 1);
     let n = (k1 - k0 + 1) as f32;
-    (0..ch)
-        .map(|c| {
-            let rms = ((0..nz).map(|k| axis[k * ch + c].powi(2)).sum::<f32>() / nz as f32).sqrt();
-            let mean = (k0..=k1).map(|k| axis[k * ch + c]).sum::<f32>() / n;
-            if rms > 0.0 { mean / rms } else { 0.0 }
-        })
-        .collect()
+    (0..ch).map(|c| (k0..=k1).map(|k| axis[k * ch + c]).sum::<f32>() / n).collect()
 }
 
 /// Background subtraction inside a window: the surface model is the coordinate-wise median
@@ -437,7 +444,8 @@ impl Seeded<'_> {
         let mut pts = Vec::new();
         // the colours at the height of what stands on the surface, beside the column's
         let ch = cx.color.ch;
-        let at_height = cx.color_axis.map(|a| height_weights(a, ch, hi + 1, top.unwrap_or(hi + 1)));
+        let at_height =
+            cx.color_axis.as_deref().map(|a| height_weights(a, ch, hi + 1, top.unwrap_or(hi + 1)));
         for r in win.r0..win.r1 {
             for c in win.c0..win.c1 {
                 if interior.get(r, c)
