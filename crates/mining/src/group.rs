@@ -1,11 +1,13 @@
 //! Unsupervised grouping of the detected objects into categories (paper Sec. 3.3).
 //!
-//! Every detection contributes [`Samples`]: by default (the paper) the features of the
-//! colour plane (for I-AssetField the integrated RGB plane) at its own texels, weighted by
-//! their opacity; optionally ([`Samples::from_voxels`]) the colours the field decodes on its
-//! own surface voxels. The samples of all objects, and only those (empty floor must not
-//! dominate the codebook), are discretised with K-means. Every detection becomes a
-//! histogram of labels over its own samples; two detections are compared with the
+//! Every detection contributes [`Samples`]: by default ([`Samples::from_voxels`]) the
+//! colours the field decodes on its own surface voxels, so that copies look alike whatever
+//! stands under them; with the paper ([`Samples::from_plane`]) the features of the colour
+//! plane (for I-AssetField the integrated RGB plane) at its own texels, weighted by their
+//! opacity, each describing its whole column, the floor under the object included. The
+//! samples of all objects, and only those (empty floor must not dominate the codebook), are
+//! discretised with K-means. Every detection becomes a histogram of labels over its own
+//! samples; two detections are compared with the
 //! Jensen-Shannon divergence of their histograms **plus a shape term**, since objects with
 //! the same colours but different shapes (two table sizes, a chair and a stool of the same
 //! red, a long dresser and a round table of one wood) have near-identical histograms:

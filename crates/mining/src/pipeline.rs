@@ -69,11 +69,12 @@ pub struct MineOptions {
 impl MineOptions {
     /// The options of a preset: [`Preset::Default`] is [`MineOptions::default`];
     /// [`Preset::Paper`] runs only the paper's steps: its detection
-    /// ([`DetectParams::paper`]), grouping by colour histograms and shape alone (no vertical
-    /// profile, no cutting of copies) and yaw on the density plane.
+    /// ([`DetectParams::paper`]), grouping by histograms of the colour plane's features and
+    /// shape alone (no vertical profile, no cutting of copies) and yaw on the density plane.
     pub fn preset(p: crate::detect::Preset) -> Self {
         let mut o = MineOptions { detect: DetectParams::preset(p), ..MineOptions::default() };
         if p == crate::detect::Preset::Paper {
+            o.group_on = GroupOn::Color;
             o.yaw_on = YawOn::Density;
             o.group.split_copies = false;
             o.group.profile_weight = 0.0;
@@ -93,7 +94,7 @@ impl Default for MineOptions {
         MineOptions {
             detect: DetectParams::default(),
             group: GroupOptions::default(),
-            group_on: GroupOn::Color,
+            group_on: GroupOn::Voxels,
             yaw_on: YawOn::Auto,
             pose: PoseOptions::default(),
             templates: Vec::new(),
@@ -111,15 +112,17 @@ impl Default for MineOptions {
 pub enum GroupOn {
     /// The colour plane's features at each object's own texels (the paper; I-AssetField:
     /// the integrated RGB plane). A texel's feature describes its whole column
-    /// ([`Samples::from_plane`]).
-    #[default]
+    /// ([`Samples::from_plane`]): the floor or the support under the object too.
     Color,
     /// The semantic plane's features at each object's own texels.
     Semantic,
     /// The density plane's features at each object's own texels.
     Density,
     /// The colours the field decodes on each object's own surface voxels, from its base to
-    /// its top ([`Samples::from_voxels`]).
+    /// its top ([`Samples::from_voxels`]): what the object looks like whatever stands under
+    /// it (copies on a floor slab and beside it, on tiles of two colours, on a table and on
+    /// the floor).
+    #[default]
     Voxels,
 }
 

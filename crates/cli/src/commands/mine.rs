@@ -190,13 +190,14 @@ pub struct MineArgs {
     /// Linkage of the agglomerative clustering: average, single or complete.
     #[arg(long, value_enum, default_value = "average")]
     pub linkage: LinkageArg,
-    /// What is discretised for grouping: a plane's features over each object's own texels
-    /// (color, the paper's choice, where each texel describes its whole column; semantic;
-    /// density) or voxels (the colours the field decodes on each object's own surface
-    /// voxels from its base to its top: a crate on a pallet looks like a crate on the floor,
-    /// and colours weigh more than in the column features).
-    #[arg(long, value_enum, default_value = "color")]
-    pub group_on: GroupOnArg,
+    /// What is discretised for grouping. voxels (default): the colours the field decodes on
+    /// each object's own surface voxels from its base to its top, so that copies look alike
+    /// whatever they stand on (a floor slab or beside it, a pallet or the floor). Or a
+    /// plane's features over each object's own texels, each describing its whole column,
+    /// the floor under the object included: color (the paper's choice, and --preset
+    /// paper's), semantic or density.
+    #[arg(long, value_enum)]
+    pub group_on: Option<GroupOnArg>,
     /// What is matched to find each instance's yaw. auto (default): the density plane's
     /// patches, whose shape (a car's cabin nearer its back) tells front from back where
     /// colours may not (on the suite's 3-minute fields the worst yaw errors drop from up to
@@ -426,7 +427,9 @@ pub fn mine(a: MineArgs) -> Result<()> {
             Some(AutoCutArg::LargestRatio) => GroupCut::LargestRatio,
         },
     };
-    o.group_on = a.group_on.choice();
+    if let Some(g) = a.group_on {
+        o.group_on = g.choice();
+    }
     if let Some(y) = a.yaw_on {
         o.yaw_on = y.choice();
     }
