@@ -7,10 +7,10 @@
 //! opacity, each describing its whole column, the floor under the object included. The
 //! samples of all objects, and only those (empty floor must not dominate the codebook), are
 //! discretised with K-means. Every detection becomes a histogram of labels over its own
-//! samples; two detections are compared with the
-//! Jensen-Shannon divergence of their histograms **plus a shape term**, since objects with
-//! the same colours but different shapes (two table sizes, a chair and a stool of the same
-//! red, a long dresser and a round table of one wood) have near-identical histograms:
+//! samples; two detections are compared with the Jensen-Shannon divergence of their
+//! histograms **plus a shape term**, since objects with the same colours but different
+//! shapes (two table sizes, a chair and a stool of the same red, a long dresser and a round
+//! table of one wood) have near-identical histograms:
 //!
 //! ```text
 //! d(i, j) = JSD(h_i, h_j)

@@ -1215,9 +1215,12 @@ mod tests {
         assert_eq!(paper.detect, DetectParams::paper());
         assert_eq!(paper.yaw_on, YawOn::Density);
         assert!(!paper.group.split_copies && paper.group.profile_weight == 0.0);
+        // the paper groups on the colour plane; the default on the objects' own voxels
+        assert_eq!(paper.group_on, GroupOn::Color);
         let default = MineOptions::preset(crate::detect::Preset::Default);
         assert_eq!(default.detect, DetectParams::default());
         assert!(default.group.split_copies && default.group.profile_weight > 0.0);
+        assert_eq!(default.group_on, GroupOn::Voxels);
     }
 
     #[test]
