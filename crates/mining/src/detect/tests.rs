@@ -993,9 +993,20 @@ fn a_lamp_on_a_side_table_is_held_on_a_stem() {
     short[14..=16].fill(150);
     assert!(!held_on_a_stem(&short, 10, 3, 25));
     // nothing held above the stem (haze)
-    let mut bare = area;
+    let mut bare = area.clone();
     bare[17..=20].fill(20);
     assert!(!held_on_a_stem(&bare, 10, 3, 25));
+    // a shade with one faint level inside it is still one held body
+    let mut dip = area.clone();
+    dip[19] = 3;
+    assert!(held_on_a_stem(&dip, 10, 3, 25));
+    // a pine's tiers: flat discs with empty levels between them are one tree
+    let mut pine = vec![0usize; 30];
+    pine[2..=10].fill(900);
+    pine[14] = 700;
+    pine[17] = 500;
+    pine[20] = 300;
+    assert!(!held_on_a_stem(&pine, 10, 3, 25));
 
     // and in a volume: a side table (solid, 0.45 m) whose lamp shade covers 44% of it,
     // leaving a rim of one or two texels, on a one-texel stem

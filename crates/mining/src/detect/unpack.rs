@@ -25,24 +25,31 @@ use crate::planes::window_max;
 /// Whether the per-level areas (`area[k]`: occupied texels of the footprint at level `k`)
 /// show an object held above the surface ending at level `hi` on a stem: a run of at least
 /// `run_levels` levels (the field's vertical blur) where less than the smallest object's
-/// area (`min_texels`) is occupied, then a level covering at least that area again (a lamp's
-/// shade over its side table, a bowl on a stand). A stem is no object, and what it holds is
-/// one; a chair's back rises from its seat with no narrow run. No value of its own.
+/// area (`min_texels`) is occupied, then a body covering at least that area again (a lamp's
+/// shade over its side table, a bowl on a stand), and no other body above it across a gap
+/// of more than one such level (a pine's tiers over its lowest, each a flat disc with empty
+/// levels between, are one tree; a single faint level inside a shade is the field's noise,
+/// as one column is in [`super::robust_top_level`]). A stem is no object, and what it holds
+/// is one; a chair's back rises from its seat with no narrow run. No value of its own.
 pub fn held_on_a_stem(area: &[usize], hi: usize, run_levels: usize, min_texels: usize) -> bool {
     let need = run_levels.max(1);
+    let gap = 2; // fixed: more than one level (one faint level inside a body is noise)
     let mut run = 0usize;
+    let mut held = false;
     for &a in area.iter().skip(hi + 1) {
         if a < min_texels {
             run += 1;
         } else {
-            // a body: held on the stem below it, or right above the slab
-            if run >= need {
-                return true;
+            // a body: a second one over a gap above the held one is a tier of one object;
+            // a body over the stem is held; right above the slab, neither
+            if held && run >= gap {
+                return false;
             }
+            held |= run >= need;
             run = 0;
         }
     }
-    false
+    held
 }
 
 /// "Most of" in the judgement of a surface (a level covering most of the surface is part of
