@@ -567,14 +567,68 @@ pub fn group_samples(
     group_samples_with(samples, n, shapes, &[], opts)
 }
 
-/// [`group_samples`] with every detection's vertical profile
-/// ([`crate::copies::vertical_profile`]; empty: none): their Jensen-Shannon divergence,
-/// times [`GroupOptions::profile_weight`], joins the distance.
+/// Every detection's vertical profile ([`crate::copies::vertical_profile`]) as the grouping
+/// compares them: sharp where two objects stand on one base (the same floor or surface
+/// height: their levels line up), blurred by the field's vertical blur where they stand on
+/// different bases, each estimated within that blur
+/// ([`crate::copies::blurred`]). Empty: no profiles.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Profiles {
+    /// The blurred profiles, one per detection.
+    pub blurred: Vec<Vec<f64>>,
+    /// The sharp profiles and the bases' heights (world units), one per detection; empty:
+    /// every pair compares blurred profiles (objects of different scenes).
+    pub sharp: Vec<Vec<f64>>,
+    pub base: Vec<f32>,
+}
+
+impl Profiles {
+    /// Blurred profiles only: every pair compares them.
+    pub fn blurred_only(blurred: Vec<Vec<f64>>) -> Self {
+        Profiles { blurred, ..Default::default() }
+    }
+
+    /// Number of detections described (0: none).
+    pub fn len(&self) -> usize {
+        self.blurred.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.blurred.is_empty()
+    }
+
+    /// The Jensen-Shannon divergence of detections `i` and `j`: of their sharp profiles on
+    /// one base (bases of one volume are levels of it: equal, or a level or more apart),
+    /// of their blurred ones otherwise.
+    pub fn jsd(&self, i: usize, j: usize) -> f64 {
+        let one_base = self.base.len() == self.len() && self.base[i] == self.base[j];
+        if one_base && self.sharp.len() == self.len() {
+            crate::copies::profile_jsd(&self.sharp[i], &self.sharp[j])
+        } else {
+            crate::copies::profile_jsd(&self.blurred[i], &self.blurred[j])
+        }
+    }
+}
+
+/// [`group_samples`] with every detection's vertical profile, blurred
+/// ([`crate::copies::blurred`]; empty: none): see [`group_samples_profiled`].
 pub fn group_samples_with(
     samples: &Samples,
     n: usize,
     shapes: &[Shape],
     profiles: &[Vec<f64>],
+    opts: &GroupOptions,
+) -> Result<Grouping> {
+    group_samples_profiled(samples, n, shapes, &Profiles::blurred_only(profiles.to_vec()), opts)
+}
+
+/// [`group_samples`] with every detection's vertical profile: their Jensen-Shannon
+/// divergence ([`Profiles::jsd`]), times [`GroupOptions::profile_weight`], joins the distance.
+pub fn group_samples_profiled(
+    samples: &Samples,
+    n: usize,
+    shapes: &[Shape],
+    profiles: &Profiles,
     opts: &GroupOptions,
 ) -> Result<Grouping> {
     check_inputs(samples, n, shapes, profiles, opts)?;
@@ -597,11 +651,7 @@ pub fn group_samples_with(
         let shape = shape_distance(shapes[i], shapes[j], opts.length_tolerance, !profiled);
         jsd.get(i, j).unwrap_or(0.0)
             + opts.shape_weight * shape
-            + if profiled {
-                opts.profile_weight * crate::copies::profile_jsd(&profiles[i], &profiles[j])
-            } else {
-                0.0
-            }
+            + if profiled { opts.profile_weight * profiles.jsd(i, j) } else { 0.0 }
     })?;
     let dendro = linkage(&distance, opts.linkage);
     let (cut, desc) = choose_cut(&dendro, &distance, n, opts);
@@ -618,12 +668,12 @@ pub fn group_samples_with(
     })
 }
 
-/// The inputs of [`group_samples_with`] agree with each other and with `n` detections.
+/// The inputs of [`group_samples_profiled`] agree with each other and with `n` detections.
 fn check_inputs(
     samples: &Samples,
     n: usize,
     shapes: &[Shape],
-    profiles: &[Vec<f64>],
+    profiles: &Profiles,
     opts: &GroupOptions,
 ) -> Result<()> {
     if !profiles.is_empty() && profiles.len() != n {
@@ -632,6 +682,14 @@ fn check_inputs(
             left: profiles.len(),
             right: n,
         });
+    }
+    for (what, len) in [
+        ("sharp profiles vs detections", profiles.sharp.len()),
+        ("profiles' bases vs detections", profiles.base.len()),
+    ] {
+        if len != 0 && len != profiles.len() {
+            return Err(MiningError::SizeMismatch { what, left: len, right: profiles.len() });
+        }
     }
     if shapes.len() != n {
         return Err(MiningError::SizeMismatch {
@@ -1058,6 +1116,30 @@ mod tests {
         assert_eq!(shape_distance(a, Shape::round(1.0, 0.5), 0.15, false), 0.0);
         let d = shape_distance(a, Shape::round(2.0, 0.5), 0.15, false);
         assert!((d - (2f64.ln() - 0.3)).abs() < 1e-6, "{d}");
+    }
+
+    #[test]
+    fn profiles_compare_sharp_on_one_base_and_blurred_across_bases() {
+        // one object's profile and the same a level higher (a base estimated a level lower)
+        let a = vec![0.0, 0.5, 0.5, 0.0, 0.0, 0.0];
+        let b = vec![0.0, 0.0, 0.5, 0.5, 0.0, 0.0];
+        let blur = |p: &Vec<f64>| crate::copies::blurred(p, 2);
+        let one = Profiles {
+            blurred: vec![blur(&a), blur(&b)],
+            sharp: vec![a.clone(), b.clone()],
+            base: vec![0.5, 0.5],
+        };
+        let two = Profiles { base: vec![0.5, 0.55], ..one.clone() };
+        let sharp = crate::copies::profile_jsd(&a, &b);
+        assert_eq!(one.jsd(0, 1), sharp);
+        assert!(two.jsd(0, 1) < 0.5 * sharp, "{} vs {sharp}", two.jsd(0, 1));
+        assert_eq!(Profiles::blurred_only(one.blurred.clone()).jsd(0, 1), two.jsd(0, 1));
+        // sharp profiles or bases of another length are refused
+        let s = samples(&[[0.0, 0.0], [1.0, 1.0]], 20);
+        let shapes = [Shape::round(1.0, 1.0); 2];
+        let bad = Profiles { base: vec![0.5], ..one.clone() };
+        assert!(group_samples_profiled(&s, 2, &shapes, &bad, &GroupOptions::default()).is_err());
+        assert!(group_samples_profiled(&s, 2, &shapes, &one, &GroupOptions::default()).is_ok());
     }
 
     #[test]

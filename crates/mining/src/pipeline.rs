@@ -21,7 +21,7 @@ use crate::agglomerative::DistanceMatrix;
 use crate::copies::{CopySplit, blurred, profile_jsd, split_copies, vertical_profile};
 use crate::detect::{DetectParams, Detections, FloorBand, detect_with_color_axis};
 use crate::error::{MiningError, Result, check_interrupt};
-use crate::group::{GroupOptions, Grouping, Samples, Shape, group_samples_with};
+use crate::group::{GroupOptions, Grouping, Profiles, Samples, Shape, group_samples_profiled};
 use crate::image::{Mask, PlaneImage};
 use crate::layout_out::{layout_script, script_text_checked};
 use crate::metrics::{Metrics, Predicted, evaluate};
@@ -771,10 +771,10 @@ impl Context<'_> {
         Ok(dets)
     }
 
-    /// The grouping of `dets` into categories, with their sharp vertical profiles; objects
-    /// on different supports are compared with their profiles blurred by the field's
-    /// vertical blur (`blur_levels`: a base is estimated within it), copies standing on one
-    /// ground sharp.
+    /// The grouping of `dets` into categories, with their sharp vertical profiles (for the
+    /// copies test). Objects on different bases compare their profiles blurred by the
+    /// field's vertical blur (`blur_levels`: a base is estimated within it), objects on one
+    /// base their sharp ones ([`Profiles`]).
     fn group_all(&self, dets: &Detections) -> Result<(Grouping, Vec<Vec<f64>>)> {
         let opts = self.opts;
         let texel = self.planes.grid.texel;
@@ -788,10 +788,18 @@ impl Context<'_> {
             .iter()
             .map(|d| vertical_profile(self.vol, d, dets.voxel_threshold))
             .collect();
-        let soft: Vec<Vec<f64>> =
-            sharp.iter().map(|p| blurred(p, opts.detect.blur_levels)).collect();
-        let grouping =
-            group_samples_with(&samples, dets.detections.len(), &shapes, &soft, &opts.group)?;
+        let profiles = Profiles {
+            blurred: sharp.iter().map(|p| blurred(p, opts.detect.blur_levels)).collect(),
+            sharp: sharp.clone(),
+            base: dets.detections.iter().map(|d| d.base).collect(),
+        };
+        let grouping = group_samples_profiled(
+            &samples,
+            dets.detections.len(),
+            &shapes,
+            &profiles,
+            &opts.group,
+        )?;
         Ok((grouping, sharp))
     }
 
