@@ -572,19 +572,19 @@ pub fn group_samples(
 /// height: their levels line up), blurred by the field's vertical blur where they stand on
 /// different bases, each estimated within that blur
 /// ([`crate::copies::blurred`]). Empty: no profiles.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Profiles {
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Profiles<'a> {
     /// The blurred profiles, one per detection.
-    pub blurred: Vec<Vec<f64>>,
+    pub blurred: &'a [Vec<f64>],
     /// The sharp profiles and the bases' heights (world units), one per detection; empty:
     /// every pair compares blurred profiles (objects of different scenes).
-    pub sharp: Vec<Vec<f64>>,
-    pub base: Vec<f32>,
+    pub sharp: &'a [Vec<f64>],
+    pub base: &'a [f32],
 }
 
-impl Profiles {
+impl<'a> Profiles<'a> {
     /// Blurred profiles only: every pair compares them.
-    pub fn blurred_only(blurred: Vec<Vec<f64>>) -> Self {
+    pub fn blurred_only(blurred: &'a [Vec<f64>]) -> Self {
         Profiles { blurred, ..Default::default() }
     }
 
@@ -619,7 +619,7 @@ pub fn group_samples_with(
     profiles: &[Vec<f64>],
     opts: &GroupOptions,
 ) -> Result<Grouping> {
-    group_samples_profiled(samples, n, shapes, &Profiles::blurred_only(profiles.to_vec()), opts)
+    group_samples_profiled(samples, n, shapes, Profiles::blurred_only(profiles), opts)
 }
 
 /// [`group_samples`] with every detection's vertical profile: their Jensen-Shannon
@@ -628,10 +628,10 @@ pub fn group_samples_profiled(
     samples: &Samples,
     n: usize,
     shapes: &[Shape],
-    profiles: &Profiles,
+    profiles: Profiles<'_>,
     opts: &GroupOptions,
 ) -> Result<Grouping> {
-    check_inputs(samples, n, shapes, profiles, opts)?;
+    check_inputs(samples, n, shapes, &profiles, opts)?;
     if n == 0 {
         return Ok(Grouping {
             histograms: Vec::new(),
@@ -673,7 +673,7 @@ fn check_inputs(
     samples: &Samples,
     n: usize,
     shapes: &[Shape],
-    profiles: &Profiles,
+    profiles: &Profiles<'_>,
     opts: &GroupOptions,
 ) -> Result<()> {
     if !profiles.is_empty() && profiles.len() != n {
@@ -1124,22 +1124,19 @@ mod tests {
         let a = vec![0.0, 0.5, 0.5, 0.0, 0.0, 0.0];
         let b = vec![0.0, 0.0, 0.5, 0.5, 0.0, 0.0];
         let blur = |p: &Vec<f64>| crate::copies::blurred(p, 2);
-        let one = Profiles {
-            blurred: vec![blur(&a), blur(&b)],
-            sharp: vec![a.clone(), b.clone()],
-            base: vec![0.5, 0.5],
-        };
-        let two = Profiles { base: vec![0.5, 0.55], ..one.clone() };
+        let (blurred, sharp) = (vec![blur(&a), blur(&b)], vec![a.clone(), b.clone()]);
+        let one = Profiles { blurred: &blurred, sharp: &sharp, base: &[0.5, 0.5] };
+        let two = Profiles { base: &[0.5, 0.55], ..one };
         let sharp = crate::copies::profile_jsd(&a, &b);
         assert_eq!(one.jsd(0, 1), sharp);
         assert!(two.jsd(0, 1) < 0.5 * sharp, "{} vs {sharp}", two.jsd(0, 1));
-        assert_eq!(Profiles::blurred_only(one.blurred.clone()).jsd(0, 1), two.jsd(0, 1));
+        assert_eq!(Profiles::blurred_only(&blurred).jsd(0, 1), two.jsd(0, 1));
         // sharp profiles or bases of another length are refused
         let s = samples(&[[0.0, 0.0], [1.0, 1.0]], 20);
         let shapes = [Shape::round(1.0, 1.0); 2];
-        let bad = Profiles { base: vec![0.5], ..one.clone() };
-        assert!(group_samples_profiled(&s, 2, &shapes, &bad, &GroupOptions::default()).is_err());
-        assert!(group_samples_profiled(&s, 2, &shapes, &one, &GroupOptions::default()).is_ok());
+        let bad = Profiles { base: &[0.5], ..one };
+        assert!(group_samples_profiled(&s, 2, &shapes, bad, &GroupOptions::default()).is_err());
+        assert!(group_samples_profiled(&s, 2, &shapes, one, &GroupOptions::default()).is_ok());
     }
 
     #[test]

@@ -788,16 +788,15 @@ impl Context<'_> {
             .iter()
             .map(|d| vertical_profile(self.vol, d, dets.voxel_threshold))
             .collect();
-        let profiles = Profiles {
-            blurred: sharp.iter().map(|p| blurred(p, opts.detect.blur_levels)).collect(),
-            sharp: sharp.clone(),
-            base: dets.detections.iter().map(|d| d.base).collect(),
-        };
+        let soft: Vec<Vec<f64>> =
+            sharp.iter().map(|p| blurred(p, opts.detect.blur_levels)).collect();
+        let base: Vec<f32> = dets.detections.iter().map(|d| d.base).collect();
+        let profiles = Profiles { blurred: &soft, sharp: &sharp, base: &base };
         let grouping = group_samples_profiled(
             &samples,
             dets.detections.len(),
             &shapes,
-            &profiles,
+            profiles,
             &opts.group,
         )?;
         Ok((grouping, sharp))
