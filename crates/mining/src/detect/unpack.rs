@@ -354,10 +354,14 @@ fn find_surface(cx: &Ctx, part: &Part, levels: &Levels) -> Option<Surface> {
         // a support is a thin slab (a table top, a shelf, a pallet's deck) or the top of a
         // solid body (a desk over its drawer pedestal, a side table): then only its top levels
         // count as the surface, and the checks below are stricter (a free surface away from
-        // its fringe, substantial seeds) (a body with a gap of a faint level or two is solid too: most levels below
-        // the slab cover half of it, where a table's legs and ghost layers cover less)
-        let below = lo.saturating_sub(start);
-        let dense_below = (start..lo).filter(|&k| at_least(area[k], MOST, area[kstar])).count();
+        // its fringe, substantial seeds). A body with a gap of a faint level or two is solid
+        // too: most levels of the body below the slab cover half of it, where a table's legs
+        // and ghost layers cover less. The body is measured from its lowest level that holds
+        // the smallest object's area ([`body_from`]): a trunk or a pedestal's column under it
+        // is no part of what is solid
+        let from = body_from(area, start, lo, cx.min_texels);
+        let below = lo - from;
+        let dense_below = (from..lo).filter(|&k| at_least(area[k], MOST, area[kstar])).count();
         let solid = hi - lo + 1 > thin || below >= thin && at_least(dense_below, MOST, below);
         if solid {
             lo = hi + 1 - thin;
@@ -388,6 +392,14 @@ fn find_surface(cx: &Ctx, part: &Part, levels: &Levels) -> Option<Surface> {
         return Some(Surface { kstar, hi, above, lo, solid, surface, raised, seeds });
     }
     None
+}
+
+/// The lowest level in `start..lo` whose area (`area[k]`, occupied texels) reaches the
+/// smallest object's, `min_texels`; `lo` when none does. The levels under it hold no body (a
+/// tree's trunk under its canopy, the column of a pedestal table); when none reaches it, the
+/// surface at `lo` has no body under it. No value of its own.
+pub(super) fn body_from(area: &[usize], start: usize, lo: usize, min_texels: usize) -> usize {
+    (start..lo).find(|&k| area[k] >= min_texels.max(1)).unwrap_or(lo)
 }
 
 /// The seeds of one part's surface grown into the objects standing on it.
