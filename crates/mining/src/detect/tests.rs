@@ -1029,25 +1029,23 @@ fn a_canopy_on_a_trunk_is_one_body() {
     // over the top layer, across one empty level. The top layer is no table top with the
     // crown standing on it: the layers under it are its body; the trunk is no part of that
     let (rows, cols) = (30, 30);
-    let mut v = floor_volume(rows, cols, 40);
-    fill(&mut v, (14, 15), (14, 15), (2, 16), 0.95);
-    for k in (16..=28).step_by(2) {
-        fill(&mut v, (8, 22), (8, 22), (k, k + 1), 0.95);
-    }
-    fill(&mut v, (12, 18), (12, 18), (30, 34), 0.95);
+    // the canopy and crown over what stands under them (rows and columns of levels 2..16)
+    let tree = |under: (usize, usize)| {
+        let mut v = floor_volume(rows, cols, 40);
+        fill(&mut v, under, under, (2, 16), 0.95);
+        for k in (16..=28).step_by(2) {
+            fill(&mut v, (8, 22), (8, 22), (k, k + 1), 0.95);
+        }
+        fill(&mut v, (12, 18), (12, 18), (30, 34), 0.95);
+        v
+    };
     let color = painted(rows, cols, (12..18, 12..18), [0.3, 0.6, 0.3], [0.2, 0.45, 0.2]);
-    let d = detect_small(&v, &color);
+    let d = detect_small(&tree((14, 15)), &color);
     let found: Vec<_> = d.detections.iter().map(|d| (d.rect, d.parent)).collect();
     assert_eq!(found, vec![(PixelRect::new(8, 8, 22, 22), None)]);
     // the same canopy on a body as wide as itself (a thick column under the top layer):
     // still one body
-    let mut w = floor_volume(rows, cols, 40);
-    fill(&mut w, (8, 22), (8, 22), (2, 16), 0.95);
-    for k in (16..=28).step_by(2) {
-        fill(&mut w, (8, 22), (8, 22), (k, k + 1), 0.95);
-    }
-    fill(&mut w, (12, 18), (12, 18), (30, 34), 0.95);
-    assert_eq!(detect_small(&w, &color).detections.len(), 1);
+    assert_eq!(detect_small(&tree((8, 22)), &color).detections.len(), 1);
     // and the body's levels are counted from the first that holds an object's area
     assert_eq!(unpack::body_from(&[3, 1, 1, 60, 0, 60], 1, 5, 4), 3);
     assert_eq!(unpack::body_from(&[3, 1, 1, 2, 0, 60], 1, 5, 4), 5);

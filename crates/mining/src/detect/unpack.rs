@@ -8,11 +8,11 @@
 //! there too: [`height_weights`]). What joins the seed must also rise off the surface (a
 //! shadow only differs in colour) and be a body, not a strip; the connected result, when
 //! enclosed by free surface, becomes a detection supported by the object (laptops on a
-//! table, a crate on a pallet, a lamp on a side table, flowers on a counter). A thin slab may have little
-//! of it free (a crate fills its pallet's deck), and so may a solid support with an object
-//! held above it on a stem (a lamp whose shade covers most of a side table:
-//! [`held_on_a_stem`]); otherwise what covers most of a solid body's footprint is the body's
-//! own shape (a car's cabin between its bonnet and its boot).
+//! table, a crate on a pallet, a lamp on a side table, flowers on a counter). A thin slab
+//! may have little of it free (a crate fills its pallet's deck), and so may a solid support
+//! with an object held above it on a stem (a lamp whose shade covers most of a side table:
+//! [`held_on_a_stem`]); otherwise what covers most of a solid body's footprint is the
+//! body's own shape (a car's cabin between its bonnet and its boot).
 
 use super::context::Ctx;
 use super::evidence::kmeans_threshold;
