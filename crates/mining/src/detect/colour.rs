@@ -1,11 +1,12 @@
 //! Stage 3c: separating touching objects of different colour: pieces of a K-means (k = 3)
 //! on the colour plane's principal components that stand on the ground, differ clearly in
-//! colour, share at most half their outline with the rest, and come from a concave region
-//! (a sofa against an armchair, stools against a bar) become objects.
+//! colour, share at most half their outline with the rest, leave a rest that stands too,
+//! and come from a concave region (a sofa against an armchair, stools against a bar) become
+//! objects.
 
 use super::context::Ctx;
 use super::shape::{Part, fill_holes, is_thin, more_than, or_into};
-use super::split::{geodesic_assign, lowest_level};
+use super::split::{geodesic_assign, lowest_level, stands};
 use crate::image::{Mask, PixelRect, PlaneImage};
 use crate::kmeans::{KMeansOptions, kmeans};
 
@@ -165,6 +166,11 @@ fn split_once(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Result<Vec<Part>, Part>
         if !accepted.contains(&p) {
             or_into(&mut rest, piece);
         }
+    }
+    // what stays must stand too: a piece of its own colour cut from a whole that floats
+    // without it (a street lamp's base from its arm and head) is no separate object
+    if !stands(vol, rect, &rest, start, cx.ground + cx.ground_tol, tau, cx.p.blur_levels) {
+        return Err(part);
     }
     let (kmin, kmax) = (part.kmin, part.kmax);
     Ok(accepted

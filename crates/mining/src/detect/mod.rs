@@ -11,14 +11,14 @@
 //!    opacity of any few-level window above the floor, split with K-means (`k = 2`); the
 //!    lowest cluster is background (the paper preset clusters the density plane's features
 //!    instead, the largest cluster being background). Specks smaller than the smallest
-//!    object go, walls (thin and long) are cut out, and the regions are the connected
+//!    object go, walls (thin, long, standing on the ground) are cut out, and the regions are the connected
 //!    components (objects nested in another's hole are regions of their own, unless the
 //!    hole is shorter than a wall: then it is a hollow object's inside and what the field
 //!    left in it goes).
 //! 3. **Splitting** ([`split`], [`colour`]). Reconstruction blur joins neighbours, so each
 //!    region is cut at thin bridges, then by 3D connectivity (every component standing on
 //!    the ground starts an object), then by colour (pieces of clearly different colour that
-//!    stand on the ground and straighten a concave outline).
+//!    stand on the ground, leave a rest that stands, and straighten a concave outline).
 //! 4. **Filters** ([`filters`]). Walls and ragged haze are dropped, each with a typed
 //!    [`RemovalReason`].
 //! 5. **Merging** ([`merge`]). Fragments that the colour split cut out of one object merge.

@@ -356,6 +356,18 @@ pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mas
             .iter()
             .map(|p| stands(vol, rect, p, start, ground + ground_tol, tau, cx.p.blur_levels))
             .collect();
+        if tracing::enabled!(tracing::Level::TRACE) {
+            for (i, p) in pieces.iter().enumerate() {
+                let mut bl: Vec<(usize, usize, usize)> =
+                    blobs(vol, rect, p, start, tau, cx.p.blur_levels)
+                        .iter()
+                        .map(|b| (b.proj_count, b.kmin, b.kmax))
+                        .collect();
+                bl.sort_unstable_by(|a, b| b.cmp(a));
+                bl.truncate(6); // fixed: how many a trace line lists
+                tracing::trace!(?rect, i, n = p.count(), stands = grounded[i], ?bl, "bridge piece");
+            }
+        }
         let join = (0..pieces.len()).filter(|&f| !grounded[f]).find_map(|f| {
             let border = shared_borders(&pieces, f);
             (0..pieces.len())

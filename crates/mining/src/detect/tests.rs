@@ -1242,3 +1242,45 @@ fn a_small_object_standing_alone_is_found_but_not_one_beside_another() {
     let d = detect(&grid, &v, &color, None, &plain).unwrap();
     assert_eq!(rects(&d), vec![PixelRect::new(10, 10, 30, 30)]);
 }
+
+/// A street lamp in a volume of [`floor_volume`] 30 levels high: a base (6 x 6 texels,
+/// levels 2..4) at rows 18..24, columns 28..34, a post (2 x 2) up to level 18, an arm two
+/// texels wide at levels 16..18 running from the post towards row 0 up to row `arm_r0`,
+/// and a head (levels 14..18) over rows `head.0` and columns `head.1`.
+fn street_lamp(v: &mut OpacityVolume, arm_r0: usize, head: ((usize, usize), (usize, usize))) {
+    fill(v, (18, 24), (28, 34), (2, 4), 0.95); // base
+    fill(v, (20, 22), (30, 32), (2, 18), 0.95); // post
+    fill(v, (arm_r0, 22), (30, 32), (16, 18), 0.95); // arm
+    fill(v, head.0, head.1, (14, 18), 0.95);
+}
+
+#[test]
+fn a_lamp_whose_arm_reaches_a_wall_stays_a_lamp() {
+    // a wall along row 0 (two texels thick, levels 2..20) and a street lamp whose arm hangs
+    // over the ground up to the wall: thin like the wall and touching it, but hanging, so
+    // only the arm's end within the wall's half thickness goes with the wall
+    let (rows, cols) = (40, 60);
+    let mut v = floor_volume(rows, cols, 30);
+    fill(&mut v, (0, 2), (0, cols), (2, 20), 0.95);
+    street_lamp(&mut v, 2, ((5, 9), (27, 35)));
+    let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
+    assert_a_wall_removed(&d);
+    let boxes = rects(&d);
+    assert_eq!(boxes.len(), 1, "{boxes:?} removed {:?}", d.removed);
+    assert!(within_a_texel(boxes[0], PixelRect::new(4, 27, 24, 35)), "{boxes:?}");
+}
+
+#[test]
+fn a_lamp_s_base_of_another_colour_stays_with_its_head() {
+    // a street lamp standing free, its base in one colour and its post, arm and head (larger
+    // than the base) in another: the base stands, but what the colour split would leave (arm
+    // and head) hangs over the ground, so the lamp stays one object
+    let (rows, cols) = (40, 60);
+    let mut v = floor_volume(rows, cols, 30);
+    street_lamp(&mut v, 6, ((2, 8), (26, 36)));
+    let color = painted(rows, cols, (18..24, 28..34), [0.9, 0.2, 0.1], [0.2, 0.3, 0.8]);
+    let d = detect_small(&v, &color);
+    let boxes = rects(&d);
+    assert_eq!(boxes.len(), 1, "{boxes:?} removed {:?}", d.removed);
+    assert!(within_a_texel(boxes[0], PixelRect::new(2, 26, 24, 36)), "{boxes:?}");
+}

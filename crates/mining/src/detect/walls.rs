@@ -1,6 +1,7 @@
 //! Stage 2b: walls, even where objects lean on them. A wall is a thin structure that an
-//! opening of its half thickness removes and that runs a long way; it is cut out of the
-//! first-round mask before regions are formed, so that a chair against a wall stays a chair.
+//! opening of its half thickness removes, that stands on the ground and runs a long way; it
+//! is cut out of the first-round mask before regions are formed, so that a chair against a
+//! wall stays a chair and a lamp whose arm reaches over to a wall stays a lamp.
 //! An enclosure with nothing inside it is not a wall but the sides of one hollow object, and
 //! an enclosure shorter than a wall can be is one object's inside, whatever the field left in
 //! it.
@@ -52,12 +53,21 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
     }
     let hollow: Vec<bool> =
         sizes.iter().zip(&solid_when_filled).map(|(&n, &s)| mostly(s, n)).collect();
-    let thin = Mask::from_fn(rows, cols, |rr, cc| {
+    let thin_all = Mask::from_fn(rows, cols, |rr, cc| {
         let i = rr * cols + cc;
         mask.data[i]
             && !(if hollow[labels[i] as usize] { &near_core_filled } else { &near_core_plain }).data
                 [i]
     });
+    // a wall stands on the ground: the thin texels within its half thickness of a long
+    // run of standing ones; a thin structure hanging over the ground that touches it (a
+    // street lamp's arm reaching the wall with its head) is not wall, and only its end
+    // within the wall's thickness goes with it
+    let standing =
+        Mask::from_fn(rows, cols, |rr, cc| thin_all.get(rr, cc) && stands_up(cx, rr, cc));
+    let cores = long_components(&standing, longest)?;
+    let band = crate::morphology::dilate(&cores, r)?;
+    let thin = Mask::from_fn(rows, cols, |rr, cc| thin_all.get(rr, cc) && band.get(rr, cc));
     let mut walls = Mask::empty(rows, cols)?;
     for reg in components(&thin)? {
         let length = reg.bbox.rows().max(reg.bbox.cols()) as f32 / longest;
@@ -69,17 +79,52 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
                     length,
                 },
             });
-            for rr in 0..reg.bbox.rows() {
-                for cc in 0..reg.bbox.cols() {
-                    if reg.pixels.get(rr, cc) {
-                        walls.set(reg.bbox.r0 + rr, reg.bbox.c0 + cc, true);
-                    }
-                }
-            }
+            paint(&mut walls, &reg);
         }
     }
     let cleaned = Mask::from_fn(rows, cols, |rr, cc| mask.get(rr, cc) && !walls.get(rr, cc));
     cx.without_specks(&cleaned)
+}
+
+/// Whether the column of texel `(r, c)` stands on the ground rather than hanging over it:
+/// its lowest opaque level (from [`Ctx::start`]) lies in the lower half of the span from
+/// the ground up to its highest (a wall whose foot the field left faint still does; an arm
+/// or a lamp's head high over the ground does not). A column with no opaque voxel (the
+/// mask holds it for its windowed evidence) counts as standing. Half: a majority, not a
+/// tuned share.
+fn stands_up(cx: &Ctx, r: usize, c: usize) -> bool {
+    let col = cx.vol.column(r, c);
+    let nz = col.len();
+    let lowest = (cx.start..nz).find(|&k| col[k] > cx.tau);
+    let highest = (cx.start..nz).rev().find(|&k| col[k] > cx.tau);
+    match (lowest, highest) {
+        (Some(lo), Some(hi)) => 2 * lo <= hi + cx.ground,
+        _ => true,
+    }
+}
+
+/// The components of `mask` running along at least [`super::filters::WALL_MIN_LENGTH`] of
+/// the plane's longer side (`longest`, texels).
+fn long_components(mask: &Mask, longest: f32) -> Result<Mask> {
+    let mut out = Mask::empty(mask.rows, mask.cols)?;
+    for reg in components(mask)? {
+        let length = reg.bbox.rows().max(reg.bbox.cols()) as f32 / longest;
+        if length >= super::filters::WALL_MIN_LENGTH {
+            paint(&mut out, &reg);
+        }
+    }
+    Ok(out)
+}
+
+/// Set the texels of region `reg` in `m`.
+fn paint(m: &mut Mask, reg: &crate::contours::Region) {
+    for rr in 0..reg.bbox.rows() {
+        for cc in 0..reg.bbox.cols() {
+            if reg.pixels.get(rr, cc) {
+                m.set(reg.bbox.r0 + rr, reg.bbox.c0 + cc, true);
+            }
+        }
+    }
 }
 
 /// The opening radius that removes a wall, texels.
