@@ -1244,13 +1244,14 @@ fn a_small_object_standing_alone_is_found_but_not_one_beside_another() {
 }
 
 /// A street lamp in a volume of [`floor_volume`] 30 levels high: a base (6 x 6 texels,
-/// levels 2..4) at rows 18..24, columns 28..34, a post (2 x 2) up to level 18, an arm two
-/// texels wide at levels 16..18 running from the post towards row 0 up to row `arm_r0`,
-/// and a head (levels 14..18) over rows `head.0` and columns `head.1`.
+/// levels 2..4) at rows 18..24, columns 28..34, a post (one texel) up to level 18, an arm
+/// one texel wide at levels 16..18 running from the post towards row 0 up to row `arm_r0`,
+/// and a head (levels 14..18) over rows `head.0` and columns `head.1`. Post and arm are
+/// thinner than the smallest object of the tests' parameters.
 fn street_lamp(v: &mut OpacityVolume, arm_r0: usize, head: ((usize, usize), (usize, usize))) {
     fill(v, (18, 24), (28, 34), (2, 4), 0.95); // base
-    fill(v, (20, 22), (30, 32), (2, 18), 0.95); // post
-    fill(v, (arm_r0, 22), (30, 32), (16, 18), 0.95); // arm
+    fill(v, (20, 21), (30, 31), (2, 18), 0.95); // post
+    fill(v, (arm_r0, 21), (30, 31), (16, 18), 0.95); // arm
     fill(v, head.0, head.1, (14, 18), 0.95);
 }
 
@@ -1283,4 +1284,27 @@ fn a_lamp_s_base_of_another_colour_stays_with_its_head() {
     let boxes = rects(&d);
     assert_eq!(boxes.len(), 1, "{boxes:?} removed {:?}", d.removed);
     assert!(within_a_texel(boxes[0], PixelRect::new(2, 26, 24, 36)), "{boxes:?}");
+}
+
+#[test]
+fn an_object_at_a_table_s_edge_unpacks_but_the_table_s_raised_edge_does_not() {
+    // a box standing at the edge of a thin table top (its side on the top's outline): an
+    // object on the table, touching the rim along its width
+    let (rows, cols) = (60, 80);
+    let mut v = floor_volume(rows, cols, 24);
+    thin_table(&mut v);
+    fill(&mut v, (10, 16), (30, 36), (9, 16), 0.95);
+    let color = painted(rows, cols, (10..16, 30..36), [0.2, 0.2, 0.7], [0.9, 0.9, 0.85]);
+    let d = detect_small(&v, &color);
+    let r = only_child(&d).rect;
+    assert!(within_a_texel(r, PixelRect::new(10, 30, 16, 36)), "{r:?}");
+    // a back two texels thick along the top's long edge (a bench's): the table's own shape,
+    // running along the rim, not standing on it
+    let mut v2 = floor_volume(rows, cols, 24);
+    thin_table(&mut v2);
+    fill(&mut v2, (10, 12), (15, 55), (9, 16), 0.95);
+    let color2 = painted(rows, cols, (10..12, 15..55), [0.2, 0.2, 0.7], [0.9, 0.9, 0.85]);
+    let d2 = detect_small(&v2, &color2);
+    assert!(d2.detections.iter().all(|x| x.parent.is_none()), "{:?}", rects(&d2));
+    assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
 }

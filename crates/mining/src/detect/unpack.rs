@@ -205,8 +205,8 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     // stands on it however much of it that covers (a crate fills its pallet: the free
     // surface is a margin, too narrow to judge away from the crate); the top of a solid body
     // must show free surface, or what rises from it is the body's own shape (a canopy's
-    // tip, a car's cabin, a plant's leaves over its pot). The rim and ring checks below
-    // apply to both.
+    // tip, a car's cabin, a plant's leaves over its pot). The ring check below applies to
+    // both; the rim check differs ([`Seeded::grow`]).
     let slab = !s.solid;
     // an object held above the surface on a stem (a table lamp: its shade covers most of a
     // side table, leaving no free surface to judge)
@@ -228,7 +228,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         cx,
         part,
         surface: &s,
-        // the footprint's outline: seeds on it are a table's rim
+        // the footprint's outline (the rim)
         ring: border_ring(f),
         // the window never reaches the rim band (edges of a table have colours of their own)
         interior: {
@@ -407,7 +407,8 @@ struct Seeded<'a> {
     cx: &'a Ctx<'a>,
     part: &'a Part,
     surface: &'a Surface,
-    /// The footprint's outline: seeds on it are a table's rim.
+    /// The footprint's outline: what rises on it is a solid body's blurred fringe, or at a
+    /// slab's edge an object standing there or the slab's own raised edge.
     ring: Mask,
     /// Where the colour window may reach: the footprint away from its rim band, and the
     /// raised texels.
@@ -418,8 +419,10 @@ struct Seeded<'a> {
 
 impl Seeded<'_> {
     /// The object seeded by raised blob `sd` (its texels over the part's box) and its top
-    /// level; `None` when the seed lies on the rim or on an object found before, is haze,
-    /// grows to the rim or under the smallest object, or does not stand within free surface.
+    /// level; `None` when the seed lies on an object found before or on a solid body's rim,
+    /// is haze, grows past the footprint, to a solid body's rim or along a slab's
+    /// ([`along_the_rim`]), or under the smallest object, or does not stand within free
+    /// surface.
     fn grow(&self, sd: &crate::contours::Region) -> Option<(Mask, usize)> {
         let Seeded { cx, part, surface: s, ring, interior, taken } = self;
         let (vol, tau, min_texels) = (cx.vol, cx.tau, cx.min_texels);
@@ -432,7 +435,13 @@ impl Seeded<'_> {
             .flat_map(|r| (sb.c0..sb.c1).map(move |c| (r, c)))
             .filter(|&(r, c)| at(r, c))
             .collect();
-        if seed_px.iter().any(|&(r, c)| ring.get(r, c) || taken.get(r, c)) {
+        // on a slab, an object may stand at the edge (a lamp at a table's rim), but what
+        // rises along it is the slab's own (`along_the_rim`); what rises at the edge of a
+        // solid body's top is its blurred fringe
+        let seed_on_rim = seed_px.iter().filter(|&&(r, c)| ring.get(r, c)).count();
+        let rim_refused =
+            seed_on_rim > 0 && (s.solid || along_the_rim(sb.rows().min(sb.cols()), seed_on_rim));
+        if rim_refused || seed_px.iter().any(|&(r, c)| taken.get(r, c)) {
             tracing::trace!(?sb, texels = seed_px.len(), "seed on the rim or taken");
             return None;
         }
@@ -489,9 +498,13 @@ impl Seeded<'_> {
         let comp = fill_holes(&seed_component(&seed_px, &idx, &labels, win, h, w));
         let comp = body_of(&comp, &seed_px);
         let count = comp.count();
-        let touches = (0..h * w).any(|i| comp.data[i] && (ring.data[i] || !f.data[i]));
+        let on_rim = (0..h * w).filter(|&i| comp.data[i] && ring.data[i]).count();
+        let touches = (0..h * w).any(|i| comp.data[i] && !f.data[i])
+            || (on_rim > 0
+                && (s.solid
+                    || along_the_rim(comp.bbox().map_or(0, |b| b.rows().min(b.cols())), on_rim)));
         let kmax = top.unwrap_or(hi);
-        tracing::trace!(?sb, count, touches, "seed grown");
+        tracing::trace!(?sb, count, on_rim, touches, "seed grown");
         if touches || count < min_texels {
             return None;
         }
@@ -527,6 +540,15 @@ impl Seeded<'_> {
         tracing::trace!(ring_s, ring_n, "ring of free surface");
         ring_n > 0 && more_than(ring_s, 0.5, ring_n)
     }
+}
+
+/// Whether a blob whose box's narrower side is `narrower` texels, with `on_rim` of its
+/// texels on its host's outline, runs along the rim rather than standing at it: it touches
+/// the rim along more than its narrower side. An object at a slab's edge touches it along
+/// at most its width; a raised edge of the host (a chair's or a bench's back, a lip) runs
+/// along it, longer than it is wide. No value of its own.
+fn along_the_rim(narrower: usize, on_rim: usize) -> bool {
+    on_rim > narrower
 }
 
 /// The connected part of the object cluster (`labels[t]` for window texel `idx[t]`, within
