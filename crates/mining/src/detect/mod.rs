@@ -11,10 +11,10 @@
 //!    opacity of any few-level window above the floor, split with K-means (`k = 2`); the
 //!    lowest cluster is background (the paper preset clusters the density plane's features
 //!    instead, the largest cluster being background). Specks smaller than the smallest
-//!    object go, walls (thin, long, standing on the ground) are cut out, and the regions are the connected
-//!    components (objects nested in another's hole are regions of their own, unless the
-//!    hole is shorter than a wall: then it is a hollow object's inside and what the field
-//!    left in it goes).
+//!    object go, walls (thin, long, standing on the ground) are cut out, and the regions
+//!    are the connected components (objects nested in another's hole are regions of their
+//!    own, unless the hole is shorter than a wall: then it is a hollow object's inside and
+//!    what the field left in it goes).
 //! 3. **Splitting** ([`split`], [`colour`]). Reconstruction blur joins neighbours, so each
 //!    region is cut at thin bridges, then by 3D connectivity (every component standing on
 //!    the ground starts an object), then by colour (pieces of clearly different colour that

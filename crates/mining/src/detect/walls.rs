@@ -65,22 +65,19 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
     // within the wall's thickness goes with it
     let standing =
         Mask::from_fn(rows, cols, |rr, cc| thin_all.get(rr, cc) && stands_up(cx, rr, cc));
-    let cores = long_components(&standing, longest)?;
+    let mut cores = Mask::empty(rows, cols)?;
+    for (reg, _) in long_regions(&standing, longest)? {
+        paint(&mut cores, &reg);
+    }
     let band = crate::morphology::dilate(&cores, r)?;
     let thin = Mask::from_fn(rows, cols, |rr, cc| thin_all.get(rr, cc) && band.get(rr, cc));
     let mut walls = Mask::empty(rows, cols)?;
-    for reg in components(&thin)? {
-        let length = reg.bbox.rows().max(reg.bbox.cols()) as f32 / longest;
-        if length >= super::filters::WALL_MIN_LENGTH {
-            removed.push(Removed {
-                world: cx.grid.rect_to_world(reg.bbox),
-                reason: RemovalReason::Wall {
-                    thickness: 2.0 * p.wall_half_thickness_texels,
-                    length,
-                },
-            });
-            paint(&mut walls, &reg);
-        }
+    for (reg, length) in long_regions(&thin, longest)? {
+        removed.push(Removed {
+            world: cx.grid.rect_to_world(reg.bbox),
+            reason: RemovalReason::Wall { thickness: 2.0 * p.wall_half_thickness_texels, length },
+        });
+        paint(&mut walls, &reg);
     }
     let cleaned = Mask::from_fn(rows, cols, |rr, cc| mask.get(rr, cc) && !walls.get(rr, cc));
     cx.without_specks(&cleaned)
@@ -95,8 +92,8 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
 fn stands_up(cx: &Ctx, r: usize, c: usize) -> bool {
     let col = cx.vol.column(r, c);
     let nz = col.len();
-    let lowest = (cx.start..nz).find(|&k| col[k] > cx.tau);
-    let highest = (cx.start..nz).rev().find(|&k| col[k] > cx.tau);
+    let lowest = (cx.start..nz).find(|&k| col[k] >= cx.tau);
+    let highest = (cx.start..nz).rev().find(|&k| col[k] >= cx.tau);
     match (lowest, highest) {
         (Some(lo), Some(hi)) => 2 * lo <= hi + cx.ground,
         _ => true,
@@ -104,16 +101,16 @@ fn stands_up(cx: &Ctx, r: usize, c: usize) -> bool {
 }
 
 /// The components of `mask` running along at least [`super::filters::WALL_MIN_LENGTH`] of
-/// the plane's longer side (`longest`, texels).
-fn long_components(mask: &Mask, longest: f32) -> Result<Mask> {
-    let mut out = Mask::empty(mask.rows, mask.cols)?;
-    for reg in components(mask)? {
-        let length = reg.bbox.rows().max(reg.bbox.cols()) as f32 / longest;
-        if length >= super::filters::WALL_MIN_LENGTH {
-            paint(&mut out, &reg);
-        }
-    }
-    Ok(out)
+/// the plane's longer side (`longest`, texels), each with its length as a share of it.
+fn long_regions(mask: &Mask, longest: f32) -> Result<Vec<(crate::contours::Region, f32)>> {
+    Ok(components(mask)?
+        .into_iter()
+        .map(|reg| {
+            let length = reg.bbox.rows().max(reg.bbox.cols()) as f32 / longest;
+            (reg, length)
+        })
+        .filter(|&(_, length)| length >= super::filters::WALL_MIN_LENGTH)
+        .collect())
 }
 
 /// Set the texels of region `reg` in `m`.
