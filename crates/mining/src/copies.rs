@@ -12,7 +12,7 @@
 //! within the divergence copies may have. `R`'s minimum-area rectangle must then be `k` of
 //! `T`'s stacked along one of `T`'s sides and its footprint `k` times `T`'s, each within
 //! the grouping's tolerance of a length (the reconstruction noise between two instances of
-//! one object). `R` is cut across the stacking direction into `k` equal slabs, and each slab
+//! one object; sides also within one texel, the resolution they are measured at). `R` is cut across the stacking direction into `k` equal slabs, and each slab
 //! must again be `T`'s rectangle.
 //!
 //! Lengths compare within
@@ -98,6 +98,14 @@ pub fn min_area_rect(mask: &Mask, row0: usize, col0: usize) -> Option<MinRect> {
     best.map(|(_, r)| r)
 }
 
+/// Whether two lengths (texels) are one object's: within `tol` (a log ratio), or within one
+/// texel, the resolution a footprint is measured at (a copy 7 texels long cut out of a pair
+/// 13 long is 6 or 7, a log ratio of 0.15 for small objects whatever the field). The texel
+/// is the measure's own unit, not a tuned value.
+fn same_length(a: f64, b: f64, tol: f64) -> bool {
+    log_ratio(a, b) <= tol || (a - b).abs() <= 1.0 // fixed: a texel, the sides unit
+}
+
 fn log_ratio(a: f64, b: f64) -> f64 {
     (a.max(1e-9) / b.max(1e-9)).ln().abs()
 }
@@ -110,10 +118,10 @@ fn stacking(r: &MinRect, t: &MinRect, k: usize, tol: f64) -> Option<bool> {
     let kf = k as f64;
     // k copies stacked across t's short side, or along its long side
     for (stack, other) in [(kf * tw, tl), (kf * tl, tw)] {
-        if log_ratio(r.len, stack) <= tol && log_ratio(r.wid, other) <= tol {
+        if same_length(r.len, stack, tol) && same_length(r.wid, other, tol) {
             return Some(true);
         }
-        if log_ratio(r.wid, stack) <= tol && log_ratio(r.len, other) <= tol {
+        if same_length(r.wid, stack, tol) && same_length(r.len, other, tol) {
             return Some(false);
         }
     }
@@ -297,7 +305,7 @@ pub fn split_copies(
             // every piece is t's rectangle again
             let fits = min_area_rect(&p.footprint, p.rect.r0, p.rect.c0).is_some_and(|pr| {
                 let ((pl, pw), (tl, tw)) = (pr.sides(), tr.sides());
-                log_ratio(pl, tl) <= tol && log_ratio(pw, tw) <= tol
+                same_length(pl, tl, tol) && same_length(pw, tw, tol)
             });
             if !fits || p.own.count() == 0 {
                 break;
@@ -426,6 +434,23 @@ mod tests {
         let done = split_copies(&mut det, |_, _| 0.0, 0.12, 0.15);
         assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 3 }]);
         assert_eq!(det.detections.len(), 4);
+    }
+
+    #[test]
+    fn small_copies_are_measured_to_the_texel() {
+        // a 7 x 7 chair and a pair of them side by side that the field left 13 long: the
+        // halves are 6 and 7 texels, a log ratio of 0.154 against the single's 7, over the
+        // 0.15 tolerance but within the texel they are measured to
+        let single = rect_mask(60, 60, 5, 5, 7, 7);
+        let pair = rect_mask(60, 60, 20, 5, 7, 13);
+        let mut det = scene(&[single, pair]);
+        let done = split_copies(&mut det, |_, _| 0.0, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        let widths: Vec<usize> = det.detections[1..].iter().map(|d| d.rect.cols()).collect();
+        assert_eq!(widths, vec![6, 7]);
+        // a 7 x 10 table beside the 7 x 7 chair is no one and a half chairs
+        let mut det = scene(&[rect_mask(60, 60, 5, 5, 7, 7), rect_mask(60, 60, 20, 5, 7, 10)]);
+        assert!(split_copies(&mut det, |_, _| 0.0, 0.12, 0.15).is_empty());
     }
 
     #[test]
