@@ -12,8 +12,9 @@
 //! within the divergence copies may have. `R`'s minimum-area rectangle must then be `k` of
 //! `T`'s stacked along one of `T`'s sides and its footprint `k` times `T`'s, each within
 //! the grouping's tolerance of a length (the reconstruction noise between two instances of
-//! one object; sides also within one texel, the resolution they are measured at). `R` is cut across the stacking direction into `k` equal slabs, and each slab
-//! must again be `T`'s rectangle.
+//! one object; sides also within one texel, the resolution they are measured at). `R` is
+//! cut across the stacking direction into `k` equal slabs, and each slab must again be
+//! `T`'s rectangle.
 //!
 //! Lengths compare within
 //! [`GroupOptions::length_tolerance`](crate::group::GroupOptions::length_tolerance) (a log
@@ -99,11 +100,11 @@ pub fn min_area_rect(mask: &Mask, row0: usize, col0: usize) -> Option<MinRect> {
 }
 
 /// Whether two lengths (texels) are one object's: within `tol` (a log ratio), or within one
-/// texel, the resolution a footprint is measured at (a copy 7 texels long cut out of a pair
-/// 13 long is 6 or 7, a log ratio of 0.15 for small objects whatever the field). The texel
-/// is the measure's own unit, not a tuned value.
+/// texel, the resolution a footprint is measured at (a copy 7 texels long, cut out of a
+/// pair 13 long, is 6 or 7: a log ratio of 0.154, over a tolerance of 0.15). The texel is
+/// the measure's own unit, not a tuned value.
 fn same_length(a: f64, b: f64, tol: f64) -> bool {
-    log_ratio(a, b) <= tol || (a - b).abs() <= 1.0 // fixed: a texel, the sides unit
+    log_ratio(a, b) <= tol || (a - b).abs() <= 1.0 // fixed: one texel, the sides' unit
 }
 
 fn log_ratio(a: f64, b: f64) -> f64 {
