@@ -6,7 +6,7 @@
 
 use super::context::Ctx;
 use super::shape::{Part, fill_holes, is_thin, more_than, or_into};
-use super::split::{geodesic_assign, lowest_level, stands};
+use super::split::{geodesic_assign, lowest_level};
 use crate::image::{Mask, PixelRect, PlaneImage};
 use crate::kmeans::{KMeansOptions, kmeans};
 
@@ -169,7 +169,7 @@ fn split_once(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Result<Vec<Part>, Part>
     }
     // what stays must stand too: a piece of its own colour cut from a whole that floats
     // without it (a street lamp's base from its arm and head) is no separate object
-    if !stands(vol, rect, &rest, start, cx.ground + cx.ground_tol, tau, cx.p.blur_levels) {
+    if !cx.stands(rect, &rest) {
         return Err(part);
     }
     let (kmin, kmax) = (part.kmin, part.kmax);

@@ -168,6 +168,20 @@ impl<'a> Ctx<'a> {
         )
     }
 
+    /// Whether the opaque voxels in the columns of `m` (over `rect`) stand on the ground
+    /// ([`super::split::stands`] with this run's levels, threshold and blur).
+    pub fn stands(&self, rect: PixelRect, m: &Mask) -> bool {
+        super::split::stands(
+            self.vol,
+            rect,
+            m,
+            self.start,
+            self.ground + self.ground_tol,
+            self.tau,
+            self.p.blur_levels,
+        )
+    }
+
     /// Whether a part whose lowest occupied level is `kmin` stands on the ground.
     pub fn on_ground(&self, kmin: usize) -> bool {
         kmin <= self.ground + self.ground_tol

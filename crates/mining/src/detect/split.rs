@@ -322,8 +322,7 @@ pub(super) fn stands(
 /// that do not reach the ground (a lamp head whose arm is too thin, a shade over its base)
 /// join the standing neighbour they share the longest border with.
 pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mask> {
-    let (vol, start, ground, ground_tol, tau) =
-        (cx.vol, cx.start, cx.ground, cx.ground_tol, cx.tau);
+    let (vol, start, tau) = (cx.vol, cx.start, cx.tau);
     let (radius, min_texels) = (cx.p.bridge_radius_texels.max(1), cx.min_texels);
     let (h, w) = (region.rows, region.cols);
     let Some(core) = opened_in_box(region, radius) else {
@@ -352,10 +351,7 @@ pub(super) fn split_bridges(cx: &Ctx, rect: PixelRect, region: &Mask) -> Vec<Mas
     // with no standing neighbour stays as it is (nothing it could be part of stands either:
     // two stools in contact whose legs a short run left faint), until no piece joins
     loop {
-        let grounded: Vec<bool> = pieces
-            .iter()
-            .map(|p| stands(vol, rect, p, start, ground + ground_tol, tau, cx.p.blur_levels))
-            .collect();
+        let grounded: Vec<bool> = pieces.iter().map(|p| cx.stands(rect, p)).collect();
         if tracing::enabled!(tracing::Level::TRACE) {
             for (i, p) in pieces.iter().enumerate() {
                 let mut bl: Vec<(usize, usize, usize)> =

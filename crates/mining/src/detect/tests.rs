@@ -1051,12 +1051,15 @@ fn a_canopy_on_a_trunk_is_one_body() {
     assert_eq!(unpack::body_from(&[3, 1, 1, 2, 0, 60], 1, 5, 4), 5);
 }
 
-/// A thin table top (rows 10..40, columns 10..60, level 8) on four legs over the floor.
-fn thin_table(v: &mut OpacityVolume) {
-    fill(v, (10, 40), (10, 60), (8, 9), 0.95);
+/// A [`floor_volume`] of 60 x 80 texels and 24 levels with a thin table top (rows 10..40,
+/// columns 10..60, level 8) on four legs.
+fn thin_table() -> OpacityVolume {
+    let mut v = floor_volume(60, 80, 24);
+    fill(&mut v, (10, 40), (10, 60), (8, 9), 0.95);
     for (r, c) in [(10, 10), (10, 59), (39, 10), (39, 59)] {
-        fill(v, (r, r + 1), (c, c + 1), (2, 8), 0.95);
+        fill(&mut v, (r, r + 1), (c, c + 1), (2, 8), 0.95);
     }
+    v
 }
 
 #[test]
@@ -1064,8 +1067,7 @@ fn a_shadow_on_the_table_is_not_part_of_what_casts_it() {
     // a box on the table (rows 20..26, columns 30..36) casting a soft shadow three texels
     // wide all round: the shadow differs from the table's colour, but nothing rises there
     let (rows, cols) = (60, 80);
-    let mut v = floor_volume(rows, cols, 24);
-    thin_table(&mut v);
+    let mut v = thin_table();
     fill(&mut v, (20, 26), (30, 36), (9, 16), 0.95);
     let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
         let object = (20..26).contains(&r) && (30..36).contains(&c);
@@ -1084,8 +1086,7 @@ fn a_shadow_on_the_table_is_not_part_of_what_casts_it() {
     assert!(within_a_texel(r, PixelRect::new(20, 30, 26, 36)), "{r:?}");
     // the same band made of something lying flat on the table, one level over its top (a
     // laptop's keyboard around its screen): part of the object
-    let mut v2 = floor_volume(rows, cols, 24);
-    thin_table(&mut v2);
+    let mut v2 = thin_table();
     fill(&mut v2, (17, 29), (27, 39), (9, 10), 0.95);
     fill(&mut v2, (20, 26), (30, 36), (10, 16), 0.95);
     let d2 = detect_small(&v2, &color);
@@ -1119,8 +1120,7 @@ fn colours_at_a_height_weigh_each_channel_by_its_axis_there() {
 
 #[test]
 fn the_colour_axis_must_match_the_volume_and_the_plane() {
-    let mut v = floor_volume(60, 80, 24);
-    thin_table(&mut v);
+    let mut v = thin_table();
     fill(&mut v, (20, 26), (30, 36), (9, 16), 0.95);
     let color = painted(60, 80, (20..26, 30..36), [0.2, 0.2, 0.7], [0.9, 0.9, 0.85]);
     let grid = PlaneGrid { cols: 80, rows: 60, origin: [0.0, 0.0], texel: [0.05, 0.05] };
@@ -1139,8 +1139,7 @@ fn what_the_colour_clusters_run_along_in_a_thin_strip_is_cut_off() {
     // a box on the table with a strip two texels wide of its colour running from it across
     // the table (the colour of a leg under the top, bled into the plane), rising a little
     let (rows, cols) = (60, 80);
-    let mut v = floor_volume(rows, cols, 24);
-    thin_table(&mut v);
+    let mut v = thin_table();
     fill(&mut v, (20, 26), (30, 36), (9, 16), 0.95);
     fill(&mut v, (26, 34), (31, 33), (9, 10), 0.3);
     let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
@@ -1287,8 +1286,7 @@ fn an_object_at_a_table_s_edge_unpacks_but_the_table_s_raised_edge_does_not() {
     // a box standing at the edge of a thin table top (its side on the top's outline): an
     // object on the table, touching the rim along its width
     let (rows, cols) = (60, 80);
-    let mut v = floor_volume(rows, cols, 24);
-    thin_table(&mut v);
+    let mut v = thin_table();
     fill(&mut v, (10, 16), (30, 36), (9, 16), 0.95);
     let color = painted(rows, cols, (10..16, 30..36), [0.2, 0.2, 0.7], [0.9, 0.9, 0.85]);
     let d = detect_small(&v, &color);
@@ -1296,8 +1294,7 @@ fn an_object_at_a_table_s_edge_unpacks_but_the_table_s_raised_edge_does_not() {
     assert!(within_a_texel(r, PixelRect::new(10, 30, 16, 36)), "{r:?}");
     // a back two texels thick along the top's long edge (a bench's): the table's own shape,
     // running along the rim, not standing on it
-    let mut v2 = floor_volume(rows, cols, 24);
-    thin_table(&mut v2);
+    let mut v2 = thin_table();
     fill(&mut v2, (10, 12), (15, 55), (9, 16), 0.95);
     let color2 = painted(rows, cols, (10..12, 15..55), [0.2, 0.2, 0.7], [0.9, 0.9, 0.85]);
     let d2 = detect_small(&v2, &color2);

@@ -439,8 +439,7 @@ impl Seeded<'_> {
         // rises along it is the slab's own (`along_the_rim`); what rises at the edge of a
         // solid body's top is its blurred fringe
         let seed_on_rim = seed_px.iter().filter(|&&(r, c)| ring.get(r, c)).count();
-        let rim_refused =
-            seed_on_rim > 0 && (s.solid || along_the_rim(sb.rows().min(sb.cols()), seed_on_rim));
+        let rim_refused = seed_on_rim > 0 && (s.solid || along_the_rim(sb, seed_on_rim));
         if rim_refused || seed_px.iter().any(|&(r, c)| taken.get(r, c)) {
             tracing::trace!(?sb, texels = seed_px.len(), "seed on the rim or taken");
             return None;
@@ -500,9 +499,7 @@ impl Seeded<'_> {
         let count = comp.count();
         let on_rim = (0..h * w).filter(|&i| comp.data[i] && ring.data[i]).count();
         let touches = (0..h * w).any(|i| comp.data[i] && !f.data[i])
-            || (on_rim > 0
-                && (s.solid
-                    || along_the_rim(comp.bbox().map_or(0, |b| b.rows().min(b.cols())), on_rim)));
+            || comp.bbox().is_some_and(|b| on_rim > 0 && (s.solid || along_the_rim(b, on_rim)));
         let kmax = top.unwrap_or(hi);
         tracing::trace!(?sb, count, on_rim, touches, "seed grown");
         if touches || count < min_texels {
@@ -542,13 +539,13 @@ impl Seeded<'_> {
     }
 }
 
-/// Whether a blob whose box's narrower side is `narrower` texels, with `on_rim` of its
-/// texels on its host's outline, runs along the rim rather than standing at it: it touches
-/// the rim along more than its narrower side. An object at a slab's edge touches it along
-/// at most its width; a raised edge of the host (a chair's or a bench's back, a lip) runs
-/// along it, longer than it is wide. No value of its own.
-fn along_the_rim(narrower: usize, on_rim: usize) -> bool {
-    on_rim > narrower
+/// Whether a blob in box `b`, with `on_rim` of its texels on its host's outline, runs along
+/// the rim rather than standing at it: it touches the rim along more than its box's
+/// narrower side. An object at a slab's edge touches it along at most its width; a raised
+/// edge of the host (a chair's or a bench's back, a lip) runs along it, longer than it is
+/// wide. No value of its own.
+fn along_the_rim(b: PixelRect, on_rim: usize) -> bool {
+    on_rim > b.rows().min(b.cols())
 }
 
 /// The connected part of the object cluster (`labels[t]` for window texel `idx[t]`, within
