@@ -1063,6 +1063,26 @@ fn thin_table() -> OpacityVolume {
 }
 
 #[test]
+fn an_object_whose_foot_blurs_over_the_table_stands_within_free_surface() {
+    // a box on the table (rows 20..26, columns 30..36, top level 8) whose foot the field
+    // blurs one texel sideways in the level just over the table's top (within the table's
+    // blur, under the first level counted as raised), in the table's colour: its ring is
+    // free surface, and the box an object standing on the table
+    let (rows, cols) = (60, 80);
+    let mut v = thin_table();
+    fill(&mut v, (19, 27), (29, 37), (9, 10), 0.95);
+    fill(&mut v, (20, 26), (30, 36), (9, 16), 0.95);
+    let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+        let object = (20..26).contains(&r) && (30..36).contains(&c);
+        if object { [0.2, 0.2, 0.7][k] } else { [0.9, 0.9, 0.85][k] }
+    })
+    .unwrap();
+    let d = detect_small(&v, &color);
+    let r = only_child(&d).rect;
+    assert!(within_a_texel(r, PixelRect::new(20, 30, 26, 36)), "{r:?}");
+}
+
+#[test]
 fn a_shadow_on_the_table_is_not_part_of_what_casts_it() {
     // a box on the table (rows 20..26, columns 30..36) casting a soft shadow three texels
     // wide all round: the shadow differs from the table's colour, but nothing rises there

@@ -509,11 +509,12 @@ impl Seeded<'_> {
     }
 
     /// Whether most of the ring of texels around `comp` is free surface (part of the slab
-    /// with nothing above it). A majority, not a tuned share: a monitor at a desk's back
-    /// edge has a third of its ring over the edge; 0.6 lost three of the suite office's six.
+    /// with nothing raised above it: past the surface's blur, as for the seeds; within the
+    /// blur lies the slab's own fringe and the blurred foot of what stands on it). A
+    /// majority, not a tuned share: a monitor at a desk's back edge has a third of its ring
+    /// over the edge; 0.6 lost three of the suite office's six.
     fn stands_within_surface(&self, comp: &Mask) -> bool {
-        let (vol, tau, rect) = (self.cx.vol, self.cx.tau, self.part.rect);
-        let (h, w) = (rect.rows(), rect.cols());
+        let (h, w) = (self.part.rect.rows(), self.part.rect.cols());
         let (mut ring_n, mut ring_s) = (0usize, 0usize);
         for r in 0..h {
             for c in 0..w {
@@ -525,11 +526,7 @@ impl Seeded<'_> {
                 });
                 if near {
                     ring_n += 1;
-                    // a free surface texel: part of the slab with nothing above it
-                    let free = self.surface.surface.get(r, c) && {
-                        let col = vol.column(rect.r0 + r, rect.c0 + c);
-                        !(self.surface.hi + 1..vol.nz).any(|k| col[k] >= tau)
-                    };
+                    let free = self.surface.surface.get(r, c) && !self.surface.raised.get(r, c);
                     ring_s += usize::from(free);
                 }
             }
