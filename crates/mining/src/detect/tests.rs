@@ -1321,3 +1321,36 @@ fn an_object_at_a_table_s_edge_unpacks_but_the_table_s_raised_edge_does_not() {
     assert!(d2.detections.iter().all(|x| x.parent.is_none()), "{:?}", rects(&d2));
     assert_eq!(d2.detections.len(), 1, "{:?}", rects(&d2));
 }
+
+#[test]
+fn an_object_flush_with_a_round_table_s_edge_unpacks() {
+    // a round table top (radius 16 texels, one pedestal) and a box standing flush with its
+    // edge where the outline curves: the box touches the rim along its side, a staircase of
+    // more texels than the side is long
+    let (rows, cols) = (60, 80);
+    let (cr, cc, radius) = (30i64, 40i64, 16i64);
+    let disc = |r: usize, c: usize| {
+        let (dr, dc) = (r as i64 - cr, c as i64 - cc);
+        dr * dr + dc * dc <= radius * radius
+    };
+    let object = |r: usize, c: usize| (24..30).contains(&r) && (25..31).contains(&c) && disc(r, c);
+    let mut v = floor_volume(rows, cols, 24);
+    fill(&mut v, (29, 32), (39, 42), (2, 8), 0.95);
+    for r in 0..rows {
+        for c in 0..cols {
+            if disc(r, c) {
+                fill(&mut v, (r, r + 1), (c, c + 1), (8, 9), 0.95);
+            }
+            if object(r, c) {
+                fill(&mut v, (r, r + 1), (c, c + 1), (9, 16), 0.95);
+            }
+        }
+    }
+    let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
+        if object(r, c) { [0.2, 0.2, 0.7][k] } else { [0.9, 0.9, 0.85][k] }
+    })
+    .unwrap();
+    let d = detect_small(&v, &color);
+    let r = only_child(&d).rect;
+    assert!(within_a_texel(r, PixelRect::new(24, 25, 30, 31)), "{r:?}");
+}

@@ -438,8 +438,8 @@ impl Seeded<'_> {
         // on a slab, an object may stand at the edge (a lamp at a table's rim), but what
         // rises along it is the slab's own (`along_the_rim`); what rises at the edge of a
         // solid body's top is its blurred fringe
-        let seed_on_rim = seed_px.iter().filter(|&&(r, c)| ring.get(r, c)).count();
-        let rim_refused = seed_on_rim > 0 && (s.solid || along_the_rim(sb, seed_on_rim));
+        let seed_on_rim = Mask::from_fn(h, w, |r, c| at(r, c) && ring.get(r, c)).bbox();
+        let rim_refused = seed_on_rim.is_some() && (s.solid || along_the_rim(sb, seed_on_rim));
         if rim_refused || seed_px.iter().any(|&(r, c)| taken.get(r, c)) {
             tracing::trace!(?sb, texels = seed_px.len(), "seed on the rim or taken");
             return None;
@@ -497,11 +497,13 @@ impl Seeded<'_> {
         let comp = fill_holes(&seed_component(&seed_px, &idx, &labels, win, h, w));
         let comp = body_of(&comp, &seed_px);
         let count = comp.count();
-        let on_rim = (0..h * w).filter(|&i| comp.data[i] && ring.data[i]).count();
+        let on_rim = Mask::from_fn(h, w, |r, c| comp.get(r, c) && ring.get(r, c)).bbox();
         let touches = (0..h * w).any(|i| comp.data[i] && !f.data[i])
-            || comp.bbox().is_some_and(|b| on_rim > 0 && (s.solid || along_the_rim(b, on_rim)));
+            || comp
+                .bbox()
+                .is_some_and(|b| on_rim.is_some() && (s.solid || along_the_rim(b, on_rim)));
         let kmax = top.unwrap_or(hi);
-        tracing::trace!(?sb, count, on_rim, touches, "seed grown");
+        tracing::trace!(?sb, count, ?on_rim, touches, "seed grown");
         if touches || count < min_texels {
             return None;
         }
@@ -536,13 +538,15 @@ impl Seeded<'_> {
     }
 }
 
-/// Whether a blob in box `b`, with `on_rim` of its texels on its host's outline, runs along
-/// the rim rather than standing at it: it touches the rim along more than its box's
+/// Whether a blob in box `b`, whose texels on its host's outline lie in box `on_rim`, runs
+/// along the rim rather than standing at it: it touches the rim along more than its box's
 /// narrower side. An object at a slab's edge touches it along at most its width; a raised
 /// edge of the host (a chair's or a bench's back, a lip) runs along it, longer than it is
-/// wide. No value of its own.
-fn along_the_rim(b: PixelRect, on_rim: usize) -> bool {
-    on_rim > b.rows().min(b.cols())
+/// wide. The contact's length is its box's longer side, not its count of texels: an outline
+/// running on a slant or round a curve is a staircase of more texels than it is long (a lamp
+/// flush with a round table's edge). No value of its own.
+fn along_the_rim(b: PixelRect, on_rim: Option<PixelRect>) -> bool {
+    on_rim.is_some_and(|k| k.rows().max(k.cols()) > b.rows().min(b.cols()))
 }
 
 /// The connected part of the object cluster (`labels[t]` for window texel `idx[t]`, within
