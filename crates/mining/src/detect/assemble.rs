@@ -15,8 +15,7 @@ pub(super) type SecondRound = fn(&Ctx, &Part) -> (Vec<Child>, Option<usize>);
 /// Detections of `parts` and of what the second round finds standing on them (ids equal
 /// indices; children follow their parent).
 pub(super) fn assemble(cx: &Ctx, parts: &[Part], second: SecondRound) -> Result<Vec<Detection>> {
-    let (vol, grid, floor, ground, ground_tol, tau) =
-        (cx.vol, cx.grid, cx.floor, cx.ground, cx.ground_tol, cx.tau);
+    let (vol, grid, floor, ground, tau) = (cx.vol, cx.grid, cx.floor, cx.ground, cx.tau);
     let texel_area = grid.texel_area().max(1e-12);
     let mut detections: Vec<Detection> = Vec::new();
     for p in parts {
@@ -74,13 +73,11 @@ pub(super) fn assemble(cx: &Ctx, parts: &[Part], second: SecondRound) -> Result<
                 vol.height(robust_top_level(vol, p.rect, &p.footprint, p.kmin, p.kmax, tau)),
             ),
         };
-        // with no floor found, the ground (or a floating object) stands on the level below
-        let base = if p.kmin <= ground + ground_tol {
-            // on a floor: the level above its top
-            floor.map_or(vol.height_below(ground), |f| vol.height(f.hi + 1))
-        } else {
-            vol.height_below(p.kmin)
-        };
+        // on no support, an object stands on the ground, whatever its lowest opaque level (a
+        // pedestal, legs or a stem too thin for the field leave it floating over it; the
+        // layout places it on the ground): the level above the floor's top, with no floor
+        // found the level below the ground
+        let base = floor.map_or(vol.height_below(ground), |f| vol.height(f.hi + 1));
         detections.push(Detection {
             id,
             rect: p.rect,

@@ -84,8 +84,10 @@ pub struct Detection {
     pub world: Rect2,
     /// World footprint area.
     pub area: f32,
-    /// World height of the object's base: the top of the floor or of the surface it stands
-    /// on; with neither found, the height of the level below its lowest level.
+    /// World height of the object's base: the top of the surface it stands on, or for an
+    /// object on none the ground's (the top of the floor; with no floor, the level below the
+    /// ground), however high its lowest opaque level: legs too thin for the field leave an
+    /// object floating over the ground it stands on.
     pub base: f32,
     /// World height of its top.
     pub top: f32,

@@ -1354,3 +1354,21 @@ fn an_object_flush_with_a_round_table_s_edge_unpacks() {
     let r = only_child(&d).rect;
     assert!(within_a_texel(r, PixelRect::new(24, 25, 30, 31)), "{r:?}");
 }
+
+#[test]
+fn an_object_whose_legs_the_field_left_out_stands_on_the_ground() {
+    // two pedestal tables, one whose pedestal the field reconstructed only under its top:
+    // both stand on the floor (the level above its top), as the layout places them
+    let (rows, cols) = (40, 60);
+    let mut v = floor_volume(rows, cols, 24);
+    for (c0, foot) in [(5, 2), (35, 6)] {
+        fill(&mut v, (10, 24), (c0, c0 + 14), (9, 10), 0.95);
+        fill(&mut v, (16, 18), (c0 + 6, c0 + 8), (foot, 9), 0.95);
+    }
+    let color = PlaneImage::from_fn(rows, cols, 3, |_, _, k| [0.6, 0.4, 0.3][k]).unwrap();
+    let d = detect_small(&v, &color);
+    assert_eq!(d.detections.len(), 2, "{:?}", rects(&d));
+    for x in &d.detections {
+        assert!((x.base - v.height(2)).abs() < 1e-6, "{:?}: base {}", x.rect, x.base);
+    }
+}
