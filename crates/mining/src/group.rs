@@ -481,8 +481,8 @@ pub struct VoxelSite {
 /// with a face neighbour below it: the inside of a solid object was never seen, so its colour
 /// means nothing) of its own texels, from the level above its base up to its shape top (haze
 /// specks above an object do not count). The base level is left out: it is the floor's or
-/// the support's top (exposed under a chair's seat), or, for an object that does not reach
-/// the ground, its own underside. A detection without such a voxel (fainter than the voxel
+/// the support's top (exposed under a chair's seat), or with no floor the level below the
+/// ground. A detection without such a voxel (fainter than the voxel
 /// threshold there) gets the most opaque voxel of each of its own columns, over the whole
 /// column if need be, so that every detection with own texels has samples.
 pub fn voxel_sites(vol: &OpacityVolume, dets: &Detections) -> Result<Vec<VoxelSite>> {

@@ -190,8 +190,8 @@ pub enum PatchSource<'a> {
 }
 
 /// Levels `[lo, hi]` of a detection's own height range in `vol`: from the level above its
-/// base (the top of its floor or support, or the level below its lowest one when it stands
-/// on nothing the detector found) to its shape top, as [`crate::group::voxel_sites`] takes.
+/// base (the top of its floor or support; with no floor, the level below the ground) to its
+/// shape top, as [`crate::group::voxel_sites`] takes.
 fn own_levels(vol: &OpacityVolume, d: &Detection) -> (usize, usize) {
     vol.levels_between(d.base, d.shape_top)
 }
@@ -547,8 +547,8 @@ mod tests {
         assert_eq!(vol.levels_between(0.45, 0.3), (10, 10));
         assert_eq!(vol.levels_between(0.45, 5.0), (10, 19));
         assert_eq!(vol.levels_between(2.0, 5.0), (19, 19));
-        // an object standing on nothing found has its base one level below its lowest
-        // level, so a lowest level at the bottom of the volume is kept
+        // with no floor, a base is the level below the ground, so a ground at the bottom
+        // of the volume is kept
         assert_eq!(vol.levels_between(vol.height_below(0), 0.3), (0, 6));
         assert_eq!(vol.levels_between(vol.height_below(4), 0.3), (4, 6));
         assert_eq!(vol.levels_between(f32::NAN, 0.3), (0, 6));
