@@ -1372,3 +1372,29 @@ fn an_object_whose_legs_the_field_left_out_stands_on_the_ground() {
         assert!((x.base - v.height(2)).abs() < 1e-6, "{:?}: base {}", x.rect, x.base);
     }
 }
+
+#[test]
+fn a_car_s_body_left_as_sheets_is_solid_under_its_cabin() {
+    // a car's body (rows 10..30, columns 10..60): walls one texel thick, the inside left as
+    // full sheets every third level, the bonnet's level on top (11), and a cabin of another
+    // colour over most of it (56%): the body is solid, so the cabin is its own shape, no
+    // object standing on it
+    let (rows, cols) = (40, 70);
+    let mut v = floor_volume(rows, cols, 30);
+    fill(&mut v, (10, 30), (10, 60), (2, 12), 0.95);
+    fill(&mut v, (11, 29), (11, 59), (2, 11), 0.0);
+    for k in [3, 6, 9] {
+        fill(&mut v, (10, 30), (10, 60), (k, k + 1), 0.95);
+    }
+    fill(&mut v, (13, 27), (15, 55), (12, 18), 0.95);
+    let color = painted(rows, cols, (13..27, 15..55), [0.2, 0.2, 0.3], [0.2, 0.3, 0.8]);
+    let d = detect_small(&v, &color);
+    assert_eq!(rects(&d), vec![PixelRect::new(10, 10, 30, 60)], "{:?}", d.removed);
+    // with the sheets gone the body is a slab on walls, and the cabin stands on it
+    let mut open = v.clone();
+    for k in [3, 6, 9] {
+        fill(&mut open, (11, 29), (11, 59), (k, k + 1), 0.0);
+    }
+    let d2 = detect_small(&open, &color);
+    assert!(d2.detections.iter().any(|x| x.parent.is_some()), "{:?}", rects(&d2));
+}

@@ -356,12 +356,18 @@ fn find_surface(cx: &Ctx, part: &Part, levels: &Levels) -> Option<Surface> {
         // count as the surface, and the checks below are stricter (a free surface away from
         // its fringe, substantial seeds). A body with a gap of a faint level or two is solid
         // too: most levels of the body below the slab cover half of it, where a table's legs
-        // and ghost layers cover less. The body is measured from its lowest level that holds
+        // and a ghost layer cover less. The body is measured from its lowest level that holds
         // the smallest object's area ([`body_from`]): a trunk or a pedestal's column under it
         // is no part of what is solid
         let from = body_from(area, start, lo, cx.min_texels);
         let below = lo - from;
-        let dense_below = (from..lo).filter(|&k| at_least(area[k], MOST, area[kstar])).count();
+        // a level whose window of the field's blur stays under the surface is judged over it,
+        // as the surface is (accumulated opacity): the inside of a closed body, never seen,
+        // is left as sheets a few levels apart (a car's body under its cabin), where legs
+        // stay legs over any window
+        let dense_at =
+            |k: usize| at_least(if k + thin <= lo { areaw[k] } else { area[k] }, MOST, area[kstar]);
+        let dense_below = (from..lo).filter(|&k| dense_at(k)).count();
         let solid = hi - lo + 1 > thin || below >= thin && at_least(dense_below, MOST, below);
         if solid {
             lo = hi + 1 - thin;
