@@ -224,10 +224,20 @@ fn painted(
     inside: [f32; 3],
     outside: [f32; 3],
 ) -> PlaneImage {
-    PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
-        if rect.0.contains(&r) && rect.1.contains(&c) { inside[k] } else { outside[k] }
-    })
-    .unwrap()
+    painted_where(rows, cols, |r, c| rect.0.contains(&r) && rect.1.contains(&c), inside, outside)
+}
+
+/// A colour plane of `rows x cols`: `inside` where `at(row, column)` holds, `outside`
+/// elsewhere.
+fn painted_where(
+    rows: usize,
+    cols: usize,
+    at: impl Fn(usize, usize) -> bool,
+    inside: [f32; 3],
+    outside: [f32; 3],
+) -> PlaneImage {
+    PlaneImage::from_fn(rows, cols, 3, |r, c, k| if at(r, c) { inside[k] } else { outside[k] })
+        .unwrap()
 }
 
 /// Detection at 5 cm texels with a small minimum area (the unpacking tests).
@@ -235,6 +245,14 @@ fn detect_small(v: &OpacityVolume, color: &PlaneImage) -> Detections {
     let grid = PlaneGrid { cols: v.cols, rows: v.rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
     let opts = params();
     detect(&grid, v, color, None, &opts).unwrap()
+}
+
+/// The one object [`detect_small`] finds standing on another lies within a texel of
+/// `expected`.
+fn assert_child_within_a_texel(v: &OpacityVolume, color: &PlaneImage, expected: PixelRect) {
+    let d = detect_small(v, color);
+    let r = only_child(&d).rect;
+    assert!(within_a_texel(r, expected), "{r:?}");
 }
 
 /// The one object standing on another, of exactly two detections.
@@ -1072,14 +1090,8 @@ fn an_object_whose_foot_blurs_over_the_table_stands_within_free_surface() {
     let mut v = thin_table();
     fill(&mut v, (19, 27), (29, 37), (9, 10), 0.95);
     fill(&mut v, (20, 26), (30, 36), (9, 16), 0.95);
-    let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
-        let object = (20..26).contains(&r) && (30..36).contains(&c);
-        if object { [0.2, 0.2, 0.7][k] } else { [0.9, 0.9, 0.85][k] }
-    })
-    .unwrap();
-    let d = detect_small(&v, &color);
-    let r = only_child(&d).rect;
-    assert!(within_a_texel(r, PixelRect::new(20, 30, 26, 36)), "{r:?}");
+    let color = painted(rows, cols, (20..26, 30..36), [0.2, 0.2, 0.7], [0.9, 0.9, 0.85]);
+    assert_child_within_a_texel(&v, &color, PixelRect::new(20, 30, 26, 36));
 }
 
 #[test]
@@ -1162,15 +1174,12 @@ fn what_the_colour_clusters_run_along_in_a_thin_strip_is_cut_off() {
     let mut v = thin_table();
     fill(&mut v, (20, 26), (30, 36), (9, 16), 0.95);
     fill(&mut v, (26, 34), (31, 33), (9, 10), 0.3);
-    let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
-        let object = (20..26).contains(&r) && (30..36).contains(&c);
-        let strip = (26..34).contains(&r) && (31..33).contains(&c);
-        if object || strip { [0.2, 0.2, 0.7][k] } else { [0.9, 0.9, 0.85][k] }
-    })
-    .unwrap();
-    let d = detect_small(&v, &color);
-    let r = only_child(&d).rect;
-    assert!(within_a_texel(r, PixelRect::new(20, 30, 26, 36)), "{r:?}");
+    let object_or_strip = |r: usize, c: usize| {
+        (20..26).contains(&r) && (30..36).contains(&c)
+            || (26..34).contains(&r) && (31..33).contains(&c)
+    };
+    let color = painted_where(rows, cols, object_or_strip, [0.2, 0.2, 0.7], [0.9, 0.9, 0.85]);
+    assert_child_within_a_texel(&v, &color, PixelRect::new(20, 30, 26, 36));
 }
 
 #[test]
@@ -1184,9 +1193,7 @@ fn a_bouquet_of_faint_leaves_on_a_desk_is_seeded_by_its_opacity_seen_from_above(
     fill(&mut v, (20, 28), (30, 38), (13, 19), 0.3);
     fill(&mut v, (24, 25), (34, 35), (13, 17), 0.95);
     let color = painted(rows, cols, (20..28, 30..38), [0.3, 0.6, 0.2], [0.9, 0.9, 0.85]);
-    let d = detect_small(&v, &color);
-    let r = only_child(&d).rect;
-    assert!(within_a_texel(r, PixelRect::new(20, 30, 28, 38)), "{r:?}");
+    assert_child_within_a_texel(&v, &color, PixelRect::new(20, 30, 28, 38));
 }
 
 #[test]
@@ -1203,9 +1210,7 @@ fn a_small_faint_flower_that_rises_on_a_solid_body_is_found() {
     fill(&mut v, (20, 23), (30, 33), (13, 18), 0.2);
     fill(&mut v, (21, 22), (30, 33), (18, 20), 0.95);
     let color = painted(rows, cols, (20..23, 30..33), [0.8, 0.2, 0.3], [0.9, 0.9, 0.85]);
-    let d = detect_small(&v, &color);
-    let r = only_child(&d).rect;
-    assert!(within_a_texel(r, PixelRect::new(20, 30, 23, 33)), "{r:?}");
+    assert_child_within_a_texel(&v, &color, PixelRect::new(20, 30, 23, 33));
 }
 
 #[test]
@@ -1346,13 +1351,8 @@ fn an_object_flush_with_a_round_table_s_edge_unpacks() {
             }
         }
     }
-    let color = PlaneImage::from_fn(rows, cols, 3, |r, c, k| {
-        if object(r, c) { [0.2, 0.2, 0.7][k] } else { [0.9, 0.9, 0.85][k] }
-    })
-    .unwrap();
-    let d = detect_small(&v, &color);
-    let r = only_child(&d).rect;
-    assert!(within_a_texel(r, PixelRect::new(24, 25, 30, 31)), "{r:?}");
+    let color = painted_where(rows, cols, object, [0.2, 0.2, 0.7], [0.9, 0.9, 0.85]);
+    assert_child_within_a_texel(&v, &color, PixelRect::new(24, 25, 30, 31));
 }
 
 #[test]
