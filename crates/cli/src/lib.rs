@@ -168,7 +168,8 @@ pub enum Command {
     /// groups are at least the minimum separation apart (or --auto-cut, --categories,
     /// --distance). Identical objects pushed
     /// together are cut apart when the same object stands alone elsewhere (--no-copies).
-    /// Templates: medoids (--template to choose); every instance's yaw and position come
+    /// Templates: the member of each category that fits its copies best (--template to
+    /// choose); every instance's yaw and position come
     /// from rotating the template patch onto it. Writes LIB_DIR/index.ron,
     /// patches.safetensors, shared.safetensors, layout.ron, boxes.png, categories.png,
     /// mining.json and, with --gt, metrics.json. Every detection threshold is in plane

@@ -1,6 +1,6 @@
 //! Templates and poses (paper Sec. 3.3, template matching): one template per category (the
-//! medoid under the grouping distance, or the user's choice), and every instance's yaw and
-//! position relative to it, found by rotating the template's patch onto the instance's
+//! member that matches its copies best, or the user's choice; see [`matching_medoid`]), and
+//! every instance's yaw and position relative to it, found by rotating the template's patch onto the instance's
 //! ([`crate::yaw::estimate_yaw_weighted`]: coarse scan, golden-section refinement from the
 //! lowest coarse minima, sub-texel offset). A category's patches are either cut from a
 //! feature plane or, for objects standing on others, slabs of the opacity volume over each
@@ -298,8 +298,60 @@ pub fn match_pair(tight: Patches<'_>, wide: Patches<'_>, opts: &YawOptions) -> R
     Ok(tight.fit_near(other.yaw_deg, opts).unwrap_or(fit))
 }
 
-/// Choose templates (medoids unless overridden) and estimate every instance's pose, matching
-/// the patches of `sources[category]` (one source per category).
+/// The template of a category of `members`: the member whose pose fits against all the
+/// others leave the least residual in sum (`residual(t, i)`: the weighted mean residual of
+/// `i` posed against `t` as a template, `None` where the pair cannot be matched; pairs are
+/// matched once each, in parallel; [`estimate_poses`] fits them on their tight patches).
+/// A pair that cannot be matched counts against both members before any residual does;
+/// ties, and categories of one or two members, where every member scores the same, keep
+/// `fallback`.
+///
+/// The grouping distance compares descriptors that do not see orientation; the template is
+/// what every copy is then turned onto, and a member whose patch differs from its copies'
+/// (a neighbour pressed against it, haze on one side) can fit a nearly symmetric copy best
+/// half a turn round. The member that fits its copies best is the one least unlike them
+/// where it matters, in the matching itself (the paper picks templates at random or by
+/// hand). Cost: `m (m - 1) / 2` more pair fits for `m` members (mining the basis takes a
+/// quarter longer).
+pub fn matching_medoid(
+    members: &[usize],
+    fallback: usize,
+    residual: impl Fn(usize, usize) -> Result<Option<f32>> + Sync,
+) -> Result<usize> {
+    let alike = 2; // fixed: one or two members score the same, each the other's only pair
+    if members.len() <= alike {
+        return Ok(fallback);
+    }
+    let pairs: Vec<(usize, usize)> = members
+        .iter()
+        .enumerate()
+        .flat_map(|(a, &t)| members[a + 1..].iter().map(move |&i| (t, i)))
+        .collect();
+    let fits: Vec<Option<f32>> =
+        pairs.par_iter().map(|&(t, i)| residual(t, i)).collect::<Result<_>>()?;
+    // per member: (pairs that could not be matched, summed residual)
+    let mut score = vec![(0usize, 0f64); members.len()];
+    let at = |m: usize| members.iter().position(|&x| x == m).unwrap_or(0);
+    for (&(t, i), fit) in pairs.iter().zip(&fits) {
+        for m in [at(t), at(i)] {
+            match fit {
+                Some(r) => score[m].1 += f64::from(*r),
+                None => score[m].0 += 1,
+            }
+        }
+    }
+    let mut best = (fallback, score[at(fallback)]);
+    for (&m, &s) in members.iter().zip(&score) {
+        if s.0 < best.1.0 || (s.0 == best.1.0 && s.1 < best.1.1) {
+            best = (m, s);
+        }
+    }
+    Ok(best.0)
+}
+
+/// Choose templates (the members that match their copies best, [`matching_medoid`], unless
+/// overridden) and estimate every instance's pose, matching the patches of
+/// `sources[category]` (one source per category).
 pub fn estimate_poses(
     grid: &PlaneGrid,
     dets: &Detections,
@@ -324,11 +376,7 @@ pub fn estimate_poses(
             right: k,
         });
     }
-    let mut templates = Vec::with_capacity(k);
-    for c in 0..k {
-        let members: Vec<usize> = (0..n).filter(|&i| category[i] == c).collect();
-        templates.push(medoid(distance, &members)?);
-    }
+    let mut chosen: Vec<Option<usize>> = vec![None; k];
     for &(c, d) in &opts.templates {
         if c >= k {
             return Err(MiningError::InvalidParameter {
@@ -345,7 +393,7 @@ pub fn estimate_poses(
                 ),
             });
         }
-        templates[c] = d;
+        chosen[c] = Some(d);
     }
     // the patches of a pair: for slabs, as many levels as the taller of the two holds
     let patch = |i: usize, p: PatchRect, levels: usize| -> Result<(PlaneImage, Vec<f32>)> {
@@ -371,6 +419,44 @@ pub fn estimate_poses(
         let (cx, cy) = p.centre();
         grid.to_world(cx, cy)
     };
+    // the pose of instance `i` against template `t` on their tight and wide patches, with
+    // the tight patches' weights; `None` when the pair cannot be matched (no overlap at any
+    // pose)
+    let rects = |t: usize, i: usize| {
+        let irect = PatchRect::around(dets.detections[i].rect, opts.margin);
+        let trect = PatchRect::around(dets.detections[t].rect, opts.margin);
+        (trect, irect, levels(i).max(levels(t)))
+    };
+    let tight_pair = |t: usize, i: usize| -> Result<PatchPair> {
+        let (trect, irect, k) = rects(t, i);
+        Ok((patch(t, trect, k)?, patch(i, irect, k)?))
+    };
+    let fit_pair = |t: usize, i: usize| -> Result<(Option<YawFit>, Vec<f32>, Vec<f32>)> {
+        let (trect, irect, k) = rects(t, i);
+        let tight = tight_pair(t, i)?;
+        let reach = irect.half_diagonal().max(trect.half_diagonal())
+            + opts.yaw.max_offset
+            + ROTATION_SLACK_TEXELS;
+        let wide =
+            (patch(t, trect.holding_disc(reach), k)?, patch(i, irect.holding_disc(reach), k)?);
+        let fit = match_pair(Patches::of(&tight), Patches::of(&wide), &opts.yaw).ok();
+        let ((_, tw), (_, iw)) = tight;
+        Ok((fit, tw, iw))
+    };
+    let mut templates = Vec::with_capacity(k);
+    for (c, chosen) in chosen.into_iter().enumerate() {
+        let members: Vec<usize> = (0..n).filter(|&i| category[i] == c).collect();
+        let template = match chosen {
+            Some(d) => d,
+            // the choice compares pairs on their tight patches only: the wide patches'
+            // check costs as much again and chose the same templates on the whole basis
+            None => matching_medoid(&members, medoid(distance, &members)?, |t, i| {
+                let tight = tight_pair(t, i)?;
+                Ok(Patches::of(&tight).fit(&opts.yaw).ok().map(|f| f.residual))
+            })?,
+        };
+        templates.push(template);
+    }
     let poses: Vec<Result<Pose>> = (0..n)
         .into_par_iter()
         .map(|i| {
@@ -385,17 +471,10 @@ pub fn estimate_poses(
                 });
             }
             let trect = PatchRect::around(dets.detections[t].rect, opts.margin);
-            let k = levels(i).max(levels(t));
             let c = centre_world(irect);
-            let tight = (patch(t, trect, k)?, patch(i, irect, k)?);
-            let reach = irect.half_diagonal().max(trect.half_diagonal())
-                + opts.yaw.max_offset
-                + ROTATION_SLACK_TEXELS;
-            let wide =
-                (patch(t, trect.holding_disc(reach), k)?, patch(i, irect.holding_disc(reach), k)?);
             // a pair that cannot be matched (no overlap at any pose) keeps the template's
             // orientation; its residual is marked -1
-            let Ok(fit) = match_pair(Patches::of(&tight), Patches::of(&wide), &opts.yaw) else {
+            let (Some(fit), tw, iw) = fit_pair(t, i)? else {
                 return Ok(Pose { yaw_deg: 0.0, offset: (0.0, 0.0), residual: -1.0, position: c });
             };
             tracing::trace!(instance = i, template = t, yaw = fit.yaw_deg, "pose");
@@ -403,9 +482,9 @@ pub fn estimate_poses(
                 PatchSource::Plane(..) => fit.residual,
                 PatchSource::Slab { judge: (_, plane), .. } => yaw_residual_weighted(
                     &padded_crop(plane, trect)?,
-                    Some(&tight.0.1),
+                    Some(&tw),
                     &padded_crop(plane, irect)?,
-                    Some(&tight.1.1),
+                    Some(&iw),
                     fit.yaw_deg,
                     fit.offset,
                     opts.yaw.region,
@@ -431,6 +510,45 @@ pub fn estimate_poses(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_template_is_the_member_that_fits_its_copies_best() {
+        // members 3, 5, 7, 9; 3 (the grouping's medoid, say) fits every other badly, 7 fits
+        // every other well
+        let typical = |m: usize| match m {
+            7 => 0.1,
+            3 => 2.0,
+            _ => 0.5,
+        };
+        let residual = |t: usize, i: usize| Ok(Some(typical(t) + typical(i)));
+        assert_eq!(matching_medoid(&[3, 5, 7, 9], 3, residual).unwrap(), 7);
+        // every pair matched once, as (earlier, later) in the members' order
+        let seen = std::sync::Mutex::new(Vec::new());
+        matching_medoid(&[3, 5, 7], 3, |t, i| {
+            seen.lock().unwrap().push((t, i));
+            Ok(Some(1.0))
+        })
+        .unwrap();
+        let mut seen = seen.into_inner().unwrap();
+        seen.sort_unstable();
+        assert_eq!(seen, vec![(3, 5), (3, 7), (5, 7)]);
+        // ties keep the fallback; one or two members keep it without matching
+        assert_eq!(matching_medoid(&[3, 5, 7], 5, |_, _| Ok(Some(1.0))).unwrap(), 5);
+        let never = |_: usize, _: usize| -> Result<Option<f32>> { panic!("no pair to match") };
+        assert_eq!(matching_medoid(&[4, 8], 8, never).unwrap(), 8);
+        assert_eq!(matching_medoid(&[4], 4, never).unwrap(), 4);
+        // a pair that cannot be matched counts before any residual: 7 fits best where it
+        // matches but cannot be matched with 9
+        let residual = |t: usize, i: usize| {
+            Ok(if (t, i) == (7, 9) { None } else { Some(typical(t) + typical(i)) })
+        };
+        assert_eq!(matching_medoid(&[3, 5, 7, 9], 3, residual).unwrap(), 5);
+        // an error in any pair is returned
+        let failing = |_: usize, _: usize| -> Result<Option<f32>> {
+            Err(MiningError::Empty { what: "patch" })
+        };
+        assert!(matching_medoid(&[3, 5, 7], 3, failing).is_err());
+    }
 
     #[test]
     fn padded_crops_repeat_edges_and_keep_centres() {

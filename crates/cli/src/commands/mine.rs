@@ -209,7 +209,7 @@ pub struct MineArgs {
     #[arg(long, value_enum)]
     pub yaw_on: Option<YawOnArg>,
     /// Use detection INDEX (the number in boxes.png) as the template of CATEGORY (catK or
-    /// K) instead of the medoid. Repeatable.
+    /// K) instead of the member that fits its copies best. Repeatable.
     #[arg(long, value_name = "CATEGORY=INDEX")]
     pub template: Vec<String>,
     /// Margin around each object's box in its patches, in texels [default: the detection's
