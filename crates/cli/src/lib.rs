@@ -166,10 +166,9 @@ pub enum Command {
     /// plane (--labels), label histograms, Jensen-Shannon divergence plus a size term and
     /// the divergence of the objects' vertical profiles, average-linkage clustering cut where
     /// groups are at least the minimum separation apart (or --auto-cut, --categories,
-    /// --distance). Identical objects pushed
-    /// together are cut apart when the same object stands alone elsewhere (--no-copies).
-    /// Templates: the member of each category that fits its copies best (--template to
-    /// choose); every instance's yaw and position come
+    /// --distance). Identical objects pushed together are cut apart when the same object
+    /// stands alone elsewhere (--no-copies). Templates: the member of each category that
+    /// fits its copies best (--template to choose); every instance's yaw and position come
     /// from rotating the template patch onto it. Writes LIB_DIR/index.ron,
     /// patches.safetensors, shared.safetensors, layout.ron, boxes.png, categories.png,
     /// mining.json and, with --gt, metrics.json. Every detection threshold is in plane

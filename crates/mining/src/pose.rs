@@ -1,8 +1,8 @@
 //! Templates and poses (paper Sec. 3.3, template matching): one template per category (the
 //! member that matches its copies best, or the user's choice; see [`matching_medoid`]), and
-//! every instance's yaw and position relative to it, found by rotating the template's patch onto the instance's
-//! ([`crate::yaw::estimate_yaw_weighted`]: coarse scan, golden-section refinement from the
-//! lowest coarse minima, sub-texel offset). A category's patches are either cut from a
+//! every instance's yaw and position relative to it, found by rotating the template's patch
+//! onto the instance's ([`crate::yaw::estimate_yaw_weighted`]: coarse scan, golden-section
+//! refinement from the lowest coarse minima, sub-texel offset). A category's patches are either cut from a
 //! feature plane or, for objects standing on others, slabs of the opacity volume over each
 //! object's own height range ([`PatchSource`]).
 //!
