@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # The mining basis (issue 31): a fixed set of dev scenes, each trained at fixed iteration
-# budgets (the same fields on every machine, however fast or busy), mined with the default
+# budgets (the same fields on every machine, however fast or busy, except that Blender's
+# Cycles renders differ a little between machines), mined with the default
 # detector and with `--preset paper`, scored against the ground truth. Every change to
 # mining (or to the trainer, for mining's sake) is reported on the whole basis.
 #
 #   scripts/mining_basis.sh [build|mine|table|all]     (default all)
 #
 # build: synthesise the scenes (40 + 10 views at 256 x 256) and train an S field per scene
-#        and budget; finished fields are skipped, so a stopped build resumes. About 40
-#        minutes from nothing on 2 cores.
+#        and budget; finished fields are skipped, so a stopped build resumes. 46-53
+#        minutes from nothing on 2 cores (measured on two machines of the same kind).
 # mine:  mine every field (default and paper presets) into $MINE_OUT; finished ones are
 #        skipped (delete $MINE_OUT to mine again). Under two minutes on 2 cores.
 # table: $MINE_OUT/table.md: F1, ARI and yaw per scene and budget, the paper preset beside,
