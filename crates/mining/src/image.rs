@@ -55,6 +55,14 @@ impl PixelRect {
         r >= self.r0 && r < self.r1 && c >= self.c0 && c < self.c1
     }
 
+    /// The box of `texels` (row, column); `None` when there are none.
+    pub fn of_texels(texels: impl IntoIterator<Item = (usize, usize)>) -> Option<PixelRect> {
+        texels
+            .into_iter()
+            .map(|(r, c)| PixelRect::new(r, c, r + 1, c + 1))
+            .reduce(|a, b| a.union(&b))
+    }
+
     /// Smallest rectangle covering both.
     pub fn union(&self, other: &PixelRect) -> PixelRect {
         PixelRect {
@@ -383,16 +391,10 @@ impl Mask {
     /// Bounding box of the set pixels, `None` if none is set (or the mask is inconsistent).
     pub fn bbox(&self) -> Option<PixelRect> {
         self.validate().ok()?;
-        let mut rect: Option<PixelRect> = None;
-        for r in 0..self.rows {
-            for c in 0..self.cols {
-                if self.data[r * self.cols + c] {
-                    let px = PixelRect::new(r, c, r + 1, c + 1);
-                    rect = Some(rect.map_or(px, |b| b.union(&px)));
-                }
-            }
-        }
-        rect
+        let cols = self.cols;
+        PixelRect::of_texels(
+            (0..self.data.len()).filter(|&i| self.data[i]).map(|i| (i / cols, i % cols)),
+        )
     }
 
     /// Convex hull of the corners of every set texel of the mask placed at `(row0, col0)` on

@@ -322,31 +322,33 @@ pub fn matching_medoid(
     if members.len() <= alike {
         return Ok(fallback);
     }
-    let pairs: Vec<(usize, usize)> = members
-        .iter()
-        .enumerate()
-        .flat_map(|(a, &t)| members[a + 1..].iter().map(move |&i| (t, i)))
-        .collect();
+    // pairs of positions in `members`
+    let m = members.len();
+    let pairs: Vec<(usize, usize)> = (0..m).flat_map(|a| (a + 1..m).map(move |b| (a, b))).collect();
     let fits: Vec<Option<f32>> =
-        pairs.par_iter().map(|&(t, i)| residual(t, i)).collect::<Result<_>>()?;
-    // per member: (pairs that could not be matched, summed residual)
-    let mut score = vec![(0usize, 0f64); members.len()];
-    let at = |m: usize| members.iter().position(|&x| x == m).unwrap_or(0);
-    for (&(t, i), fit) in pairs.iter().zip(&fits) {
-        for m in [at(t), at(i)] {
+        pairs.par_iter().map(|&(a, b)| residual(members[a], members[b])).collect::<Result<_>>()?;
+    // per member: (pairs that could not be matched, summed residual), compared in that order
+    let mut score = vec![(0usize, 0f64); m];
+    for (&(a, b), fit) in pairs.iter().zip(&fits) {
+        for p in [a, b] {
             match fit {
-                Some(r) => score[m].1 += f64::from(*r),
-                None => score[m].0 += 1,
+                Some(r) => score[p].1 += f64::from(*r),
+                None => score[p].0 += 1,
             }
         }
     }
-    let mut best = (fallback, score[at(fallback)]);
-    for (&m, &s) in members.iter().zip(&score) {
-        if s.0 < best.1.0 || (s.0 == best.1.0 && s.1 < best.1.1) {
-            best = (m, s);
+    let lower = |x: (usize, f64), y: (usize, f64)| x.0 < y.0 || (x.0 == y.0 && x.1 < y.1);
+    let mut best = fallback;
+    let mut best_score = members
+        .iter()
+        .position(|&d| d == fallback)
+        .map_or((usize::MAX, f64::INFINITY), |p| score[p]);
+    for (&d, &s) in members.iter().zip(&score) {
+        if lower(s, best_score) {
+            (best, best_score) = (d, s);
         }
     }
-    Ok(best.0)
+    Ok(best)
 }
 
 /// Choose templates (the members that match their copies best, [`matching_medoid`], unless

@@ -444,8 +444,9 @@ impl Seeded<'_> {
         // on a slab, an object may stand at the edge (a lamp at a table's rim), but what
         // rises along it is the slab's own (`along_the_rim`); what rises at the edge of a
         // solid body's top is its blurred fringe
-        let seed_on_rim = Mask::from_fn(h, w, |r, c| at(r, c) && ring.get(r, c)).bbox();
-        let rim_refused = seed_on_rim.is_some() && (s.solid || along_the_rim(sb, seed_on_rim));
+        let seed_on_rim =
+            PixelRect::of_texels(seed_px.iter().copied().filter(|&(r, c)| ring.get(r, c)));
+        let rim_refused = refused_at_rim(s.solid, sb, seed_on_rim);
         if rim_refused || seed_px.iter().any(|&(r, c)| taken.get(r, c)) {
             tracing::trace!(?sb, texels = seed_px.len(), "seed on the rim or taken");
             return None;
@@ -503,11 +504,11 @@ impl Seeded<'_> {
         let comp = fill_holes(&seed_component(&seed_px, &idx, &labels, win, h, w));
         let comp = body_of(&comp, &seed_px);
         let count = comp.count();
-        let on_rim = Mask::from_fn(h, w, |r, c| comp.get(r, c) && ring.get(r, c)).bbox();
+        let on_rim = PixelRect::of_texels(
+            (0..h * w).filter(|&i| comp.data[i] && ring.data[i]).map(|i| (i / w, i % w)),
+        );
         let touches = (0..h * w).any(|i| comp.data[i] && !f.data[i])
-            || comp
-                .bbox()
-                .is_some_and(|b| on_rim.is_some() && (s.solid || along_the_rim(b, on_rim)));
+            || comp.bbox().is_some_and(|b| refused_at_rim(s.solid, b, on_rim));
         let kmax = top.unwrap_or(hi);
         tracing::trace!(?sb, count, ?on_rim, touches, "seed grown");
         if touches || count < min_texels {
@@ -542,6 +543,13 @@ impl Seeded<'_> {
         tracing::trace!(ring_s, ring_n, "ring of free surface");
         ring_n > 0 && more_than(ring_s, 0.5, ring_n)
     }
+}
+
+/// Whether a blob in box `b`, whose texels on its host's outline lie in box `on_rim`, is
+/// refused there: any contact with a solid body's rim (its blurred fringe), or a slab's
+/// rim touched along it ([`along_the_rim`]).
+fn refused_at_rim(solid: bool, b: PixelRect, on_rim: Option<PixelRect>) -> bool {
+    on_rim.is_some() && (solid || along_the_rim(b, on_rim))
 }
 
 /// Whether a blob in box `b`, whose texels on its host's outline lie in box `on_rim`, runs
