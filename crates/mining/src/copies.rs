@@ -10,7 +10,7 @@
 //! (colours) and its vertical profile (how its occupied voxels spread over the levels above
 //! its base: a chest is solid from the floor up, a chair is a seat on legs and a back) both
 //! within the divergence copies may have. `R`'s rectangle (the one with its footprint's
-//! second moments, [`moment_rect`]) must then be `k` of `T`'s stacked along one of `T`'s
+//! second moments, [`footprint_rect`]) must then be `k` of `T`'s stacked along one of `T`'s
 //! sides and its footprint `k` times `T`'s, each within the grouping's tolerance of a
 //! length (the reconstruction noise between two instances of one object; sides also within
 //! one texel, the resolution they are measured at). `R` is cut across the stacking
@@ -37,9 +37,10 @@ use crate::image::{Mask, PixelRect};
 /// iterations cut four more false objects (F1 0.814 -> 0.778) and no dev field gained.
 pub const MAX_COPIES: usize = 3; // tuned: group.max_copies
 
-/// The rectangle a footprint's texels spread over, in texels: the unit vector of its first
-/// side, the extents along that side and across it (`len` along `axis`, `wid` across; not
-/// sorted), and the projection range along `axis` (`lo..hi`) and across it.
+/// The rectangle of a footprint, in texels: the unit vector of its first side, its sides
+/// along that side and across it (`len` along `axis`, `wid` across; not sorted), and where
+/// it lies along the axis (`lo..hi`) and across it (`across`), centred on the footprint's
+/// centroid (what haze lies outside it falls in the end slabs of a cut).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FootprintRect {
     pub axis: (f64, f64),
@@ -58,54 +59,128 @@ impl FootprintRect {
     }
 }
 
-/// The rectangle with the second moments of the set texels of `mask` placed at
-/// `(row0, col0)`: its first side along the principal axis, each side `sqrt(12 var)` long
-/// (the variance of a uniform segment of length `L` is `L^2 / 12`; every texel is a unit
-/// square, whose own variance, 1/12 along any direction, is added, so that a solid
-/// rectangle of texels measures its own sides exactly), centred on the centroid. Every
-/// texel weighs in: a speck of haze on the outline moves a side by a fraction of a texel,
-/// where it moves the outline's hull (a minimum-area rectangle, used before) by a whole
-/// texel or more. `None` for fewer than 3 texels.
-pub fn moment_rect(mask: &Mask, row0: usize, col0: usize) -> Option<FootprintRect> {
-    let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
-    for r in 0..mask.rows {
-        for c in 0..mask.cols {
-            if mask.get(r, c) {
-                let (x, y) = ((col0 + c) as f64 + 0.5, (row0 + r) as f64 + 0.5);
-                n += 1.0;
-                sx += x;
-                sy += y;
-                sxx += x * x;
-                syy += y * y;
-                sxy += x * y;
-            }
-        }
-    }
-    let too_few = n < 3.0; // fixed: a rectangle needs 3 texels
-    if too_few {
-        return None;
-    }
-    let (mx, my) = (sx / n, sy / n);
-    let (vxx, vyy, vxy) = (sxx / n - mx * mx, syy / n - my * my, sxy / n - mx * my);
+/// The rectangle of the set texels of `mask` placed at `(row0, col0)`, each side measured
+/// by the texels' second moment along it, `sqrt(12 var)` (the variance of a uniform segment
+/// of length `L` is `L^2 / 12`; every texel is a unit square, whose own variance, 1/12 along
+/// any direction, is added, so that a solid rectangle of texels measures its own sides
+/// exactly). Every texel weighs in: a speck of haze on the outline moves a side by a
+/// fraction of a texel, where it moves the hull's minimum-area rectangle by a whole texel or
+/// more. Turned along the principal axis of the texels; where the two sides it gives differ
+/// by no more than a texel (the resolution they are measured at: a square, and a square
+/// pair of boxes, has no principal axis), along the minimum-area rectangle round their hull
+/// instead (one of its sides lies on a side of the hull). `None` for an empty mask.
+pub fn footprint_rect(mask: &Mask, row0: usize, col0: usize) -> Option<FootprintRect> {
+    let along = |axis: (f64, f64)| spread_along(mask, row0, col0, axis);
+    let (vxx, vyy, vxy) = covariance(mask, row0, col0)?;
     // the covariance's eigenvalues: half its trace plus and minus the spread
     let half_trace = 0.5 * (vxx + vyy);
     let half_diff = 0.5 * (vxx - vyy);
     let spread = (half_diff * half_diff + vxy * vxy).sqrt();
-    let texel_var = 1.0 / 12.0; // fixed: a unit square's variance along any direction
-    let side = |var: f64| (12.0 * (var + texel_var).max(0.0)).sqrt(); // fixed: L^2 / 12
+    let principal = 0.5 * (2.0 * vxy).atan2(vxx - vyy);
     let (len, wid) = (side(half_trace + spread), side(half_trace - spread));
-    let angle = 0.5 * (2.0 * vxy).atan2(vxx - vyy);
-    let axis = (angle.cos(), angle.sin());
-    let u = mx * axis.0 + my * axis.1;
-    let v = -mx * axis.1 + my * axis.0;
+    let axis = if len - wid > 1.0 {
+        // fixed: one texel, the sides' unit
+        (principal.cos(), principal.sin())
+    } else {
+        hull_axis(mask, row0, col0).unwrap_or((1.0, 0.0))
+    };
+    let ((mu, len), (mv, wid)) = along(axis);
     Some(FootprintRect {
         axis,
         len,
         wid,
-        lo: u - 0.5 * len,
-        hi: u + 0.5 * len,
-        across: (v - 0.5 * wid, v + 0.5 * wid),
+        lo: mu - 0.5 * len,
+        hi: mu + 0.5 * len,
+        across: (mv - 0.5 * wid, mv + 0.5 * wid),
     })
+}
+
+/// The side of a uniform segment of texels whose centres have variance `var`.
+fn side(var: f64) -> f64 {
+    let texel_var = 1.0 / 12.0; // fixed: a unit square's variance along any direction
+    (12.0 * (var + texel_var).max(0.0)).sqrt() // fixed: L^2 / 12
+}
+
+/// The covariance `(xx, yy, xy)` of the set texels' centres; `None` for an empty mask.
+fn covariance(mask: &Mask, row0: usize, col0: usize) -> Option<(f64, f64, f64)> {
+    let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for (x, y) in texel_centres(mask, row0, col0) {
+        n += 1.0;
+        sx += x;
+        sy += y;
+        sxx += x * x;
+        syy += y * y;
+        sxy += x * y;
+    }
+    if n == 0.0 {
+        return None;
+    }
+    let (mx, my) = (sx / n, sy / n);
+    Some((sxx / n - mx * mx, syy / n - my * my, sxy / n - mx * my))
+}
+
+/// Along `axis` and across it: the mean of the set texels' centres and the side of the
+/// segment with their variance ([`side`]). The mask is not empty.
+fn spread_along(
+    mask: &Mask,
+    row0: usize,
+    col0: usize,
+    axis: (f64, f64),
+) -> ((f64, f64), (f64, f64)) {
+    let (mut n, mut su, mut sv, mut suu, mut svv) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
+    for (x, y) in texel_centres(mask, row0, col0) {
+        let (u, v) = (x * axis.0 + y * axis.1, -x * axis.1 + y * axis.0);
+        n += 1.0;
+        su += u;
+        sv += v;
+        suu += u * u;
+        svv += v * v;
+    }
+    let n = n.max(1.0);
+    let (mu, mv) = (su / n, sv / n);
+    ((mu, side(suu / n - mu * mu)), (mv, side(svv / n - mv * mv)))
+}
+
+/// The plane coordinates `(x, y)` = `(col, row)` of the centres of the set texels of `mask`
+/// placed at `(row0, col0)`.
+fn texel_centres(mask: &Mask, row0: usize, col0: usize) -> impl Iterator<Item = (f64, f64)> + '_ {
+    (0..mask.rows).flat_map(move |r| {
+        (0..mask.cols)
+            .filter(move |&c| mask.get(r, c))
+            .map(move |c| ((col0 + c) as f64 + 0.5, (row0 + r) as f64 + 0.5))
+    })
+}
+
+/// The unit vector of the first side of the minimum-area rectangle round the corners of the
+/// set texels of `mask` placed at `(row0, col0)` (rotating calipers: one side of it lies on
+/// a side of their convex hull); `None` when the hull has no area to turn.
+fn hull_axis(mask: &Mask, row0: usize, col0: usize) -> Option<(f64, f64)> {
+    let h = mask.corner_hull(row0, col0);
+    let mut best: Option<(f64, (f64, f64))> = None;
+    for i in 0..h.len() {
+        let (a, b) = (h[i], h[(i + 1) % h.len()]);
+        let (dx, dy) = ((b.0 - a.0) as f64, (b.1 - a.1) as f64);
+        let norm = (dx * dx + dy * dy).sqrt();
+        if norm == 0.0 {
+            continue;
+        }
+        let (ux, uy) = (dx / norm, dy / norm);
+        let (mut lo, mut hi, mut alo, mut ahi) =
+            (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        for &(x, y) in &h {
+            let (x, y) = (x as f64, y as f64);
+            let (u, v) = (x * ux + y * uy, -x * uy + y * ux);
+            lo = lo.min(u);
+            hi = hi.max(u);
+            alo = alo.min(v);
+            ahi = ahi.max(v);
+        }
+        let area = (hi - lo) * (ahi - alo);
+        if area > 0.0 && best.as_ref().is_none_or(|(b, _)| area < *b - 1e-9) {
+            best = Some((area, (ux, uy)));
+        }
+    }
+    best.map(|(_, axis)| axis)
 }
 
 /// Whether two lengths (texels) are one object's: within `tol` (a log ratio), or within one
@@ -285,7 +360,7 @@ pub fn split_copies(
     let rects: Vec<Option<FootprintRect>> = det
         .detections
         .iter()
-        .map(|d| if free(d) { moment_rect(&d.footprint, d.rect.r0, d.rect.c0) } else { None })
+        .map(|d| if free(d) { footprint_rect(&d.footprint, d.rect.r0, d.rect.c0) } else { None })
         .collect();
     let counts: Vec<usize> = det.detections.iter().map(|d| d.footprint.count()).collect();
     let mut plans: Vec<(usize, usize, usize, bool)> = Vec::new();
@@ -338,7 +413,7 @@ pub fn split_copies(
             let keep = slab(&d.footprint, d.rect, dir, a, b);
             let Some(p) = piece(d, &keep, det) else { break };
             // every piece is t's rectangle again
-            let fits = moment_rect(&p.footprint, p.rect.r0, p.rect.c0).is_some_and(|pr| {
+            let fits = footprint_rect(&p.footprint, p.rect.r0, p.rect.c0).is_some_and(|pr| {
                 let ((pl, pw), (tl, tw)) = (pr.sides(), tr.sides());
                 same_length(pl, tl, tol) && same_length(pw, tw, tol)
             });
@@ -375,7 +450,7 @@ mod tests {
     }
 
     #[test]
-    fn moment_rect_measures_a_rectangle_exactly_and_a_speck_of_haze_by_a_fraction() {
+    fn footprint_rect_measures_a_rectangle_exactly_and_a_speck_of_haze_by_a_fraction() {
         // a 20 x 8 rectangle turned by about 30 degrees, rasterised
         let (ca, sa) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
         let m = Mask::from_fn(40, 40, |r, c| {
@@ -383,13 +458,13 @@ mod tests {
             let (u, v) = (x * ca + y * sa, -x * sa + y * ca);
             u.abs() <= 10.0 && v.abs() <= 4.0
         });
-        let r = moment_rect(&m, 0, 0).unwrap();
+        let r = footprint_rect(&m, 0, 0).unwrap();
         let (l, w) = r.sides();
         assert!((l - 20.0).abs() < 0.5 && (w - 8.0).abs() < 0.5, "{l} x {w}");
-        let turn = r.axis.1.atan2(r.axis.0).to_degrees().rem_euclid(180.0);
+        let turn = r.axis.1.atan2(r.axis.0).to_degrees().rem_euclid(90.0);
         assert!((turn - 30.0).abs() < 2.0, "{turn}");
         // an upright 4 x 5 block: its own sides, its texels' range along and across
-        let r = moment_rect(&rect_mask(10, 10, 2, 3, 4, 5), 0, 0).unwrap();
+        let r = footprint_rect(&rect_mask(10, 10, 2, 3, 4, 5), 0, 0).unwrap();
         let (l, w) = r.sides();
         assert!((l - 5.0).abs() < 1e-9 && (w - 4.0).abs() < 1e-9, "{l} x {w}");
         assert!((r.lo - 3.0).abs() < 1e-9 && (r.hi - 8.0).abs() < 1e-9, "{r:?}");
@@ -397,9 +472,9 @@ mod tests {
         // hull would be a whole texel longer)
         let mut hazy = rect_mask(20, 20, 5, 5, 6, 10);
         hazy.set(7, 15, true);
-        let (l, w) = moment_rect(&hazy, 0, 0).unwrap().sides();
+        let (l, w) = footprint_rect(&hazy, 0, 0).unwrap().sides();
         assert!((l - 10.0).abs() < 0.5 && (w - 6.0).abs() < 0.5, "{l} x {w}");
-        assert!(moment_rect(&Mask::from_fn(3, 3, |_, _| false), 0, 0).is_none());
+        assert!(footprint_rect(&Mask::from_fn(3, 3, |_, _| false), 0, 0).is_none());
     }
 
     fn detection(id: usize, grid: &PlaneGrid, full: &Mask) -> Detection {
@@ -497,6 +572,53 @@ mod tests {
         // a 7 x 10 table beside the 7 x 7 chair is no one and a half chairs
         let mut det = scene(&[rect_mask(60, 60, 5, 5, 7, 7), rect_mask(60, 60, 20, 5, 7, 10)]);
         assert!(split_copies(&mut det, |_, _| 0.0, 0.12, 0.15).is_empty());
+    }
+
+    /// A `len x wid` rectangle turned by `deg` about `(cx, cy)`, rasterised on `n x n`.
+    fn turned(n: usize, (cx, cy): (f64, f64), (len, wid): (f64, f64), deg: f64) -> Mask {
+        let (ca, sa) = (deg.to_radians().cos(), deg.to_radians().sin());
+        Mask::from_fn(n, n, |r, c| {
+            let (x, y) = (c as f64 + 0.5 - cx, r as f64 + 0.5 - cy);
+            let (u, v) = (x * ca + y * sa, -x * sa + y * ca);
+            u.abs() <= len / 2.0 && v.abs() <= wid / 2.0
+        })
+    }
+
+    #[test]
+    fn a_turned_square_pair_is_cut_along_its_sides() {
+        // two 20 x 10 chests side by side, a 20 x 20 square turned by 30 degrees (a square has
+        // no principal axis: the cut follows its hull's sides), and a lone chest turned alike
+        let pair = turned(100, (30.0, 30.0), (20.0, 20.0), 30.0);
+        let single = turned(100, (70.0, 70.0), (20.0, 10.0), 30.0);
+        let mut det = scene(&[single, pair]);
+        let done = split_copies(&mut det, |_, _| 0.0, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        for d in &det.detections[1..] {
+            let r = footprint_rect(&d.footprint, d.rect.r0, d.rect.c0).unwrap();
+            let (l, w) = r.sides();
+            assert!((l - 20.0).abs() < 1.0 && (w - 10.0).abs() < 1.0, "{l} x {w}");
+            let turn = r.axis.1.atan2(r.axis.0).to_degrees().rem_euclid(90.0);
+            assert!((turn - 30.0).abs() < 3.0, "{turn}");
+            // each piece is one chest: its centre half a chest off the pair's, along one of
+            // the square's sides (a cut along the grid would put it 2.6 texels off)
+            let (mut n, mut sx, mut sy) = (0.0, 0.0, 0.0);
+            for r in 0..d.rect.rows() {
+                for c in 0..d.rect.cols() {
+                    if d.footprint.get(r, c) {
+                        n += 1.0;
+                        sx += (d.rect.c0 + c) as f64 + 0.5;
+                        sy += (d.rect.r0 + r) as f64 + 0.5;
+                    }
+                }
+            }
+            let (ca, sa) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+            let off = [(ca, sa), (-sa, ca), (-ca, -sa), (sa, -ca)];
+            let miss = off
+                .iter()
+                .map(|(ux, uy)| (sx / n - 30.0 - 5.0 * ux).hypot(sy / n - 30.0 - 5.0 * uy))
+                .fold(f64::INFINITY, f64::min);
+            assert!(miss < 1.0, "a piece's centre {miss} texels off a chest's");
+        }
     }
 
     #[test]

@@ -543,7 +543,7 @@ impl<'a> Problem<'a> {
                 if !hit {
                     // Template absent: only the zero-padded comparison counts it.
                     if union && wi > 0.0 {
-                        row_acc += wi * squared_error([0.0; 4], [inst; 4], 1.0, Some(inst));
+                        row_acc += wi * sum_of_squares(inst);
                         row_w += wi;
                     }
                     continue;
@@ -602,6 +602,7 @@ const LANES: usize = 8; // fixed: eight f32 lanes of a 256-bit vector
 #[inline]
 fn squared_error(b: [f32; 4], t: [&[f32]; 4], scale: f32, x: Option<&[f32]>) -> f32 {
     let n = t[0].len();
+    debug_assert!(t.iter().all(|s| s.len() == n) && x.is_none_or(|x| x.len() == n));
     let full = n / LANES * LANES;
     fn lanes(s: &[f32], full: usize) -> &[[f32; LANES]] {
         s[..full].as_chunks::<LANES>().0
@@ -639,9 +640,43 @@ fn squared_error(b: [f32; 4], t: [&[f32]; 4], scale: f32, x: Option<&[f32]>) -> 
     acc.iter().sum::<f32>() + tail
 }
 
+/// `sum_k x[k]^2` in [`LANES`] independent sums (an instance texel where the template is
+/// absent).
+#[inline]
+fn sum_of_squares(x: &[f32]) -> f32 {
+    let (chunks, rest) = x.as_chunks::<LANES>();
+    let mut acc = [0f32; LANES];
+    for v in chunks {
+        for j in 0..LANES {
+            acc[j] += v[j] * v[j];
+        }
+    }
+    acc.iter().sum::<f32>() + rest.iter().map(|v| v * v).sum::<f32>()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn texel_errors_in_lanes_match_a_plain_sum() {
+        for n in [0, 1, 7, 8, 9, 17] {
+            let chan = |s: f32| (0..n).map(|k| ((k as f32 + s) * 0.37).sin()).collect::<Vec<_>>();
+            let (t0, t1, t2, t3, x) = (chan(0.0), chan(1.0), chan(2.0), chan(3.0), chan(4.0));
+            let b = [0.1, 0.2, 0.3, 0.4];
+            let tv = |k: usize| b[0] * t0[k] + b[1] * t1[k] + b[2] * t2[k] + b[3] * t3[k];
+            let plain = |f: &dyn Fn(usize) -> f32| (0..n).map(|k| f(k) * f(k)).sum::<f32>();
+            let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * (1.0 + b.abs());
+            let taps = [&t0[..], &t1, &t2, &t3];
+            let got = squared_error(b, taps, 1.0, Some(&x));
+            assert!(close(got, plain(&|k| tv(k) - x[k])), "{n}: {got}");
+            let got = squared_error(b, taps, 1.0, None);
+            assert!(close(got, plain(&|k| tv(k))), "{n}: {got}");
+            let got = squared_error(b, taps, 2.5, Some(&x));
+            assert!(close(got, plain(&|k| tv(k) * 2.5 - x[k])), "{n}: {got}");
+            assert!(close(sum_of_squares(&x), plain(&|k| x[k])), "{n}");
+        }
+    }
     use crate::rotate::rotate;
 
     /// A smooth, asymmetric, 3-channel "L" made of Gaussian blobs, as a function of the
