@@ -70,7 +70,6 @@ impl FootprintRect {
 /// pair of boxes, has no principal axis), along the minimum-area rectangle round their hull
 /// instead (one of its sides lies on a side of the hull). `None` for an empty mask.
 pub fn footprint_rect(mask: &Mask, row0: usize, col0: usize) -> Option<FootprintRect> {
-    let along = |axis: (f64, f64)| spread_along(mask, row0, col0, axis);
     let (vxx, vyy, vxy) = covariance(mask, row0, col0)?;
     // the covariance's eigenvalues: half its trace plus and minus the spread
     let half_trace = 0.5 * (vxx + vyy);
@@ -84,7 +83,7 @@ pub fn footprint_rect(mask: &Mask, row0: usize, col0: usize) -> Option<Footprint
     } else {
         hull_axis(mask, row0, col0).unwrap_or((1.0, 0.0))
     };
-    let ((mu, len), (mv, wid)) = along(axis);
+    let ((mu, len), (mv, wid)) = spread_along(mask, row0, col0, axis);
     Some(FootprintRect {
         axis,
         len,
@@ -602,14 +601,10 @@ mod tests {
             // each piece is one chest: its centre half a chest off the pair's, along one of
             // the square's sides (a cut along the grid would put it 2.6 texels off)
             let (mut n, mut sx, mut sy) = (0.0, 0.0, 0.0);
-            for r in 0..d.rect.rows() {
-                for c in 0..d.rect.cols() {
-                    if d.footprint.get(r, c) {
-                        n += 1.0;
-                        sx += (d.rect.c0 + c) as f64 + 0.5;
-                        sy += (d.rect.r0 + r) as f64 + 0.5;
-                    }
-                }
+            for (x, y) in texel_centres(&d.footprint, d.rect.r0, d.rect.c0) {
+                n += 1.0;
+                sx += x;
+                sy += y;
             }
             let (ca, sa) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
             let off = [(ca, sa), (-sa, ca), (-ca, -sa), (sa, -ca)];

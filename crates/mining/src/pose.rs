@@ -429,13 +429,13 @@ pub fn estimate_poses(
         let trect = PatchRect::around(dets.detections[t].rect, opts.margin);
         (trect, irect, levels(i).max(levels(t)))
     };
-    let tight_pair = |t: usize, i: usize| -> Result<PatchPair> {
-        let (trect, irect, k) = rects(t, i);
-        Ok((patch(t, trect, k)?, patch(i, irect, k)?))
+    let tight_of = |t: usize, i: usize, (trect, irect, k): (PatchRect, PatchRect, usize)| {
+        Ok::<PatchPair, MiningError>((patch(t, trect, k)?, patch(i, irect, k)?))
     };
+    let tight_pair = |t: usize, i: usize| tight_of(t, i, rects(t, i));
     let fit_pair = |t: usize, i: usize| -> Result<(Option<YawFit>, Vec<f32>, Vec<f32>)> {
         let (trect, irect, k) = rects(t, i);
-        let tight = tight_pair(t, i)?;
+        let tight = tight_of(t, i, (trect, irect, k))?;
         let reach = irect.half_diagonal().max(trect.half_diagonal())
             + opts.yaw.max_offset
             + ROTATION_SLACK_TEXELS;
