@@ -58,6 +58,8 @@ def setup(data, samples, sun_deg, width, height):
     scene.render.resolution_y = height
     scene.render.resolution_percentage = 100
     scene.render.film_transparent = True
+    # keep the synced scene (its BVH) between the views: only the camera moves
+    scene.render.use_persistent_data = True
     scene.render.image_settings.file_format = "PNG"
     scene.render.image_settings.color_mode = "RGBA"
     scene.view_settings.view_transform = "Standard"

@@ -7,7 +7,7 @@
 # against the default run.
 #
 #   scripts/mining_ablation.sh NAME 'PYTHON STATEMENT'
-#   e.g. scripts/mining_ablation.sh free_half 'd["unpack"]["free_share"] = 0.5'
+#   e.g. scripts/mining_ablation.sh rim_two 'd["unpack"]["rim_texels"] = 2'
 #
 # Needs the basis built and mined (scripts/mining_basis.sh all). BASIS_OUT, MINE_OUT and BIN
 # as for scripts/mining_basis.sh; SUITE and RES as for scripts/mining_suite.sh (the suite's

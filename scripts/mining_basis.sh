@@ -9,7 +9,8 @@
 #
 # build: synthesise the scenes (40 + 10 views at 256 x 256) and train an S field per scene
 #        and budget; finished fields are skipped, so a stopped build resumes. 46-53
-#        minutes from nothing on 2 cores (measured on two machines of the same kind).
+#        minutes from nothing on 2 cores (measured on two machines of the same kind),
+#        about 3 less since Blender keeps its scene between views (training is 48 of them).
 # mine:  mine every field (default and paper presets) into $MINE_OUT; finished ones are
 #        skipped (delete $MINE_OUT to mine again). Under two minutes on 2 cores.
 # table: $MINE_OUT/table.md: F1, ARI and yaw per scene and budget, the paper preset beside,

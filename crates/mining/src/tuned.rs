@@ -169,16 +169,6 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
         ),
         entry(
             OPTION,
-            "detect.unpack.free_share",
-            Detection,
-            f64::from(d.unpack.free_share),
-            "share of a solid body's footprint",
-            "an upholstered seat under its chair's back is no table (a thin slab is not \
-             judged); 0.5 mined living_room at 2000 (0.966 -> 0.929) and random_2 at 6000 \
-             (1.000 -> 0.970) worse",
-        ),
-        entry(
-            OPTION,
             "detect.unpack.rim_texels",
             Detection,
             u(d.unpack.rim_texels),

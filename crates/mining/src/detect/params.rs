@@ -283,13 +283,6 @@ pub struct Unpack {
     /// densest one (0.6: ghost layers under a table top can be denser than the top; 0.5 lost
     /// the warehouse's crates on pallets, F1 1.000 -> 0.900 at 2000 and 6000 iterations).
     pub dense_window_share: f32,
-    /// Share of a solid body's footprint that must be free surface (a level of its top, not
-    /// near what is raised above it) for the top to carry objects; a thin slab carries what
-    /// stands on it however much that covers (0.3: an upholstered seat under its chair's
-    /// back is no table; measured when it applied to slabs too, the majority, 0.5, mined
-    /// `random_12` at 2000 iterations better, 0.805 -> 0.833, and `living_room` at 2000 and
-    /// `random_2` at 6000 worse, 0.966 -> 0.929 and 1.000 -> 0.970).
-    pub free_share: f32,
     /// Width of a support's rim band and of the fringe around what is raised above it,
     /// texels (3): the free surface is judged away from the objects' blurred fringes and,
     /// on a solid body, from the body's own edge; the second round's colour window never
@@ -306,7 +299,6 @@ impl Default for Unpack {
         Unpack {
             surface_opacity: 0.5,    // tuned: detect.unpack.surface_opacity
             dense_window_share: 0.6, // tuned: detect.unpack.dense_window_share
-            free_share: 0.3,         // tuned: detect.unpack.free_share
             rim_texels: 3,           // tuned: detect.unpack.rim_texels
         }
     }
@@ -398,7 +390,6 @@ impl DetectParams {
         }
         share("floor_coverage", self.floor_coverage)?;
         share("min_lone_area_share", self.min_lone_area_share)?;
-        share("unpack.free_share", self.unpack.free_share)?;
         share("unpack.dense_window_share", self.unpack.dense_window_share)?;
         Ok(())
     }
@@ -427,8 +418,8 @@ mod tests {
 
     #[test]
     fn the_tuned_values_are_counted_from_the_parameters_themselves() {
-        assert_eq!(DetectParams::default().count_tuned(), 12);
-        assert_eq!(DetectParams::paper().count_tuned(), 12);
+        assert_eq!(DetectParams::default().count_tuned(), 11);
+        assert_eq!(DetectParams::paper().count_tuned(), 11);
     }
 
     #[test]

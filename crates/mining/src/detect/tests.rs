@@ -492,6 +492,42 @@ fn what_covers_most_of_a_solid_body_is_its_own_shape() {
 }
 
 #[test]
+fn a_cabin_between_bonnet_and_boot_is_the_body_s_own_shape() {
+    // the car-like body of the test above with a cabin under half its footprint (40 of its
+    // 100 columns) that spans its width but for the rim band: the free top is a bonnet and
+    // a boot, two pieces, so the cabin is the body's own shape; the same cabin with free
+    // top all round it (rows 50..90) stands on the body
+    let body = |rows: std::ops::Range<usize>| {
+        let mut v = floor_volume(140, 220, 24);
+        fill(&mut v, (40, 100), (60, 160), (2, 13), 0.95);
+        fill(&mut v, (rows.start, rows.end), (90, 130), (13, 20), 0.95);
+        let color = painted(140, 220, (rows, 90..130), [0.1; 3], [0.8, 0.1, 0.1]);
+        detect_small(&v, &color)
+    };
+    let d = body(42..98);
+    assert_eq!(d.detections.len(), 1, "{:?}", rects(&d));
+    assert_eq!(only_child(&body(50..90)).rect, PixelRect::new(50, 90, 90, 130));
+}
+
+#[test]
+fn an_object_on_a_small_solid_top_is_judged_away_from_the_rim_band() {
+    // a solid side table 24 texels across (levels 2..=12) with a box 7 texels across standing
+    // on its middle (levels 13..19): the rim band takes two fifths of the footprint, so the
+    // free top is a quarter of the footprint but half of the top judged away from the band
+    let mut v = floor_volume(40, 40, 24);
+    fill(&mut v, (8, 32), (8, 32), (2, 13), 0.95);
+    fill(&mut v, (17, 24), (17, 24), (13, 20), 0.95);
+    let color = painted(40, 40, (17..24, 17..24), [0.1; 3], [0.8, 0.7, 0.5]);
+    assert_child_within_a_texel(&v, &color, PixelRect::new(17, 17, 24, 24));
+    // a bump of the top's own (a canopy's crown) that does not rise past a second blur
+    // window over the top is no object
+    let mut low = floor_volume(40, 40, 24);
+    fill(&mut low, (8, 32), (8, 32), (2, 13), 0.95);
+    fill(&mut low, (17, 24), (17, 24), (13, 16), 0.95);
+    assert_eq!(detect_small(&low, &color).detections.len(), 1);
+}
+
+#[test]
 fn a_crate_covering_most_of_a_thin_slab_unpacks() {
     // a pallet: runners (levels 2..=3) under a deck (level 3), 1.0 x 1.2 m; a crate of
     // 0.8 x 0.8 m on it (levels 4..=19) covers 53% of it, with a 0.1 m margin
