@@ -272,7 +272,7 @@ impl Default for ColourSplit {
 }
 
 /// The second round's judgement of a top surface and of what stands on it
-/// ([`super::unpack`]). Shares are of the part's footprint `n` unless said otherwise.
+/// ([`super::unpack`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Unpack {
