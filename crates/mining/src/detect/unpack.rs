@@ -208,7 +208,11 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     if waist {
         tracing::debug!(?rect, "an object held on a stem above the slab");
     }
-    if !slab && !waist && !top_carries(f, &s.raised, up.rim_texels, min_texels) {
+    // the footprint away from its rim band: a solid top is judged there, and the second
+    // round's colour window never reaches the band (edges of a table have colours of their
+    // own)
+    let inner = inner_footprint(f, up.rim_texels);
+    if !slab && !waist && !top_carries(&inner, &s.raised, up.rim_texels, min_texels) {
         return (Vec::new(), Some(hi));
     }
     // Every raised blob away from the rim seeds a second K-means (k = 2) on the colour
@@ -224,11 +228,7 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
         surface: &s,
         // the footprint's outline (the rim)
         ring: border_ring(f),
-        // the window never reaches the rim band (edges of a table have colours of their own)
-        interior: {
-            let e = inner_footprint(f, up.rim_texels);
-            Mask::from_fn(h, w, |r, c| e.get(r, c) || s.seeds.get(r, c))
-        },
+        interior: Mask::from_fn(h, w, |r, c| inner.get(r, c) || s.seeds.get(r, c)),
         taken: Mask { rows: h, cols: w, data: vec![false; h * w] },
     };
     let mut children = Vec::new();
@@ -247,9 +247,10 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
     (children, Some(hi))
 }
 
-/// Whether a solid body's top carries what rises from it (`raised`, over the footprint `f`):
-/// judged away from its rim band (`rim` texels), its free surface (nothing raised within
-/// `rim` texels of it, nor enclosed by what is raised over it) is one piece with room for
+/// Whether a solid body's top carries what rises from it (`raised`, over the part's box):
+/// judged away from its rim band (`judged`: the footprint eroded by `rim` texels), its free
+/// surface (nothing raised within `rim` texels of it, nor enclosed by what is raised over
+/// it) is one piece with room for
 /// the smallest object (`min_texels`). What stands on a top leaves the surface round it
 /// whole; what leaves no such piece covers the top (a chair's back over its seat); what cuts
 /// it in two spans the body and is its own shape (a car's cabin between its bonnet and its
@@ -262,10 +263,9 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
 /// kept coffee makers off the middle of side tables 30-35 texels across, two fifths of which
 /// is band; taken of the judged top, 0.0, 0.2 and 0.3 mined the basis and the fresh sets
 /// alike, 0.5 lost the coffee makers). No value of its own.
-fn top_carries(f: &Mask, raised: &Mask, rim: usize, min_texels: usize) -> bool {
-    let (h, w) = (f.rows, f.cols);
+fn top_carries(judged: &Mask, raised: &Mask, rim: usize, min_texels: usize) -> bool {
+    let (h, w) = (judged.rows, judged.cols);
     let min = min_texels.max(1);
-    let judged = inner_footprint(f, rim);
     // what is raised, with what it encloses over the judged top (a cabin's empty glass, a
     // basket's inside: no free surface; a lip round the rim encloses the whole top, and is
     // left as it is)
