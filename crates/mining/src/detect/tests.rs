@@ -533,6 +533,33 @@ fn what_stands_on_a_small_solid_top_is_found_where_it_leaves_room() {
 }
 
 #[test]
+fn what_stands_in_the_middle_of_a_narrow_solid_top_is_found_and_a_longer_cut_is_its_shape() {
+    // a solid counter 16 texels deep and 60 long (levels 2..=12): judged away from its rim
+    // band it is 10 deep, and the blurred fringe of a box 8 texels across on its middle
+    // reaches the band on both sides, cutting the free top in two parts of 200 texels; the
+    // box and its fringe take 140, less than either part: it stands on the counter
+    let counter = |c: (usize, usize)| {
+        let mut v = floor_volume(36, 80, 24);
+        fill(&mut v, (10, 26), (10, 70), (2, 13), 0.95);
+        fill(&mut v, (14, 22), c, (13, 20), 0.95);
+        v
+    };
+    let colour =
+        |c: std::ops::Range<usize>| painted(36, 80, (14..22, c), [0.1; 3], [0.8, 0.7, 0.5]);
+    assert_child_within_a_texel(
+        &counter((36, 44)),
+        &colour(36..44),
+        PixelRect::new(14, 36, 22, 44),
+    );
+    // 30 texels long, its fringe takes 360 texels of the top and leaves two parts of 90:
+    // the counter's own shape, as a car's cabin between its bonnet and its boot
+    assert_eq!(
+        rects(&detect_small(&counter((25, 55)), &colour(25..55))),
+        vec![PixelRect::new(10, 10, 26, 70)]
+    );
+}
+
+#[test]
 fn a_crate_covering_most_of_a_thin_slab_unpacks() {
     // a pallet: runners (levels 2..=3) under a deck (level 3), 1.0 x 1.2 m; a crate of
     // 0.8 x 0.8 m on it (levels 4..=19) covers 53% of it, with a 0.1 m margin
