@@ -281,8 +281,6 @@ fn top_carries(judged: &Mask, raised: &Mask, rim: usize, min_texels: usize) -> b
     // left as it is)
     let enclosed = fill_holes(&Mask::from_fn(h, w, |r, c| raised.get(r, c) && judged.get(r, c)));
     let covered = Mask::from_fn(h, w, |r, c| raised.get(r, c) || enclosed.get(r, c));
-    // the pieces of free surface off `blocked` and its blurred fringe, each with room for
-    // the smallest object
     // the free surface off what is covered and its blurred fringe; its pieces with room for
     // the smallest object, smallest first
     let near = dilate(&covered, rim).unwrap_or_else(|_| covered.clone());
