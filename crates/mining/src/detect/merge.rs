@@ -1,7 +1,8 @@
 //! Stage 5: merging. Fragments that a colour split cut out of one object (two halves of a
 //! chair's seat) merge again: their footprints touch, they reach the same height and their
 //! union is more convex than either fragment, or as convex as one object and as the less
-//! convex fragment. After unpacking, an object found twice (as a piece of the ground and
+//! convex fragment; three that touch merge by the same test where no two of them do (a
+//! table cut into a strip along its edge, a corner and the rest). After unpacking, an object found twice (as a piece of the ground and
 //! standing on its host) keeps only the second, and an object nested in or partly under a
 //! larger one leaves the larger one's own texels.
 
@@ -27,16 +28,26 @@ pub(super) fn fragments_merged(
     top_tol: usize,
     one_object_solidity: f32,
 ) -> Option<Part> {
-    let (ra, rb) = (a.rect, b.rect);
-    if a.kmax.abs_diff(b.kmax) > top_tol {
+    group_merged(&[a, b], top_tol, one_object_solidity)
+}
+
+/// [`fragments_merged`] for any number of parts: each touches another whose box it overlaps
+/// (the parts linked that way are one group), no two share a texel, all reach the same
+/// height, and their union is more convex than every one of them, or as convex as one object
+/// and as the least convex of them. A colour split can cut a table in three (a strip along
+/// its edge, a corner and the rest), no two of which complete each other alone.
+pub(super) fn group_merged(
+    parts: &[&Part],
+    top_tol: usize,
+    one_object_solidity: f32,
+) -> Option<Part> {
+    let (first, rest) = parts.split_first()?;
+    let kmax_hi = parts.iter().map(|p| p.kmax).max()?;
+    let kmax_lo = parts.iter().map(|p| p.kmax).min()?;
+    if kmax_hi - kmax_lo > top_tol {
         return None;
     }
-    let (r0, r1) = (ra.r0.max(rb.r0), ra.r1.min(rb.r1));
-    let (c0, c1) = (ra.c0.max(rb.c0), ra.c1.min(rb.c1));
-    if r0 >= r1 || c0 >= c1 {
-        return None;
-    }
-    let rect = ra.union(&rb);
+    let rect = rest.iter().fold(first.rect, |r, p| r.union(&p.rect));
     let (h, w) = (rect.rows(), rect.cols());
     let place = |p: &Part| {
         Mask::from_fn(h, w, |r, c| {
@@ -44,41 +55,65 @@ pub(super) fn fragments_merged(
             p.rect.contains(rr, cc) && p.footprint.get(rr - p.rect.r0, cc - p.rect.c0)
         })
     };
-    let (ma, mb) = (place(a), place(b));
-    // a texel in common is nesting (a stool under a table), not two fragments
-    if overlap(&ma, &mb) > 0 {
-        return None;
-    }
-    let touching = (0..h).any(|r| {
-        (0..w).any(|c| {
-            mb.get(r, c)
-                && !ma.get(r, c)
-                && [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)].iter().any(|&(dr, dc)| {
-                    let (nr, nc) = (r as isize + dr, c as isize + dc);
-                    nr >= 0 && nc >= 0 && ma.get(nr as usize, nc as usize)
+    let masks: Vec<Mask> = parts.iter().map(|p| place(p)).collect();
+    // linked: boxes that overlap and footprints that touch without a texel in common (a
+    // texel in common is nesting, a stool under a table, not two fragments)
+    let linked = |i: usize, j: usize| {
+        let (ra, rb) = (parts[i].rect, parts[j].rect);
+        let boxes = ra.r0.max(rb.r0) < ra.r1.min(rb.r1) && ra.c0.max(rb.c0) < ra.c1.min(rb.c1);
+        let (ma, mb) = (&masks[i], &masks[j]);
+        boxes
+            && (0..h).any(|r| {
+                (0..w).any(|c| {
+                    mb.get(r, c)
+                        && !ma.get(r, c)
+                        && [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)].iter().any(|&(dr, dc)| {
+                            let (nr, nc) = (r as isize + dr, c as isize + dc);
+                            nr >= 0 && nc >= 0 && ma.get(nr as usize, nc as usize)
+                        })
                 })
-        })
-    });
-    if !touching {
+            })
+    };
+    let n = parts.len();
+    for i in 0..n {
+        for j in i + 1..n {
+            if overlap(&masks[i], &masks[j]) > 0 {
+                return None;
+            }
+        }
+    }
+    // the group: every part reached through links from the first
+    let mut reached = vec![false; n];
+    reached[0] = true;
+    let mut grew = true;
+    while grew {
+        grew = false;
+        for j in 0..n {
+            if !reached[j] && (0..n).any(|i| reached[i] && linked(i, j)) {
+                reached[j] = true;
+                grew = true;
+            }
+        }
+    }
+    if reached.iter().any(|&r| !r) {
         return None;
     }
-    let union = Mask {
-        rows: h,
-        cols: w,
-        data: ma.data.iter().zip(&mb.data).map(|(x, y)| *x || *y).collect(),
-    };
+    let union = Mask::from_fn(h, w, |r, c| masks.iter().any(|m| m.get(r, c)));
     let union = fill_holes(&union);
     let solidity = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
-    let (s, sa, sb) = (solidity(&union), solidity(&a.footprint), solidity(&b.footprint));
-    tracing::debug!(?ra, ?rb, sa, sb, s, "fragments?");
-    // more convex than either fragment: they complete each other whatever the bound (a
+    let s = solidity(&union);
+    let each: Vec<f32> = parts.iter().map(|p| solidity(&p.footprint)).collect();
+    let (most, least) = each.iter().fold((f32::MIN, f32::MAX), |(a, b), &x| (a.max(x), b.min(x)));
+    tracing::debug!(rects = ?parts.iter().map(|p| p.rect).collect::<Vec<_>>(), ?each, s, "fragments?");
+    // more convex than every fragment: they complete each other whatever the bound (a
     // turned chest's lid and body, each ragged where the colour split ran, 0.80 / 0.82
-    // alone and 0.89 together); as convex as one object and as the less convex fragment
-    let complete = s >= sa.max(sb);
-    if !complete && (s < one_object_solidity || s < sa.min(sb)) {
+    // alone and 0.89 together); as convex as one object and as the least convex fragment
+    let complete = s >= most;
+    if !complete && (s < one_object_solidity || s < least) {
         return None;
     }
-    Some(Part { rect, footprint: union, kmin: a.kmin.min(b.kmin), kmax: a.kmax.max(b.kmax) })
+    let kmin = parts.iter().map(|p| p.kmin).min()?;
+    Some(Part { rect, footprint: union, kmin, kmax: kmax_hi })
 }
 
 /// Texels the footprints of two detections have in common.
@@ -140,16 +175,22 @@ pub fn drop_duplicates(detections: Vec<Detection>, tolerance: f32) -> Vec<Detect
 }
 
 /// Merge fragments of one object among the parts standing on the ground, until no pair
-/// merges ([`fragments_merged`]).
+/// merges ([`fragments_merged`]), then no three ([`group_merged`]: three parts that touch,
+/// none of whose pairs completes one object).
 pub(super) fn merge_fragments(cx: &Ctx, parts: &mut Vec<Part>) {
     let top_tol = cx.p.blur_levels.max(1);
     let one_object = cx.p.colour.max_part_solidity;
+    let boxes_meet = |a: &Part, b: &Part| {
+        let (ra, rb) = (a.rect, b.rect);
+        ra.r0.max(rb.r0) < ra.r1.min(rb.r1) && ra.c0.max(rb.c0) < ra.c1.min(rb.c1)
+    };
     let mut merged = true;
     while merged {
         merged = false;
+        let ground: Vec<bool> = parts.iter().map(|p| cx.on_ground(p.kmin)).collect();
         'pairs: for i in 0..parts.len() {
             for j in i + 1..parts.len() {
-                if !cx.on_ground(parts[i].kmin) || !cx.on_ground(parts[j].kmin) {
+                if !ground[i] || !ground[j] {
                     continue;
                 }
                 if let Some(m) = fragments_merged(&parts[i], &parts[j], top_tol, one_object) {
@@ -157,6 +198,33 @@ pub(super) fn merge_fragments(cx: &Ctx, parts: &mut Vec<Part>) {
                     parts.remove(j);
                     merged = true;
                     break 'pairs;
+                }
+            }
+        }
+        if merged {
+            continue;
+        }
+        'triples: for i in 0..parts.len() {
+            for j in i + 1..parts.len() {
+                for k in j + 1..parts.len() {
+                    if !(ground[i] && ground[j] && ground[k]) {
+                        continue;
+                    }
+                    let (a, b, c) = (&parts[i], &parts[j], &parts[k]);
+                    // one box meets both others (a quick test before the masks)
+                    let hub = [(a, b, c), (b, a, c), (c, a, b)]
+                        .iter()
+                        .any(|(h, x, y)| boxes_meet(h, x) && boxes_meet(h, y));
+                    if !hub {
+                        continue;
+                    }
+                    if let Some(m) = group_merged(&[a, b, c], top_tol, one_object) {
+                        parts[i] = m;
+                        parts.remove(k);
+                        parts.remove(j);
+                        merged = true;
+                        break 'triples;
+                    }
                 }
             }
         }

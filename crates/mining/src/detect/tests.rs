@@ -1,7 +1,7 @@
 //! Tests of the stages on synthetic opacity volumes (5 cm texels and levels, so "a box of
 //! six levels" is 0.3 m tall in the comments).
 
-use super::merge::fragments_merged;
+use super::merge::{fragments_merged, group_merged};
 use super::shape::{Part, is_thin};
 use super::split::stands;
 use super::unpack::{height_weights, normalised_axis};
@@ -668,6 +668,50 @@ fn part(r0: usize, c0: usize, rows: usize, cols: usize, f: impl Fn(usize, usize)
         kmin: 0,
         kmax: 5,
     }
+}
+
+#[test]
+fn three_fragments_of_one_object_merge_where_no_two_do() {
+    // a round table top (radius 10) cut into three sectors of 120 degrees: each is convex,
+    // any two make a shape with a wedge missing (solidity about 0.83), all three the disc
+    let sector = |k: usize| {
+        move |r: usize, c: usize| {
+            let (y, x) = (r as f32 - 10.0, c as f32 - 10.0);
+            let a = y.atan2(x).rem_euclid(std::f32::consts::TAU);
+            let third = std::f32::consts::TAU / 3.0;
+            x * x + y * y <= 100.0 && (a / third).floor() as usize % 3 == k
+        }
+    };
+    let (a, b, c) = (
+        part(5, 5, 21, 21, sector(0)),
+        part(5, 5, 21, 21, sector(1)),
+        part(5, 5, 21, 21, sector(2)),
+    );
+    let trim = |p: Part| {
+        let bb = p.footprint.bbox().unwrap();
+        let rect = PixelRect::new(
+            p.rect.r0 + bb.r0,
+            p.rect.c0 + bb.c0,
+            p.rect.r0 + bb.r1,
+            p.rect.c0 + bb.c1,
+        );
+        Part { rect, footprint: p.footprint.crop(bb).unwrap(), ..p }
+    };
+    let (a, b, c) = (trim(a), trim(b), trim(c));
+    for (x, y) in [(&a, &b), (&b, &c), (&a, &c)] {
+        assert!(fragments_merged(x, y, 1, 0.9).is_none());
+    }
+    let m = group_merged(&[&a, &b, &c], 1, 0.9).expect("the three merge");
+    assert_eq!(
+        m.footprint.count(),
+        a.footprint.count() + b.footprint.count() + c.footprint.count()
+    );
+    // three crates in a row: their boxes meet only where they touch, not overlapping
+    let crate_at = |c0: usize| part(0, c0, 8, 8, |_, _| true);
+    assert!(group_merged(&[&crate_at(0), &crate_at(8), &crate_at(16)], 1, 0.9).is_none());
+    // nor does a part that touches none of the others join them
+    let apart = part(40, 40, 5, 5, |_, _| true);
+    assert!(group_merged(&[&a, &b, &apart], 1, 0.9).is_none());
 }
 
 #[test]
