@@ -73,6 +73,12 @@ impl PixelRect {
         }
     }
 
+    /// Whether the two share a pixel (rectangles that only touch along an edge do not).
+    pub fn overlaps(&self, other: &PixelRect) -> bool {
+        self.r0.max(other.r0) < self.r1.min(other.r1)
+            && self.c0.max(other.c0) < self.c1.min(other.c1)
+    }
+
     /// Grow by `margin` pixels on every side, clipped to a `rows` x `cols` image.
     pub fn expand(&self, margin: usize, rows: usize, cols: usize) -> PixelRect {
         PixelRect {

@@ -2,9 +2,10 @@
 //! chair's seat) merge again: their footprints touch, they reach the same height and their
 //! union is more convex than either fragment, or as convex as one object and as the less
 //! convex fragment; three that touch merge by the same test where no two of them do (a
-//! table cut into a strip along its edge, a corner and the rest). After unpacking, an object found twice (as a piece of the ground and
-//! standing on its host) keeps only the second, and an object nested in or partly under a
-//! larger one leaves the larger one's own texels.
+//! table cut into a strip along its edge, a corner and the rest). After unpacking, an
+//! object found twice (as a piece of the ground and standing on its host) keeps only the
+//! second, and an object nested in or partly under a larger one leaves the larger one's own
+//! texels.
 
 use super::Detection;
 use super::context::Ctx;
@@ -59,10 +60,8 @@ pub(super) fn group_merged(
     // linked: boxes that overlap and footprints that touch without a texel in common (a
     // texel in common is nesting, a stool under a table, not two fragments)
     let linked = |i: usize, j: usize| {
-        let (ra, rb) = (parts[i].rect, parts[j].rect);
-        let boxes = ra.r0.max(rb.r0) < ra.r1.min(rb.r1) && ra.c0.max(rb.c0) < ra.c1.min(rb.c1);
         let (ma, mb) = (&masks[i], &masks[j]);
-        boxes
+        parts[i].rect.overlaps(&parts[j].rect)
             && (0..h).any(|r| {
                 (0..w).any(|c| {
                     mb.get(r, c)
@@ -180,10 +179,6 @@ pub fn drop_duplicates(detections: Vec<Detection>, tolerance: f32) -> Vec<Detect
 pub(super) fn merge_fragments(cx: &Ctx, parts: &mut Vec<Part>) {
     let top_tol = cx.p.blur_levels.max(1);
     let one_object = cx.p.colour.max_part_solidity;
-    let boxes_meet = |a: &Part, b: &Part| {
-        let (ra, rb) = (a.rect, b.rect);
-        ra.r0.max(rb.r0) < ra.r1.min(rb.r1) && ra.c0.max(rb.c0) < ra.c1.min(rb.c1)
-    };
     let mut merged = true;
     while merged {
         merged = false;
@@ -214,7 +209,7 @@ pub(super) fn merge_fragments(cx: &Ctx, parts: &mut Vec<Part>) {
                     // one box meets both others (a quick test before the masks)
                     let hub = [(a, b, c), (b, a, c), (c, a, b)]
                         .iter()
-                        .any(|(h, x, y)| boxes_meet(h, x) && boxes_meet(h, y));
+                        .any(|(h, x, y)| h.rect.overlaps(&x.rect) && h.rect.overlaps(&y.rect));
                     if !hub {
                         continue;
                     }

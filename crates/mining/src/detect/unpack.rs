@@ -1,10 +1,9 @@
 //! Stage 4: hierarchical unpacking (the paper's "repeat the clustering to unpack the scene",
 //! Fig. 4d). Inside every object, the top surface (a table top) is treated as background: if
 //! it is a thin slab (or a solid body's top whose free surface is whole round what rises
-//! from it: [`top_carries`])
-//! with something rising
-//! above it, every blob away from the rim that is opaque seen from above the surface's blur
-//! (the first round's evidence, with the surface as the floor) seeds a background
+//! from it: [`top_carries`]) with something rising above it, every blob away from the rim
+//! that is opaque seen from above the surface's blur (the first round's evidence, with the
+//! surface as the floor) seeds a background
 //! subtraction of the colour features around it (K-means on the distances to the surface's
 //! median colour; with S-AssetField's colour axis, the colours at the height of what stands
 //! there too: [`height_weights`]). What joins the seed must also rise off the surface (a
@@ -289,8 +288,9 @@ fn top_carries(judged: &Mask, raised: &Mask, rim: usize, min_texels: usize) -> b
         .map_or(Vec::new(), |(_, sizes)| sizes.into_iter().filter(|&z| z >= min).collect());
     pieces.sort_unstable();
     // what the judged top loses to what rises from it, fringe included
-    let blocked = judged.count() - free.count();
-    tracing::debug!(?pieces, blocked, judged = judged.count(), "the top's free surface");
+    let judged_n = judged.count();
+    let blocked = judged_n - free.count();
+    tracing::debug!(?pieces, blocked, judged = judged_n, "the top's free surface");
     match pieces.as_slice() {
         [] => false,
         [_] => true,
