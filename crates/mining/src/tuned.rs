@@ -227,11 +227,10 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             "group.copy_divergence",
             Grouping,
             o.group.copy_divergence,
-            "bits (JSD), the mean of colours and profiles",
+            "bits (JSD), colours and profiles each",
             "a detection is cut into copies of another only this alike; at 0.25 (the \
-             categories' separation, each term alone) random_6 lost 0.03-0.06 F1 and \
-             random_12 0.035 at 6000 iterations to false copies, and on 2026-12-06 \
-             random_1003 0.09 at 6000 to haze cut as vans",
+             categories' separation) random_6 lost 0.03-0.06 F1 and random_12 0.035 at 6000 \
+             iterations to false copies",
         ),
         entry(
             CONSTANT,
