@@ -23,8 +23,7 @@
 //!
 //! Lengths compare within
 //! [`GroupOptions::length_tolerance`](crate::group::GroupOptions::length_tolerance) (a log
-//! ratio), colours and profiles (Jensen-Shannon divergences, bits, their mean:
-//! [`copy_unlikeness`]) within
+//! ratio), colours and profiles (Jensen-Shannon divergences, bits) within
 //! [`GroupOptions::copy_divergence`](crate::group::GroupOptions::copy_divergence), and a
 //! region is tested for at most [`MAX_COPIES`] copies: the tuned values it uses. What it
 //! cannot tell apart is a single object that really is `k` times another (a long table
@@ -312,21 +311,6 @@ pub fn profile_jsd(a: &[f64], b: &[f64]) -> f64 {
     crate::histogram::jsd(&pad(a), &pad(b)).unwrap_or(1.0)
 }
 
-/// How unlike two regions are as copies of one object (bits): the mean of the divergence of
-/// their colours (label histograms) and that of their [`vertical_profile`]s. Each alone is
-/// the same object's within the copies' tolerance; together they vouch for each other. A
-/// renderer's lighting moves an object's colours as it turns (the Cycles-rendered filing
-/// cabinets and benches of the basis: colours 0.14-0.22 from their pairs, profiles under
-/// 0.02), where its profile is its geometry; haze cut like a van differs in both (colours
-/// 0.17, profile 0.10). Before, each term had to be within the tolerance on its own: two
-/// pairs of the basis with a lone copy were left whole (`blender_random_2015`,
-/// `blender_random_2027`: F1 0.951 -> 1.000, 0.857 -> 1.000); `random_1003` at 2000
-/// iterations cut one more haze region (0.466 -> 0.453); nothing else changed. Not a value:
-/// the mean of two measures on one scale.
-pub fn copy_unlikeness(colour_jsd: f64, profile_jsd: f64) -> f64 {
-    0.5 * (colour_jsd + profile_jsd) // fixed: the mean of two terms
-}
-
 /// Whether another free-standing detection is one copy of detection `i`: alike (`unlike`
 /// within `alike_tol`), its rectangle `i`'s and its area `i`'s (within `tol`, a log ratio).
 fn recurs(
@@ -459,22 +443,6 @@ pub fn split_copies(
 mod tests {
     use super::*;
     use crate::planes::PlaneGrid;
-
-    #[test]
-    fn a_turned_copy_passes_on_its_profile_and_haze_fails_on_both() {
-        let tol = crate::group::GroupOptions::default().copy_divergence;
-        // measured on the basis: a Cycles filing cabinet against its pair, a bench against
-        // its pair, and haze cut like a van
-        assert!(copy_unlikeness(0.183, 0.018) <= tol);
-        assert!(copy_unlikeness(0.139, 0.003) <= tol);
-        assert!(copy_unlikeness(0.168, 0.104) > tol);
-        // either term alone far off still fails: colours of another finish, a seat on legs
-        // against a solid block
-        assert!(copy_unlikeness(0.5, 0.0) > tol);
-        assert!(copy_unlikeness(0.0, 0.5) > tol);
-        // alike in both passes as before
-        assert!(copy_unlikeness(0.05, 0.05) <= tol);
-    }
 
     fn rect_mask(rows: usize, cols: usize, r0: usize, c0: usize, h: usize, w: usize) -> Mask {
         Mask::from_fn(rows, cols, |r, c| r >= r0 && r < r0 + h && c >= c0 && c < c0 + w)

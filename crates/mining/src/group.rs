@@ -101,11 +101,10 @@ pub struct GroupOptions {
     /// crates; a few potted flowers further still); from a cut of 0.35 up, distinct
     /// categories of the basis merge.
     pub min_separation: f64,
-    /// The most two copies of one object differ in colour and vertical profile (JSD in bits,
-    /// the mean of the two: [`crate::copies::copy_unlikeness`]): [`crate::copies`] cuts a
-    /// detection into copies of another only within it. Stricter than
-    /// [`Self::min_separation`]: a false copy is a false object, where a category split only
-    /// costs the grouping.
+    /// The most two copies of one object differ in colour or in vertical profile (JSD in
+    /// bits, each term alone): [`crate::copies`] cuts a detection into copies of another only
+    /// within it. Stricter than [`Self::min_separation`]: a false copy is a false object,
+    /// where a category split only costs the grouping.
     #[serde(default = "copy_divergence")]
     pub copy_divergence: f64,
     /// At most this many samples fit the K-means codebook (the rest are only labelled).

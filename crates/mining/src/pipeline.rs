@@ -18,9 +18,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::path::{Path, PathBuf};
 
 use crate::agglomerative::DistanceMatrix;
-use crate::copies::{
-    CopySplit, blurred, copy_unlikeness, profile_jsd, split_copies, vertical_profile,
-};
+use crate::copies::{CopySplit, blurred, profile_jsd, split_copies, vertical_profile};
 use crate::detect::{DetectParams, Detections, FloorBand, detect_with_color_axis};
 use crate::error::{MiningError, Result, check_interrupt};
 use crate::group::{GroupOptions, Grouping, Profiles, Samples, Shape, group_samples_profiled};
@@ -805,8 +803,8 @@ impl Context<'_> {
     }
 
     /// Group the detections; identical objects in contact (a detection that is k copies of
-    /// another, alike in colours and sharp vertical profile: [`copy_unlikeness`]) are split
-    /// into k objects first, and the grouping redone.
+    /// another, alike in colours and in the sharp vertical profile) are split into k objects
+    /// first, and the grouping redone.
     fn group(&self, dets: &mut Detections) -> Result<(Grouping, Vec<CopySplit>)> {
         let (mut grouping, sharp) = self.group_all(dets)?;
         let copies = if self.opts.group.split_copies {
@@ -814,10 +812,11 @@ impl Context<'_> {
             split_copies(
                 dets,
                 |i, j| {
-                    copy_unlikeness(
-                        grouping.jsd.get(i, j).unwrap_or(f64::INFINITY),
-                        profile_jsd(&sharp[i], &sharp[j]),
-                    )
+                    grouping
+                        .jsd
+                        .get(i, j)
+                        .unwrap_or(f64::INFINITY)
+                        .max(profile_jsd(&sharp[i], &sharp[j]))
                 },
                 g.copy_divergence,
                 g.length_tolerance,
