@@ -13,8 +13,11 @@
 //! second moments, [`footprint_rect`]) must then be `k` of `T`'s stacked along one of `T`'s
 //! sides and its footprint `k` times `T`'s, each within the grouping's tolerance of a
 //! length (the reconstruction noise between two instances of one object; sides also within
-//! one texel, the resolution they are measured at). `R` is cut across the stacking
-//! direction into `k` equal slabs, and each slab must again be `T`'s rectangle.
+//! one texel, the resolution they are measured at). Along the stacking, `k` copies in
+//! contact measure between `k` of `T`'s sides (rectangles) and `k` copies one reach of `T`
+//! apart (round objects: [`stacked_side`]). `R` is cut across the stacking direction into
+//! `k` equal slabs, and each slab must again be `T`'s rectangle; every way `R` fits is
+//! tried, best fit first, and the closest `T` whose cut fits is taken.
 //!
 //! The same premise keeps whole objects whole: a region whose own rectangle and look stand
 //! elsewhere too (four cars of one model) is that object, and is not cut into copies of a
@@ -95,8 +98,14 @@ pub fn footprint_rect(mask: &Mask, row0: usize, col0: usize) -> Option<Footprint
         hull_axis(mask, row0, col0).unwrap_or((1.0, 0.0))
     };
     let ((mu, len), (mv, wid)) = spread_along(mask, row0, col0, axis);
-    let opened = open(mask, 1).ok().filter(|m| m.count() > 0);
-    let body = opened.as_ref().unwrap_or(mask);
+    // opened with a margin of empty texels (a speck on the box's edge goes as one inside
+    // it does); the reach does not depend on where the mask lies
+    let (h, w) = (mask.rows, mask.cols);
+    let padded = Mask::from_fn(h + 2, w + 2, |r, c| {
+        r > 0 && c > 0 && r <= h && c <= w && mask.get(r - 1, c - 1)
+    });
+    let opened = open(&padded, 1).ok().filter(|m| m.count() > 0);
+    let body = opened.as_ref().unwrap_or(&padded);
     let perp = (-axis.1, axis.0);
     Some(FootprintRect {
         axis,
@@ -105,7 +114,7 @@ pub fn footprint_rect(mask: &Mask, row0: usize, col0: usize) -> Option<Footprint
         lo: mu - 0.5 * len,
         hi: mu + 0.5 * len,
         across: (mv - 0.5 * wid, mv + 0.5 * wid),
-        reach: (reach_along(body, row0, col0, axis), reach_along(body, row0, col0, perp)),
+        reach: (reach_along(body, 0, 0, axis), reach_along(body, 0, 0, perp)),
     })
 }
 
@@ -264,9 +273,10 @@ fn in_range(x: f64, lo: f64, hi: f64, tol: f64) -> bool {
 /// the stacking is `side` and whose reach there is `reach`, touching: the copies' centres lie
 /// one reach apart, which adds the variance of `k` evenly spaced points, `reach^2 (k^2 - 1)
 /// / 12`, to one copy's. For rectangles `k` times the side, as before; two discs side by
-/// side measure 1.94 of their diameter, 1.12 times twice a disc's side (two round bins in
-/// contact were 0.16 in log ratio longer than two of their lone copy's side, past the 0.15
-/// tolerance). The reach is at least the side (haze the opening leaves does not shorten it).
+/// side measure 1.94 of their diameter, 1.12 times twice a disc's side (0.11 in log ratio;
+/// with the field's fringe, two round bins in contact were 0.16 longer than two of their
+/// lone copy's sides, past the 0.15 tolerance). The reach is at least the side (haze the
+/// opening leaves does not shorten it).
 fn stacked_side(side: f64, reach: f64, k: usize) -> f64 {
     let kf = k as f64;
     (side * side + reach.max(side).powi(2) * (kf * kf - 1.0)).sqrt()
@@ -477,7 +487,7 @@ pub fn split_copies(
         for ti in (0..n).filter(|&t| t != ri) {
             let Some(tr) = rects[ti] else { continue };
             let colour = unlike(ri, ti);
-            if colour > alike_tol {
+            if colour.is_nan() || colour > alike_tol {
                 continue;
             }
             for k in 2..=MAX_COPIES {
@@ -643,6 +653,34 @@ mod tests {
         // for rectangles the stacked side is k times the side, as before
         assert!((stacked_side(10.0, 10.0, 3) - 30.0).abs() < 1e-9);
         assert!((stacked_side(6.0, 6.0, 1) - 6.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_square_pair_fits_both_ways_and_the_better_way_comes_first() {
+        // r: 11 along its axis, 12 across; t: 11 x 6. Two of t stacked across r (12 wide, 11
+        // long) fit exactly; stacked along r (12 long, 11 wide) they fit within a texel too,
+        // so both ways are tried, the exact one first
+        let rect = |len: f64, wid: f64, reach: (f64, f64)| FootprintRect {
+            axis: (1.0, 0.0),
+            len,
+            wid,
+            lo: 0.0,
+            hi: len,
+            across: (0.0, wid),
+            reach,
+        };
+        let (r, t) = (rect(11.0, 12.0, (11.0, 12.0)), rect(11.0, 6.0, (11.0, 6.0)));
+        assert_eq!(stacking(&r, &t, 2, 0.15), vec![false, true]);
+    }
+
+    #[test]
+    fn a_speck_does_not_reach() {
+        // a 10 x 7 block and a detached speck level with its middle, on the mask's edge
+        let mut m = rect_mask(9, 14, 1, 0, 7, 10);
+        m.set(4, 13, true);
+        let r = footprint_rect(&m, 0, 0).unwrap();
+        assert_eq!(r.axis, (1.0, 0.0));
+        assert_eq!(r.reach, (10.0, 7.0), "{r:?}");
     }
 
     #[test]
