@@ -100,10 +100,7 @@ pub fn footprint_rect(mask: &Mask, row0: usize, col0: usize) -> Option<Footprint
     let ((mu, len), (mv, wid)) = spread_along(mask, row0, col0, axis);
     // opened with a margin of empty texels (a speck on the box's edge goes as one inside
     // it does); the reach does not depend on where the mask lies
-    let (h, w) = (mask.rows, mask.cols);
-    let padded = Mask::from_fn(h + 2, w + 2, |r, c| {
-        r > 0 && c > 0 && r <= h && c <= w && mask.get(r - 1, c - 1)
-    });
+    let padded = mask.padded(1);
     let opened = open(&padded, 1).ok().filter(|m| m.count() > 0);
     let body = opened.as_ref().unwrap_or(&padded);
     let perp = (-axis.1, axis.0);
@@ -114,14 +111,14 @@ pub fn footprint_rect(mask: &Mask, row0: usize, col0: usize) -> Option<Footprint
         lo: mu - 0.5 * len,
         hi: mu + 0.5 * len,
         across: (mv - 0.5 * wid, mv + 0.5 * wid),
-        reach: (reach_along(body, 0, 0, axis), reach_along(body, 0, 0, perp)),
+        reach: (reach_along(body, axis), reach_along(body, perp)),
     })
 }
 
 /// From the first texel's edge to the last's along unit vector `dir`: the range of the set
 /// texels' centres plus one texel (0 for an empty mask).
-fn reach_along(mask: &Mask, row0: usize, col0: usize, dir: (f64, f64)) -> f64 {
-    let (lo, hi) = texel_centres(mask, row0, col0)
+fn reach_along(mask: &Mask, dir: (f64, f64)) -> f64 {
+    let (lo, hi) = texel_centres(mask, 0, 0)
         .map(|(x, y)| x * dir.0 + y * dir.1)
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), u| (a.min(u), b.max(u)));
     if hi >= lo { hi - lo + 1.0 } else { 0.0 } // fixed: one texel, the centres' own
@@ -236,21 +233,19 @@ fn stacking(r: &FootprintRect, t: &FootprintRect, k: usize, tol: f64) -> Vec<boo
     let (tl, tw) = t.sides();
     let (rl, rw) = t.reaches();
     let kf = k as f64;
-    // how far length x is from k copies of a side (0 within the range side..reach apart)
-    let off = |x: f64, side: f64, reach: f64| {
-        let (lo, hi) = (kf * side, stacked_side(side, reach, k));
-        if (lo..=hi).contains(&x) { 0.0 } else { log_ratio(x, lo).min(log_ratio(x, hi)) }
-    };
-    let stack_of =
-        |x: f64, side: f64, reach: f64| in_range(x, kf * side, stacked_side(side, reach, k), tol);
     let mut ways: Vec<(f64, bool)> = Vec::new();
     // k copies stacked across t's short side, or along its long side
     for ((side, reach), other) in [((tw, rw), tl), ((tl, rl), tw)] {
-        if stack_of(r.len, side, reach) && same_length(r.wid, other, tol) {
-            ways.push((off(r.len, side, reach) + log_ratio(r.wid, other), true));
+        let (lo, hi) = (kf * side, stacked_side(side, reach, k));
+        // how far length x is from the stack (0 within the range side..reach apart)
+        let off = |x: f64| {
+            if (lo..=hi).contains(&x) { 0.0 } else { log_ratio(x, lo).min(log_ratio(x, hi)) }
+        };
+        if in_range(r.len, lo, hi, tol) && same_length(r.wid, other, tol) {
+            ways.push((off(r.len) + log_ratio(r.wid, other), true));
         }
-        if stack_of(r.wid, side, reach) && same_length(r.len, other, tol) {
-            ways.push((off(r.wid, side, reach) + log_ratio(r.len, other), false));
+        if in_range(r.wid, lo, hi, tol) && same_length(r.len, other, tol) {
+            ways.push((off(r.wid) + log_ratio(r.len, other), false));
         }
     }
     ways.sort_by(|a, b| a.0.total_cmp(&b.0));

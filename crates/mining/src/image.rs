@@ -378,6 +378,15 @@ impl Mask {
         }
     }
 
+    /// The mask with `margin` unset pixels added on every side (a morphological operation
+    /// on it then treats the outside as empty, not as the edge of the image): pixel `(r, c)`
+    /// moves to `(r + margin, c + margin)`.
+    pub fn padded(&self, margin: usize) -> Mask {
+        Mask::from_fn(self.rows + 2 * margin, self.cols + 2 * margin, |r, c| {
+            r >= margin && c >= margin && self.get(r - margin, c - margin)
+        })
+    }
+
     /// Number of set pixels.
     pub fn count(&self) -> usize {
         self.data.iter().filter(|&&b| b).count()
@@ -509,6 +518,20 @@ impl LabelImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_padded_mask_keeps_its_pixels_inside_an_empty_margin() {
+        let m = Mask::from_fn(2, 3, |r, c| (r + c) % 2 == 0);
+        let p = m.padded(2);
+        assert_eq!((p.rows, p.cols), (6, 7));
+        assert_eq!(p.count(), m.count());
+        for r in 0..2 {
+            for c in 0..3 {
+                assert_eq!(p.get(r + 2, c + 2), m.get(r, c));
+            }
+        }
+        assert_eq!(m.padded(0), m);
+    }
 
     #[test]
     fn plane_shape_checked() {

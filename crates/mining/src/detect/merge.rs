@@ -81,14 +81,23 @@ pub(super) fn group_merged(
             }
         }
     }
-    // the group: every part reached through links from the first
+    // the group: every part reached through links from the first (each link tested once)
+    let mut links = vec![vec![false; n]; n];
+    for i in 0..n {
+        for j in i + 1..n {
+            // touching is mutual
+            let l = linked(i, j);
+            links[i][j] = l;
+            links[j][i] = l;
+        }
+    }
     let mut reached = vec![false; n];
     reached[0] = true;
     let mut grew = true;
     while grew {
         grew = false;
         for j in 0..n {
-            if !reached[j] && (0..n).any(|i| reached[i] && linked(i, j)) {
+            if !reached[j] && (0..n).any(|i| reached[i] && links[i][j]) {
                 reached[j] = true;
                 grew = true;
             }

@@ -165,9 +165,7 @@ pub(super) fn border_ring(mask: &Mask) -> Mask {
 /// texels), counting the image edge as background; capped at `cap`.
 pub(super) fn erosions_to_vanish(mask: &Mask, cap: usize) -> usize {
     // pad by one so that the image edge erodes too
-    let mut m = Mask::from_fn(mask.rows + 2, mask.cols + 2, |r, c| {
-        r > 0 && c > 0 && mask.get(r - 1, c - 1)
-    });
+    let mut m = mask.padded(1);
     let mut steps = 0;
     while m.count() > 0 && steps < cap {
         m = match erode(&m, 1) {
@@ -240,9 +238,7 @@ pub const SMOOTH_KEEP: [usize; 2] = [2, 3]; // tuned: detect.smooth_keep_share
 /// shape).
 pub(super) fn smooth(p: Part, min_texels: usize) -> Part {
     let (h, w) = (p.footprint.rows, p.footprint.cols);
-    let padded =
-        Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && p.footprint.get(r - 1, c - 1));
-    let Ok(opened) = crate::morphology::open(&padded, 1) else { return p };
+    let Ok(opened) = crate::morphology::open(&p.footprint.padded(1), 1) else { return p };
     let opened = Mask::from_fn(h, w, |r, c| opened.get(r + 1, c + 1));
     // keep the pieces of the opened footprint that are big enough
     let Ok(kept) = remove_small(&opened, min_texels.max(1)) else { return p };

@@ -281,20 +281,19 @@ fn top_carries(judged: &Mask, raised: &Mask, rim: usize, min_texels: usize) -> b
     let enclosed = fill_holes(&Mask::from_fn(h, w, |r, c| raised.get(r, c) && judged.get(r, c)));
     let covered = Mask::from_fn(h, w, |r, c| raised.get(r, c) || enclosed.get(r, c));
     // the free surface off what is covered and its blurred fringe; its pieces with room for
-    // the smallest object, smallest first
+    // the smallest object
     let near = dilate(&covered, rim).unwrap_or_else(|_| covered.clone());
     let free = Mask::from_fn(h, w, |r, c| judged.get(r, c) && !near.get(r, c));
-    let mut pieces: Vec<usize> = label_components_4(&free)
+    let pieces: Vec<usize> = label_components_4(&free)
         .map_or(Vec::new(), |(_, sizes)| sizes.into_iter().filter(|&z| z >= min).collect());
-    pieces.sort_unstable();
     // what the judged top loses to what rises from it, fringe included
     let judged_n = judged.count();
     let blocked = judged_n - free.count();
     tracing::debug!(?pieces, blocked, judged = judged_n, "the top's free surface");
-    match pieces.as_slice() {
-        [] => false,
-        [_] => true,
-        [smallest, ..] => blocked < *smallest,
+    match pieces.len() {
+        0 => false,
+        1 => true,
+        _ => pieces.iter().all(|&z| blocked < z),
     }
 }
 
@@ -633,8 +632,7 @@ fn seed_component(
     }
     let object = Mask::from_fn(h, w, |r, c| object.get(r, c) && win.contains(r, c));
     let comp = connected_to(&object, seed_px);
-    let padded = Mask::from_fn(h + 2, w + 2, |r, c| r > 0 && c > 0 && comp.get(r - 1, c - 1));
-    match crate::morphology::close(&padded, 1) {
+    match crate::morphology::close(&comp.padded(1), 1) {
         Ok(m) => Mask::from_fn(h, w, |r, c| m.get(r + 1, c + 1) && win.contains(r, c)),
         Err(_) => comp,
     }
