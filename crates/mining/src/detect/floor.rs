@@ -58,7 +58,11 @@ const SURFACE_TRANSMITTANCE: f32 = 0.5; // fixed: the middle
 /// under what stands on it, [`hidden_floor`]), raised while the next
 /// level up still holds [`FLOOR_STEP_SHARE`] of the columns of the level
 /// below it (a gently tilted or stepped floor spreads over a few levels; objects start
-/// much sparser). Seen from above, a slab's thickness, the opaque copies an undertrained
+/// much sparser), and raised to a higher level of the lower half that is on its own the
+/// surface of `floor_coverage` of the plane and of more columns than all the levels below
+/// together (the level most such columns see): a thick slab
+/// whose top the field left thin in places is seen through there, down to its bottom face,
+/// which can bring the count from the bottom to the coverage before the top. Seen from above, a slab's thickness, the opaque copies an undertrained
 /// field leaves below it and the haze it leaves above it do not move its top. The band
 /// starts at the lowest level where `floor_coverage` of the plane is opaque (0.5), or at
 /// the top. (Object evidence starts above the field's vertical blur over the top:
@@ -92,8 +96,25 @@ pub fn floor_on_surfaces(
         below as f32 >= need
             || (below > 0 && (below + hidden_floor(vol, surfaces, k)) as f32 >= need)
     })?;
-    while hi + 1 < half && count[hi + 1] as f32 >= FLOOR_STEP_SHARE * count[hi] as f32 {
-        hi += 1;
+    let step_up = |mut hi: usize| {
+        while hi + 1 < half && count[hi + 1] as f32 >= FLOOR_STEP_SHARE * count[hi] as f32 {
+            hi += 1;
+        }
+        hi
+    };
+    hi = step_up(hi);
+    // a level higher up that is on its own the surface of the share a floor needs, and of
+    // more columns than every level up to here together, is the floor's top: what is seen
+    // lower down is the slab seen through where the field left its top thin, down to its
+    // bottom face (a slab's inside is never seen, and the field leaves it empty). A table
+    // over a quarter of the plane is seen by fewer columns than the floor around it
+    let seen_below: usize = count[..=hi].iter().sum();
+    if let Some(k) = (hi + 1..half)
+        .filter(|&k| count[k] as f32 >= need && count[k] > seen_below)
+        .max_by_key(|&k| count[k])
+    {
+        tracing::debug!(from = hi, to = k, "the floor's top is a level seen on its own");
+        hi = step_up(k);
     }
     if hi + 1 > vol.nz / 2 {
         return None;

@@ -1106,6 +1106,35 @@ fn a_partial_floor_counts_what_stands_on_it() {
 }
 
 #[test]
+fn a_hollow_slab_seen_through_its_thin_top_has_its_top_as_the_floor() {
+    // a thick slab as a field leaves it: its bottom face at level 1 and its top at level 5,
+    // nothing inside (never seen), and the top left out along a network of lines every nine
+    // texels (21% of the plane sees the bottom face); three boxes on it. Counted from the
+    // bottom, the bottom face and the top's patches hidden by it (each bounded by the
+    // network, larger than itself) reach the coverage at level 1; the top is the surface
+    // of 79% of the plane on its own
+    let (rows, cols, nz) = (63, 81, 24);
+    let mut v = OpacityVolume::empty(rows, cols, nz, 0.05);
+    fill(&mut v, (0, rows), (0, cols), (1, 2), 0.95);
+    fill(&mut v, (0, rows), (0, cols), (5, 6), 0.95);
+    for r in (0..rows).step_by(9) {
+        fill(&mut v, (r, r + 1), (0, cols), (5, 6), 0.0);
+    }
+    for c in (0..cols).step_by(9) {
+        fill(&mut v, (0, rows), (c, c + 1), (5, 6), 0.0);
+    }
+    for c0 in [10, 38, 60] {
+        fill(&mut v, (20, 32), (c0, c0 + 12), (6, 12), 0.9);
+    }
+    let f = floor_band(&v, &params()).expect("the slab");
+    assert_eq!(f.hi, 5, "{f:?}");
+    let grid = PlaneGrid { cols, rows, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+    let color = PlaneImage::zeros(rows, cols, 3).unwrap();
+    let d = detect(&grid, &v, &color, None, &params()).unwrap();
+    assert_eq!(d.detections.len(), 3, "the boxes, not the slab: {:?}", d.detections);
+}
+
+#[test]
 fn a_lamp_on_a_side_table_is_held_on_a_stem() {
     // areas per level: a table body to level 10, its top's blur, a stem, a shade
     let mut area = vec![0usize; 30];
