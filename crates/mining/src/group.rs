@@ -113,6 +113,11 @@ pub struct GroupOptions {
     /// objects ([`crate::copies`]: identical objects in contact).
     #[serde(default = "yes")]
     pub split_copies: bool,
+    /// Join two categories whose members pair up one to one, each touching its partner in
+    /// the same placement, into one object per pair ([`crate::halves`]: a two-tone object
+    /// the colour split cut in two, every copy the same way).
+    #[serde(default = "yes")]
+    pub join_halves: bool,
     pub seed: u64,
 }
 
@@ -130,6 +135,7 @@ impl Default for GroupOptions {
             copy_divergence: copy_divergence(),
             max_samples: 40_000, // fixed: a sample budget (80,000 mined the same)
             split_copies: true,
+            join_halves: true,
             seed: crate::kmeans::DEFAULT_SEED,
         }
     }

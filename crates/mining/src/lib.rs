@@ -20,6 +20,7 @@ pub mod copies;
 pub mod detect;
 pub mod error;
 pub mod group;
+pub mod halves;
 pub mod histogram;
 pub mod image;
 pub mod kmeans;

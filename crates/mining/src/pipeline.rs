@@ -22,6 +22,7 @@ use crate::copies::{CopySplit, blurred, profile_jsd, split_copies, vertical_prof
 use crate::detect::{DetectParams, Detections, FloorBand, detect_with_color_axis};
 use crate::error::{MiningError, Result, check_interrupt};
 use crate::group::{GroupOptions, Grouping, Profiles, Samples, Shape, group_samples_profiled};
+use crate::halves::{JoinedHalves, join_halves};
 use crate::image::{Mask, PlaneImage};
 use crate::layout_out::{layout_script, script_text_checked};
 use crate::metrics::{Metrics, Predicted, evaluate};
@@ -77,6 +78,7 @@ impl MineOptions {
             o.group_on = GroupOn::Color;
             o.yaw_on = YawOn::Density;
             o.group.split_copies = false;
+            o.group.join_halves = false;
             o.group.profile_weight = 0.0;
             // the cut its baseline tables were measured with
             o.group.cut = crate::group::GroupCut::Silhouette;
@@ -160,6 +162,8 @@ pub struct MineReport {
     /// they became.
     pub copies_cut: usize,
     pub copies_pieces: usize,
+    /// Objects joined from two halves that recur together ([`crate::halves`]).
+    pub halves_joined: usize,
     pub categories: usize,
     /// Regions dropped as background, with reasons.
     pub removed: Vec<String>,
@@ -678,7 +682,7 @@ pub fn mine(
     let mut dets = cx.detect(field_path).map_err(off_the_ground)?;
     check_interrupt()?;
     progress.step(3, STEPS, "grouping into categories"); // fixed: progress step
-    let (grouping, copies) = cx.group(&mut dets).map_err(off_the_ground)?;
+    let (grouping, copies, halves) = cx.group(&mut dets).map_err(off_the_ground)?;
     check_interrupt()?;
     progress.step(4, STEPS, "matching templates (yaw)"); // fixed: progress step
     let (poses, pivots, margin) = cx.pose(&dets, &grouping).map_err(off_the_ground)?;
@@ -714,7 +718,7 @@ pub fn mine(
         write_metrics(dir, m, opts)?;
     }
     let removed = removed_lines(&dets);
-    cx.write_report(dir, &source, &found, &copies, &removed)?;
+    cx.write_report(dir, &source, &found, (&copies, &halves), &removed)?;
     check_interrupt()?;
     let out = staging.commit()?;
     Ok(MineReport {
@@ -724,6 +728,7 @@ pub fn mine(
         supported: dets.detections.iter().filter(|d| d.parent.is_some()).count(),
         copies_cut: copies.len(),
         copies_pieces: copies.iter().map(|c| c.pieces).sum(),
+        halves_joined: halves.len(),
         categories: grouping.n_categories,
         removed,
         floor: dets.floor.map(|f| f.z_top),
@@ -802,11 +807,24 @@ impl Context<'_> {
         Ok((grouping, sharp))
     }
 
-    /// Group the detections; identical objects in contact (a detection that is k copies of
-    /// another, alike in colours and in the sharp vertical profile) are split into k objects
-    /// first, and the grouping redone.
-    fn group(&self, dets: &mut Detections) -> Result<(Grouping, Vec<CopySplit>)> {
-        let (mut grouping, sharp) = self.group_all(dets)?;
+    /// Group the detections. Halves of one object that recur together (two categories
+    /// whose members pair up, touching alike) are joined, identical objects in contact (a
+    /// detection that is k copies of another, alike in colours and in the sharp vertical
+    /// profile) are split into k objects, and the grouping is redone after each.
+    fn group(
+        &self,
+        dets: &mut Detections,
+    ) -> Result<(Grouping, Vec<CopySplit>, Vec<JoinedHalves>)> {
+        let (mut grouping, mut sharp) = self.group_all(dets)?;
+        let halves = if self.opts.group.join_halves {
+            join_halves(dets, &grouping.category, self.opts.group.length_tolerance)
+        } else {
+            Vec::new()
+        };
+        if !halves.is_empty() {
+            tracing::debug!(?halves, "halves joined");
+            (grouping, sharp) = self.group_all(dets)?;
+        }
         let copies = if self.opts.group.split_copies {
             let g = &self.opts.group;
             split_copies(
@@ -827,7 +845,7 @@ impl Context<'_> {
         if !copies.is_empty() {
             grouping = self.group_all(dets)?.0;
         }
-        Ok((grouping, copies))
+        Ok((grouping, copies, halves))
     }
 
     /// Templates, every object's yaw and position against its template, turned about the
@@ -911,7 +929,7 @@ impl Context<'_> {
         dir: &Path,
         source: &str,
         found: &Found<'_>,
-        copies: &[CopySplit],
+        (copies, halves): (&[CopySplit], &[JoinedHalves]),
         removed: &[String],
     ) -> Result<()> {
         let Found { dets, grouping, .. } = *found;
@@ -931,6 +949,7 @@ impl Context<'_> {
             "removed_as_background": removed,
             "removed": dets.removed,
             "copies_split": copies,
+            "halves_joined": halves,
             "detect_preset": self.opts.detect.preset.name(),
             "categories": grouping.n_categories,
             "cut": grouping.cut,

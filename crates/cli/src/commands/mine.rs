@@ -157,6 +157,11 @@ pub struct MineArgs {
     /// --preset paper.
     #[arg(long)]
     pub no_copies: bool,
+    /// Do not join two categories whose members pair up one to one, each touching its
+    /// partner in the same placement, into one object per pair (a two-tone object that the
+    /// colour split cut in two, every copy the same way). Off with --preset paper.
+    #[arg(long)]
+    pub no_halves: bool,
     /// Number of labels the grouping features are discretised into (K-means over the
     /// objects' texels or voxels, weighted by opacity).
     #[arg(long, default_value_t = assetfield_mining::group::GroupOptions::default().labels)]
@@ -376,6 +381,9 @@ pub fn mine(a: MineArgs) -> Result<()> {
     if a.no_copies {
         o.group.split_copies = false;
     }
+    if a.no_halves {
+        o.group.join_halves = false;
+    }
     if let Some(on) = a.detect_on {
         o.detect.on = on.choice();
     }
@@ -456,8 +464,12 @@ pub fn mine(a: MineArgs) -> Result<()> {
             r.copies_pieces
         ),
     };
+    let halves = match r.halves_joined {
+        0 => String::new(),
+        n => format!(", {n} joined from two halves"),
+    };
     println!(
-        "mined {} objects ({} standing on others{copies}) in {} categories from {} ({}-assetfield) in {:.1}s",
+        "mined {} objects ({} standing on others{copies}{halves}) in {} categories from {} ({}-assetfield) in {:.1}s",
         r.detections,
         r.supported,
         r.categories,
