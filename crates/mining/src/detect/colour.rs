@@ -1,8 +1,8 @@
 //! Stage 3c: separating touching objects of different colour: pieces of a K-means (k = 3)
 //! on the colour plane's principal components that stand on the ground, differ clearly in
-//! colour, share at most half their outline with the rest, leave a rest that stands too,
-//! and come from a concave region (a sofa against an armchair, stools against a bar) become
-//! objects.
+//! colour, share at most half their outline with the rest, leave a rest that stands too
+//! and is at least as convex as the part, and come from a concave region (a sofa against
+//! an armchair, stools against a bar) become objects.
 
 use super::context::Ctx;
 use super::shape::{Part, fill_holes, is_thin, more_than, or_into};
@@ -172,6 +172,15 @@ fn split_once(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Result<Vec<Part>, Part>
     if !cx.stands(rect, &rest) {
         return Err(part);
     }
+    // and what stays must be at least as convex as the part: a split that separates
+    // touching objects straightens the concave outline they make together, where one that
+    // follows an object's own colours (a sofa's arms and back against its seat, with a
+    // chair pushed against it) leaves a rest as concave as before, or more. Not tuned: the
+    // part's own convexity
+    if solidity(&fill_holes(&rest)) < solidity(f) {
+        tracing::debug!(?rect, "a colour split leaving a rest less convex than the part");
+        return Err(part);
+    }
     let (kmin, kmax) = (part.kmin, part.kmax);
     Ok(accepted
         .iter()
@@ -313,8 +322,7 @@ fn stands_apart(cx: &Ctx, t: &PartTexels, f: &Mask, piece: &Mask) -> bool {
     let d2: f32 = ma.iter().zip(&mb).map(|(a, b)| (a - b) * (a - b)).sum();
     let contrast = d2 / (0.5 * (va + vb)).max(1e-6);
     // touching objects make a concave outline that the split straightens
-    let solid = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
-    let s_all = solid(f);
+    let s_all = solidity(f);
     let rect = t.rect;
     tracing::debug!(
         ?rect,
@@ -333,4 +341,9 @@ fn stands_apart(cx: &Ctx, t: &PartTexels, f: &Mask, piece: &Mask) -> bool {
         || contrast < cx.p.colour_contrast
         || s_all > cx.p.colour.max_part_solidity
         || is_thin(piece, thin))
+}
+
+/// A footprint's solidity: its area over its convex hull's.
+fn solidity(m: &Mask) -> f32 {
+    m.count() as f32 / crate::group::hull_area(m).max(1.0)
 }

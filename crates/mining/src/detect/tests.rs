@@ -408,6 +408,22 @@ fn neighbours_of_one_height_and_different_colours_separate() {
 }
 
 #[test]
+fn a_colour_split_along_an_object_s_own_colours_is_not_made() {
+    // a two-tone sofa (its back, rows 0..8, in one colour; its seat, rows 8..16, in another)
+    // with a chair of the seat's colour pushed against its front: the region is concave
+    // (0.86), and the back differs in colour, stands, and shares under half its outline.
+    // Cut off, it would leave the seat and the chair, less convex (0.78) than the whole: the
+    // cut follows the sofa's colours, not two objects, and is not made
+    let (rows, cols) = (40, 50);
+    let mut v = floor_volume(rows, cols, 20);
+    fill(&mut v, (10, 26), (10, 40), (2, 10), 0.95);
+    fill(&mut v, (26, 34), (21, 29), (2, 10), 0.95);
+    let color = painted(rows, cols, (10..18, 10..40), [0.9, 0.6, 0.2], [0.2, 0.4, 0.6]);
+    let d = detect_small(&v, &color);
+    assert_eq!(rects(&d), vec![PixelRect::new(10, 10, 34, 40)], "{:?}", d.removed);
+}
+
+#[test]
 fn a_convex_object_with_a_coloured_inside_stays_whole() {
     let (rows, cols) = (40, 60);
     let mut v = floor_volume(rows, cols, 20);
