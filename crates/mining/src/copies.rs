@@ -562,41 +562,7 @@ mod tests {
         assert!(footprint_rect(&Mask::from_fn(3, 3, |_, _| false), 0, 0).is_none());
     }
 
-    fn detection(id: usize, grid: &PlaneGrid, full: &Mask) -> Detection {
-        let rect = full.bbox().unwrap();
-        let footprint = full.crop(rect).unwrap();
-        Detection {
-            id,
-            rect,
-            own: footprint.clone(),
-            area: footprint.count() as f32,
-            footprint,
-            world: grid.rect_to_world(rect),
-            base: 0.0,
-            top: 1.0,
-            shape_top: 1.0,
-            parent: None,
-            children: Vec::new(),
-        }
-    }
-
-    fn scene(masks: &[Mask]) -> Detections {
-        let (rows, cols) = (masks[0].rows, masks[0].cols);
-        let grid = PlaneGrid { rows, cols, origin: [0.0, 0.0], texel: [1.0, 1.0] };
-        Detections {
-            grid,
-            floor: None,
-            start_level: 0,
-            ground_level: 0,
-            threshold: 0.5,
-            voxel_threshold: 0.5,
-            blur_levels: 3,
-            evidence: vec![1.0; rows * cols],
-            mask: Mask::from_fn(rows, cols, |r, c| masks.iter().any(|m| m.get(r, c))),
-            detections: masks.iter().enumerate().map(|(i, m)| detection(i, &grid, m)).collect(),
-            removed: Vec::new(),
-        }
-    }
+    use crate::test_support::{detection, scene};
 
     #[test]
     fn two_copies_end_to_end_are_cut_in_two_and_a_long_object_of_other_colours_is_not() {

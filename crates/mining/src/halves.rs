@@ -230,49 +230,20 @@ pub fn join_halves(det: &mut Detections, category: &[usize], tol: f64) -> Vec<Jo
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::planes::PlaneGrid;
 
     fn block(rows: usize, cols: usize, r0: usize, c0: usize, h: usize, w: usize) -> Mask {
         Mask::from_fn(rows, cols, |r, c| r >= r0 && r < r0 + h && c >= c0 && c < c0 + w)
     }
 
+    /// [`crate::test_support::scene`] with detection `i`'s top at `i + 0.5` (the join keeps
+    /// the higher).
     fn scene(masks: &[Mask]) -> Detections {
-        let (rows, cols) = (masks[0].rows, masks[0].cols);
-        let grid = PlaneGrid { rows, cols, origin: [0.0, 0.0], texel: [1.0, 1.0] };
-        let detections = masks
-            .iter()
-            .enumerate()
-            .map(|(id, m)| {
-                let rect = m.bbox().unwrap();
-                let footprint = m.crop(rect).unwrap();
-                Detection {
-                    id,
-                    rect,
-                    own: footprint.clone(),
-                    area: footprint.count() as f32,
-                    footprint,
-                    world: grid.rect_to_world(rect),
-                    base: 0.0,
-                    top: 0.5 + id as f32,
-                    shape_top: 0.5 + id as f32,
-                    parent: None,
-                    children: Vec::new(),
-                }
-            })
-            .collect();
-        Detections {
-            grid,
-            floor: None,
-            start_level: 0,
-            ground_level: 0,
-            threshold: 0.5,
-            voxel_threshold: 0.5,
-            blur_levels: 3,
-            evidence: vec![1.0; rows * cols],
-            mask: Mask::from_fn(rows, cols, |r, c| masks.iter().any(|m| m.get(r, c))),
-            detections,
-            removed: Vec::new(),
+        let mut det = crate::test_support::scene(masks);
+        for (i, d) in det.detections.iter_mut().enumerate() {
+            d.top = 0.5 + i as f32;
+            d.shape_top = d.top;
         }
+        det
     }
 
     /// Two chairs cut into a seat (6 x 8) and a back (3 x 8) each, one upright and one

@@ -37,6 +37,8 @@ pub mod pose;
 pub mod regroup;
 mod rng;
 pub mod rotate;
+#[cfg(test)]
+mod test_support;
 pub mod tuned;
 pub mod yaw;
 
