@@ -5,7 +5,7 @@
 //! an armchair, stools against a bar) become objects.
 
 use super::context::Ctx;
-use super::shape::{Part, fill_holes, is_thin, more_than, or_into};
+use super::shape::{Part, fill_holes, is_thin, more_than, or_into, solidity};
 use super::split::{geodesic_assign, lowest_level};
 use crate::image::{Mask, PixelRect, PlaneImage};
 use crate::kmeans::{KMeansOptions, kmeans};
@@ -341,9 +341,4 @@ fn stands_apart(cx: &Ctx, t: &PartTexels, f: &Mask, piece: &Mask) -> bool {
         || contrast < cx.p.colour_contrast
         || s_all > cx.p.colour.max_part_solidity
         || is_thin(piece, thin))
-}
-
-/// A footprint's solidity: its area over its convex hull's.
-fn solidity(m: &Mask) -> f32 {
-    m.count() as f32 / crate::group::hull_area(m).max(1.0)
 }

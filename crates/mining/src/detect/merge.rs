@@ -9,7 +9,7 @@
 
 use super::Detection;
 use super::context::Ctx;
-use super::shape::{Part, fill_holes, overlap};
+use super::shape::{Part, fill_holes, overlap, solidity};
 use crate::image::Mask;
 
 /// Whether two parts on the ground are fragments of one object, and if so the merged part:
@@ -108,7 +108,6 @@ pub(super) fn group_merged(
     }
     let union = Mask::from_fn(h, w, |r, c| masks.iter().any(|m| m.get(r, c)));
     let union = fill_holes(&union);
-    let solidity = |m: &Mask| m.count() as f32 / crate::group::hull_area(m).max(1.0);
     let s = solidity(&union);
     let each: Vec<f32> = parts.iter().map(|p| solidity(&p.footprint)).collect();
     let (most, least) = each.iter().fold((f32::MIN, f32::MAX), |(a, b), &x| (a.max(x), b.min(x)));

@@ -316,3 +316,9 @@ pub(super) fn region_columns(regions: &[crate::contours::Region], ri: usize) -> 
     }
     cols
 }
+
+/// A footprint's solidity: its area over its convex hull's (1 for a convex footprint; two
+/// objects side by side, or one object with an arm sticking out, read less).
+pub(super) fn solidity(m: &Mask) -> f32 {
+    m.count() as f32 / crate::group::hull_area(m).max(1.0)
+}
