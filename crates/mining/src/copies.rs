@@ -172,7 +172,11 @@ fn spread_along(
 
 /// The plane coordinates `(x, y)` = `(col, row)` of the centres of the set texels of `mask`
 /// placed at `(row0, col0)`.
-fn texel_centres(mask: &Mask, row0: usize, col0: usize) -> impl Iterator<Item = (f64, f64)> + '_ {
+pub(crate) fn texel_centres(
+    mask: &Mask,
+    row0: usize,
+    col0: usize,
+) -> impl Iterator<Item = (f64, f64)> + '_ {
     (0..mask.rows).flat_map(move |r| {
         (0..mask.cols)
             .filter(move |&c| mask.get(r, c))

@@ -14,6 +14,7 @@
 //! and anything with objects standing on it or standing on another (its own texels are
 //! judged by the second round, which a join would have to redo).
 
+use crate::copies::texel_centres;
 use crate::detect::{Detection, Detections, fill_holes};
 use crate::image::{Mask, PixelRect};
 
@@ -65,19 +66,11 @@ fn touching(a: &Detection, b: &Detection) -> bool {
     touch
 }
 
-/// Centroid of a footprint, in plane texels `(row, col)`.
+/// Centroid of a footprint, in plane coordinates `(x, y)` ([`texel_centres`]).
 fn centroid(d: &Detection) -> (f64, f64) {
-    let (mut sr, mut sc, mut n) = (0.0, 0.0, 0.0);
-    for r in 0..d.rect.rows() {
-        for c in 0..d.rect.cols() {
-            if d.footprint.get(r, c) {
-                sr += (d.rect.r0 + r) as f64;
-                sc += (d.rect.c0 + c) as f64;
-                n += 1.0;
-            }
-        }
-    }
-    if n == 0.0 { (0.0, 0.0) } else { (sr / n, sc / n) }
+    let (sx, sy, n) = texel_centres(&d.footprint, d.rect.r0, d.rect.c0)
+        .fold((0.0, 0.0, 0.0), |(sx, sy, n), (x, y)| (sx + x, sy + y, n + 1.0));
+    if n == 0.0 { (0.0, 0.0) } else { (sx / n, sy / n) }
 }
 
 /// The union of two detections' footprints over their joint box, holes filled.
@@ -93,9 +86,9 @@ fn union_mask(a: &Detection, b: &Detection) -> (PixelRect, Mask) {
 /// How far apart two touching halves lie, scale-free: the distance between their
 /// centroids over the side of a square of their joint area.
 fn spacing(a: &Detection, b: &Detection) -> f64 {
-    let ((ra, ca), (rb, cb)) = (centroid(a), centroid(b));
+    let ((xa, ya), (xb, yb)) = (centroid(a), centroid(b));
     let n = (a.footprint.count() + b.footprint.count()).max(1) as f64;
-    ((ra - rb).powi(2) + (ca - cb).powi(2)).sqrt() / n.sqrt()
+    (xa - xb).hypot(ya - yb) / n.sqrt()
 }
 
 /// The pairs of two categories that are halves of one object, or `None`: as many members
