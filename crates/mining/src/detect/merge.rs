@@ -2,7 +2,8 @@
 //! chair's seat) merge again: their footprints touch, they reach the same height and their
 //! union is more convex than either fragment, or as convex as one object and as the less
 //! convex fragment; three that touch merge by the same test where no two of them do (a
-//! table cut into a strip along its edge, a corner and the rest). After unpacking, an
+//! table cut into a strip along its edge, a corner and the rest); two hollow objects, each
+//! round an inside of its own, do not. After unpacking, an
 //! object found twice (as a piece of the ground and standing on its host) keeps only the
 //! second, and an object nested in or partly under a larger one leaves the larger one's own
 //! texels.
@@ -183,17 +184,25 @@ pub fn drop_duplicates(detections: Vec<Detection>, tolerance: f32) -> Vec<Detect
 
 /// Merge fragments of one object among the parts standing on the ground, until no pair
 /// merges ([`fragments_merged`]), then no three ([`group_merged`]: three parts that touch,
-/// none of whose pairs completes one object).
-pub(super) fn merge_fragments(cx: &Ctx, parts: &mut Vec<Part>) {
+/// none of whose pairs completes one object). An object has one inside: two parts that each
+/// enclose one in the first-round `mask` ([`super::split::encloses_an_inside`]) are two
+/// hollow objects, however convex their union (vans parked side by side).
+pub(super) fn merge_fragments(cx: &Ctx, mask: &Mask, parts: &mut Vec<Part>) {
     let top_tol = cx.p.blur_levels.max(1);
     let one_object = cx.p.colour.max_part_solidity;
     let mut merged = true;
     while merged {
         merged = false;
         let ground: Vec<bool> = parts.iter().map(|p| cx.on_ground(p.kmin)).collect();
+        // an object has one inside: parts that each enclose one are hollow objects apart
+        let inside: Vec<bool> = parts
+            .iter()
+            .map(|p| super::split::encloses_an_inside(p, mask, cx.min_texels))
+            .collect();
+        let two_insides = |ids: &[usize]| ids.iter().filter(|&&i| inside[i]).count() > 1;
         'pairs: for i in 0..parts.len() {
             for j in i + 1..parts.len() {
-                if !ground[i] || !ground[j] {
+                if !ground[i] || !ground[j] || two_insides(&[i, j]) {
                     continue;
                 }
                 if let Some(m) = fragments_merged(&parts[i], &parts[j], top_tol, one_object) {
@@ -210,7 +219,7 @@ pub(super) fn merge_fragments(cx: &Ctx, parts: &mut Vec<Part>) {
         'triples: for i in 0..parts.len() {
             for j in i + 1..parts.len() {
                 for k in j + 1..parts.len() {
-                    if !(ground[i] && ground[j] && ground[k]) {
+                    if !(ground[i] && ground[j] && ground[k]) || two_insides(&[i, j, k]) {
                         continue;
                     }
                     let (a, b, c) = (&parts[i], &parts[j], &parts[k]);

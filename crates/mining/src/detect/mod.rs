@@ -182,7 +182,7 @@ pub fn detect_with_color_axis(
         let mask = walls::remove_walls(&cx, mask, &mut removed)?;
         let mut parts = parts_of_regions(&cx, &mask, &mut removed)?;
         if params.stages.merge_fragments {
-            merge::merge_fragments(&cx, &mut parts);
+            merge::merge_fragments(&cx, &mask, &mut parts);
         }
         let detections = assemble::assemble(&cx, &parts, unpack::unpack)?;
         let mut detections = if params.filters.duplicates {

@@ -412,14 +412,18 @@ fn shared_borders(pieces: &[Mask], f: usize) -> Vec<usize> {
 /// contact: vans whose roofs the field left transparent, their sides fused where they
 /// touch). A hole of the region (`holes`, over its box, inside `region`: what it encloses,
 /// specks of haze there included, without the regions nested in it) is the inside of a
-/// hollow object when it reaches farther from its edge than the object's walls
-/// are thick (its inradius, texels, at least the median distance from the texels around it
-/// to the outside of the region): gaps in a faint table top are narrow beside the top
-/// around them. Each such enclosure with its shell (the texels geodesically nearest to it,
-/// within its walls' thickness) is one piece; what the shells leave is a piece of its own
-/// where it has a body (an object touching them) and joins the nearest shell where it has
-/// none (strips of haze and wall). A region with fewer than two enclosures is returned
-/// whole.
+/// hollow object when it holds the smallest object ([`holds_an_object`]) and reaches farther
+/// from its edge than the object's walls are thick: its inradius (texels) at least the
+/// median distance from the texels around it to the outside of the region. Gaps in a faint
+/// table top are narrow beside the top around them. A hole whose walls reach the outside
+/// only through its neighbours (a van parked between two others, haze on its free sides) is
+/// judged after those found so: within its cell (the texels geodesically nearer to it than
+/// to any other hole, so that a wall two holes share counts half to each), against walls no
+/// thinner than the thickest of theirs. Each enclosure with its shell (the texels
+/// geodesically nearest to it, within its walls' thickness) is one piece; what the shells
+/// leave is a piece of its own where it has a body (an object touching them) and joins the
+/// nearest shell where it has none (strips of haze and wall). A region with fewer than two
+/// enclosures is returned whole.
 pub(super) fn split_enclosures(cx: &Ctx, region: &Mask, holes: &Mask) -> Vec<Mask> {
     let (h, w) = (region.rows, region.cols);
     let whole = || vec![region.clone()];
@@ -429,25 +433,61 @@ pub(super) fn split_enclosures(cx: &Ctx, region: &Mask, holes: &Mask) -> Vec<Mas
     let Ok((labels, sizes)) = crate::contours::label_components_4(holes) else {
         return whole();
     };
-    let out_dist = distance_to_outside(region);
-    let mut enclosures: Vec<(Mask, usize)> = Vec::new();
-    for l in (0..sizes.len()).filter(|&l| sizes[l] >= cx.min_texels) {
-        let hole = Mask { rows: h, cols: w, data: labels.iter().map(|&x| x == l as u32).collect() };
-        // the walls' thickness: the median distance to the outside around the hole
-        let mut around: Vec<usize> = (0..h * w)
+    let candidates: Vec<Mask> = (0..sizes.len())
+        .filter(|&l| sizes[l] >= cx.min_texels)
+        .map(|l| Mask { rows: h, cols: w, data: labels.iter().map(|&x| x == l as u32).collect() })
+        .collect();
+    // the texels around a hole (8-neighbours in the region, in no hole)
+    let around = |hole: &Mask| -> Vec<usize> {
+        (0..h * w)
             .filter(|&i| {
                 region.data[i]
                     && !holes.data[i]
                     && neighbours8(i / w, i % w, h, w).any(|j| hole.data[j])
             })
-            .map(|i| out_dist[i])
-            .collect();
-        around.sort_unstable();
-        let thickness = around.get(around.len() / 2).copied().unwrap_or(0);
-        let inradius = distance_to_outside(&hole).into_iter().max().unwrap_or(0);
-        tracing::trace!(texels = sizes[l], inradius, thickness, "empty hole");
-        if inradius >= thickness {
+            .collect()
+    };
+    let median = |mut v: Vec<usize>| {
+        v.sort_unstable();
+        v.get(v.len() / 2).copied().unwrap_or(0)
+    };
+    let inradius = |hole: &Mask| distance_to_outside(hole).into_iter().max().unwrap_or(0);
+    // first, each hole on its own: the walls' thickness is the median distance around it
+    // to the outside of the region
+    let out_dist = distance_to_outside(region);
+    let mut enclosures: Vec<(Mask, usize)> = Vec::new();
+    let mut left: Vec<Mask> = Vec::new();
+    for hole in candidates {
+        let thickness = median(around(&hole).into_iter().map(|i| out_dist[i]).collect());
+        let r = inradius(&hole);
+        tracing::trace!(texels = hole.count(), inradius = r, thickness, "empty hole");
+        if !holds_an_object(r, cx.min_texels) {
+            continue;
+        }
+        if r >= thickness {
             enclosures.push((hole, thickness));
+        } else {
+            left.push(hole);
+        }
+    }
+    // then the holes whose walls reach the outside only through their neighbours: each
+    // judged within its cell, against walls no thinner than those of the insides found on
+    // their own
+    let walls = enclosures.iter().map(|e| e.1).max();
+    if let (Some(walls), false) = (walls, left.is_empty()) {
+        let n_found = enclosures.len();
+        let seeds: Vec<Mask> =
+            enclosures.iter().map(|e| e.0.clone()).chain(left.iter().cloned()).collect();
+        let cell_of = geodesic_assign(region, &seeds);
+        for (l, hole) in left.into_iter().enumerate() {
+            let cell = Mask::from_fn(h, w, |r, c| cell_of[r * w + c] == Some(n_found + l));
+            let cell_dist = distance_to_outside(&cell);
+            let thickness = median(around(&hole).into_iter().map(|i| cell_dist[i]).collect());
+            let r = inradius(&hole);
+            tracing::trace!(texels = hole.count(), inradius = r, thickness, walls, "fused hole");
+            if r >= thickness.max(walls) {
+                enclosures.push((hole, thickness));
+            }
         }
     }
     if enclosures.len() < 2 {
@@ -482,6 +522,52 @@ pub(super) fn split_enclosures(cx: &Ctx, region: &Mask, holes: &Mask) -> Vec<Mas
         .map(|k| Mask { rows: h, cols: w, data: owner.iter().map(|&o| o == Some(k)).collect() })
         .filter(|m| m.count() > 0)
         .collect()
+}
+
+/// Whether a hole whose inradius (chessboard texels) is `inradius` holds the smallest object
+/// (`min_texels`): the square it holds, side `2 inradius - 1`, covers at least that. A
+/// hollow object's inside is as large as an object; a gap in a faint top is narrower.
+pub(super) fn holds_an_object(inradius: usize, min_texels: usize) -> bool {
+    (2 * inradius).saturating_sub(1).pow(2) >= min_texels
+}
+
+/// Whether `part`'s footprint encloses an empty inside: texels that the first-round `mask`
+/// leaves empty, out of reach of the footprint's outside (4-neighbours), in a hole that
+/// [`holds_an_object`]. A hollow object's own inside: a piece that a colour split cut out of
+/// one object encloses none of it.
+pub(super) fn encloses_an_inside(part: &Part, mask: &Mask, min_texels: usize) -> bool {
+    let (h, w, rect) = (part.rect.rows(), part.rect.cols(), part.rect);
+    let empty =
+        Mask::from_fn(h, w, |r, c| part.footprint.get(r, c) && !mask.get(rect.r0 + r, rect.c0 + c));
+    let Ok((labels, sizes)) = crate::contours::label_components_4(&empty) else {
+        return false;
+    };
+    let mut open = vec![false; sizes.len()];
+    for r in 0..h {
+        for c in 0..w {
+            let l = labels[r * w + c];
+            if l == u32::MAX {
+                continue;
+            }
+            let edge = r == 0 || c == 0 || r + 1 == h || c + 1 == w;
+            let outside = [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)].iter().any(|&(dr, dc)| {
+                let (nr, nc) = (r as isize + dr, c as isize + dc);
+                nr >= 0
+                    && nc >= 0
+                    && (nr as usize) < h
+                    && (nc as usize) < w
+                    && !part.footprint.get(nr as usize, nc as usize)
+            });
+            if edge || outside {
+                open[l as usize] = true;
+            }
+        }
+    }
+    (0..sizes.len()).filter(|&l| !open[l] && sizes[l] >= min_texels).any(|l| {
+        let hole = Mask { rows: h, cols: w, data: labels.iter().map(|&x| x == l as u32).collect() };
+        let inradius = distance_to_outside(&hole).into_iter().max().unwrap_or(0);
+        holds_an_object(inradius, min_texels)
+    })
 }
 
 /// Whether what survives an opening of `mask` by `radius` covers at least `min_texels`.

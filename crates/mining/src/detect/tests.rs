@@ -731,6 +731,35 @@ fn three_fragments_of_one_object_merge_where_no_two_do() {
 }
 
 #[test]
+fn two_hollow_objects_are_no_fragments_of_one() {
+    // a 20 x 40 block cut along a ragged line (columns 19 and 21 by turns) into two parts
+    // whose boxes interleave and whose union is the whole block: fragments of one object,
+    // unless each encloses an inside (10 x 10 texels that the first round left empty)
+    let mut v = floor_volume(60, 80, 20);
+    fill(&mut v, (5, 25), (5, 45), (2, 8), 0.95);
+    let grid = PlaneGrid { cols: 80, rows: 60, origin: [0.0, 0.0], texel: [0.05, 0.05] };
+    let color = PlaneImage::zeros(60, 80, 3).unwrap();
+    let opts = params();
+    let cx = Ctx::new(&grid, &v, &color, &opts).unwrap();
+    let cut = |r: usize| if r % 4 < 2 { 19 } else { 21 };
+    let halves = || {
+        vec![part(5, 5, 20, 21, |r, c| c < cut(r)), part(5, 24, 20, 21, |r, c| c + 19 >= cut(r))]
+    };
+    let inside = |r: usize, c: usize| {
+        (10..20).contains(&r) && [10..20, 30..40].iter().any(|x| x.contains(&c))
+    };
+    let solid = Mask::from_fn(60, 80, |r, c| (5..25).contains(&r) && (5..45).contains(&c));
+    let hollow = Mask::from_fn(60, 80, |r, c| solid.get(r, c) && !inside(r, c));
+    let mut parts = halves();
+    merge::merge_fragments(&cx, &solid, &mut parts);
+    assert_eq!(parts.len(), 1, "{parts:?}");
+    assert_eq!(parts[0].footprint.count(), 800);
+    let mut parts = halves();
+    merge::merge_fragments(&cx, &hollow, &mut parts);
+    assert_eq!(parts.len(), 2);
+}
+
+#[test]
 fn fragments_of_one_object_merge_but_neighbours_do_not() {
     // a 12 x 12 seat cut along a ragged line: the boxes interleave (the left piece
     // reaches column 7 in some rows, the right one starts at column 5)
@@ -951,6 +980,29 @@ fn hollow_shells_in_contact_are_one_object_each() {
     let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
     let others = [PixelRect::new(10, 1, 20, 5), PixelRect::new(52, 10, 66, 50)];
     assert_found_exactly(&d, &[&shells[..], &others].concat());
+}
+
+#[test]
+fn a_hollow_shell_walled_in_by_its_neighbours_is_one_object() {
+    // three shells stacked end to end (20 x 40 texels, walls three texels thick) with a
+    // solid box against each side of the middle one: the middle shell's walls reach the
+    // outside only through its neighbours, yet each shell is one object and each box a box
+    let (rows, cols) = (70, 90);
+    let mut v = floor_volume(rows, cols, 30);
+    let shells = [
+        PixelRect::new(5, 25, 25, 65),
+        PixelRect::new(25, 25, 45, 65),
+        PixelRect::new(45, 25, 65, 65),
+    ];
+    for s in shells {
+        roofless_shell(&mut v, s);
+    }
+    let boxes = [PixelRect::new(25, 5, 45, 25), PixelRect::new(25, 65, 45, 85)];
+    for b in boxes {
+        fill(&mut v, (b.r0, b.r1), (b.c0, b.c1), (2, 16), 0.95);
+    }
+    let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
+    assert_found_exactly(&d, &[&shells[..], &boxes[..]].concat());
 }
 
 #[test]
