@@ -456,7 +456,7 @@ pub(super) fn split_enclosures(cx: &Ctx, region: &Mask, holes: &Mask) -> Vec<Mas
     // to the outside of the region
     let out_dist = distance_to_outside(region);
     let mut enclosures: Vec<(Mask, usize)> = Vec::new();
-    let mut left: Vec<Mask> = Vec::new();
+    let mut left: Vec<(Mask, usize)> = Vec::new();
     for hole in candidates {
         let thickness = median(around(&hole).into_iter().map(|i| out_dist[i]).collect());
         let r = inradius(&hole);
@@ -467,7 +467,7 @@ pub(super) fn split_enclosures(cx: &Ctx, region: &Mask, holes: &Mask) -> Vec<Mas
         if r >= thickness {
             enclosures.push((hole, thickness));
         } else {
-            left.push(hole);
+            left.push((hole, r));
         }
     }
     // then the holes whose walls reach the outside only through their neighbours: each
@@ -476,14 +476,16 @@ pub(super) fn split_enclosures(cx: &Ctx, region: &Mask, holes: &Mask) -> Vec<Mas
     let walls = enclosures.iter().map(|e| e.1).max();
     if let (Some(walls), false) = (walls, left.is_empty()) {
         let n_found = enclosures.len();
-        let seeds: Vec<Mask> =
-            enclosures.iter().map(|e| e.0.clone()).chain(left.iter().cloned()).collect();
+        let seeds: Vec<Mask> = enclosures.iter().chain(&left).map(|e| e.0.clone()).collect();
         let cell_of = geodesic_assign(region, &seeds);
-        for (l, hole) in left.into_iter().enumerate() {
-            let cell = Mask::from_fn(h, w, |r, c| cell_of[r * w + c] == Some(n_found + l));
+        for (l, (hole, r)) in left.into_iter().enumerate() {
+            let cell = Mask {
+                rows: h,
+                cols: w,
+                data: cell_of.iter().map(|&o| o == Some(n_found + l)).collect(),
+            };
             let cell_dist = distance_to_outside(&cell);
             let thickness = median(around(&hole).into_iter().map(|i| cell_dist[i]).collect());
-            let r = inradius(&hole);
             tracing::trace!(texels = hole.count(), inradius = r, thickness, walls, "fused hole");
             if r >= thickness.max(walls) {
                 enclosures.push((hole, thickness));
