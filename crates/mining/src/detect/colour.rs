@@ -1,8 +1,13 @@
-//! Stage 3c: separating touching objects of different colour: pieces of a K-means (k = 3)
+//! Stage 3c: separating touching objects of different colour: pieces of a K-means (k = 2)
 //! on the colour plane's principal components that stand on the ground, differ clearly in
 //! colour, share at most half their outline with the rest, leave a rest that stands too
 //! and is at least as convex as the part, and come from a concave region (a sofa against
-//! an armchair, stools against a bar) become objects.
+//! an armchair, stools against a bar) become objects. The same split then runs on one
+//! feature, each column's top level ([`top_levels`]): touching objects of one colour and
+//! different heights (a chest against a bookcase, chairs against a sofa's front) part by
+//! the same tests, the contrast in the same pooled standard deviations; a chair's back
+//! over its seat is a thin strip, a car's cabin is framed by its body, and a seat between
+//! a sofa's arms and back stays in a convex outline.
 
 use super::context::Ctx;
 use super::shape::{Part, fill_holes, is_thin, more_than, or_into, solidity};
@@ -107,6 +112,8 @@ pub(super) fn principal_components(plane: &PlaneImage, over: &Mask, k: usize) ->
 /// until none splits (each round takes something away, so it ends): a bar with stools on
 /// both sides splits in three rounds. (A bound of 3 rounds was a tuned value; without it
 /// `random_1003` at 6000 iterations mines 0.646 -> 0.636 and no other dev field changes.)
+/// `pcs` holds the features per plane texel: the colour principal components, or the top
+/// levels ([`top_levels`]); none, the part stays whole.
 pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Vec<Part> {
     // depth first, in the pieces' order, with a stack of its own rather than recursion: a
     // round takes at least one piece away, so the rounds end, but their number is not bounded
@@ -118,6 +125,20 @@ pub(super) fn split_by_colour(cx: &Ctx, pcs: &[Vec<f32>], part: Part) -> Vec<Par
         }
     }
     out
+}
+
+/// Per plane texel, the highest level from the floor's start up holding an opaque voxel
+/// (the start itself when none does), as a one-feature plane for [`split_by_colour`]:
+/// objects in contact at different heights.
+pub(super) fn top_levels(cx: &Ctx) -> Vec<Vec<f32>> {
+    let vol = cx.vol;
+    (0..vol.rows * vol.cols)
+        .map(|i| {
+            let col = vol.column(i / vol.cols, i % vol.cols);
+            let top = (cx.start..vol.nz).rev().find(|&k| col[k] >= cx.tau).unwrap_or(cx.start);
+            vec![top as f32]
+        })
+        .collect()
 }
 
 /// One round of [`split_by_colour`]: the pieces (tightened), or the part back when it stays

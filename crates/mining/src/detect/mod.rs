@@ -234,6 +234,8 @@ fn parts_of_regions(cx: &Ctx, mask: &Mask, removed: &mut Vec<Removed>) -> Result
     } else {
         Vec::new()
     };
+    // the same split on the columns' top levels: objects in contact at different heights
+    let tops = if p.stages.split_colour { colour::top_levels(cx) } else { Vec::new() };
     let enclosed = shape::fill_empty_holes(mask);
     let mut parts = Vec::new();
     for (ri, reg) in regions.iter().enumerate() {
@@ -272,7 +274,11 @@ fn parts_of_regions(cx: &Ctx, mask: &Mask, removed: &mut Vec<Removed>) -> Result
             split.extend(split::split_region(cx, reg.bbox, piece));
         }
         let split = if p.stages.split_colour {
-            split.into_iter().flat_map(|part| colour::split_by_colour(cx, &pcs, part)).collect()
+            split
+                .into_iter()
+                .flat_map(|part| colour::split_by_colour(cx, &pcs, part))
+                .flat_map(|part| colour::split_by_colour(cx, &tops, part))
+                .collect()
         } else {
             split
         };

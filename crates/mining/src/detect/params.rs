@@ -71,7 +71,8 @@ pub struct Stages {
     pub split_bridges: bool,
     /// Separate objects that touch in the bird's-eye view by 3D connectivity.
     pub split_3d: bool,
-    /// Split touching objects of clearly different colour.
+    /// Split touching objects of clearly different colour, then of clearly different
+    /// height (the same split on the columns' top levels).
     pub split_colour: bool,
     /// One-texel smoothing of each part's footprint.
     pub smooth: bool,

@@ -408,6 +408,26 @@ fn neighbours_of_one_height_and_different_colours_separate() {
 }
 
 #[test]
+fn neighbours_of_one_colour_and_different_heights_separate() {
+    // a tall bookcase (6 x 30 texels, levels 2..20) with a low chest against its front
+    // (14 x 14, levels 2..8), one colour: two objects; a chair of the same colour (a seat
+    // with its back along one side, both one outline) stays one
+    let (rows, cols) = (60, 60);
+    let mut v = floor_volume(rows, cols, 30);
+    fill(&mut v, (10, 16), (10, 40), (2, 20), 0.95);
+    fill(&mut v, (16, 30), (20, 34), (2, 8), 0.95);
+    fill(&mut v, (40, 52), (40, 52), (2, 6), 0.95); // the seat
+    fill(&mut v, (40, 42), (40, 52), (6, 14), 0.95); // the back
+    let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
+    let want = [
+        PixelRect::new(10, 10, 16, 40),
+        PixelRect::new(16, 20, 30, 34),
+        PixelRect::new(40, 40, 52, 52),
+    ];
+    assert_found_exactly(&d, &want);
+}
+
+#[test]
 fn a_colour_split_along_an_object_s_own_colours_is_not_made() {
     // a two-tone sofa (its back, rows 0..8, in one colour; its seat, rows 8..16, in another)
     // with a chair of the seat's colour pushed against its front: the region is concave
