@@ -143,7 +143,7 @@ pub struct MineArgs {
     #[arg(long)]
     pub no_unpack: bool,
     /// Do not separate objects that touch in the bird's-eye view (thin bridges, 3D
-    /// connectivity, colours).
+    /// connectivity, colours and heights).
     #[arg(long)]
     pub no_split: bool,
     /// Read every detection value from FILE (JSON: the `detect` object of a `mining.json`'s

@@ -3,10 +3,9 @@
 //! union is more convex than either fragment, or as convex as one object and as the less
 //! convex fragment; three that touch merge by the same test where no two of them do (a
 //! table cut into a strip along its edge, a corner and the rest); two hollow objects, each
-//! round an inside of its own, do not. After unpacking, an
-//! object found twice (as a piece of the ground and standing on its host) keeps only the
-//! second, and an object nested in or partly under a larger one leaves the larger one's own
-//! texels.
+//! round an inside of its own, do not. After unpacking, an object found twice (as a piece
+//! of the ground and standing on its host) keeps only the second, and an object nested in
+//! or partly under a larger one leaves the larger one's own texels.
 
 use super::Detection;
 use super::context::Ctx;
