@@ -3,7 +3,7 @@
 
 use super::merge::{fragments_merged, group_merged};
 use super::shape::{Part, is_thin};
-use super::split::stands;
+use super::split::{encloses_an_inside, holds_an_object, stands};
 use super::unpack::{height_weights, normalised_axis};
 use super::*;
 use crate::image::{Mask, PixelRect};
@@ -748,6 +748,36 @@ fn three_fragments_of_one_object_merge_where_no_two_do() {
     // nor does a part that touches none of the others join them
     let apart = part(40, 40, 5, 5, |_, _| true);
     assert!(group_merged(&[&a, &b, &apart], 1, 0.9).is_none());
+}
+
+#[test]
+fn an_inside_holds_the_smallest_object_and_is_closed() {
+    // the square a hole holds: side 2 r - 1 texels (chessboard inradius r)
+    assert!(!holds_an_object(0, 25) && !holds_an_object(2, 25));
+    assert!(holds_an_object(3, 25) && !holds_an_object(3, 26));
+    // a 16 x 16 part whose first-round mask is a ring three texels thick: its 10 x 10
+    // inside is closed; opened on one side (a C), or only 3 x 3 wide, it is none
+    let part = |r0: usize| Part {
+        rect: PixelRect::new(r0, 0, r0 + 16, 16),
+        footprint: Mask::from_fn(16, 16, |_, _| true),
+        kmin: 0,
+        kmax: 5,
+    };
+    let ring = |open: bool, inner: usize| {
+        Mask::from_fn(40, 16, |r, c| {
+            let (r, lo, hi) = (r % 20, 8 - inner / 2, 8 + inner.div_ceil(2));
+            let hole = (lo..hi).contains(&r) && (lo..hi).contains(&c);
+            let gap = open && (lo..hi).contains(&r) && c >= lo;
+            r < 16 && !hole && !gap
+        })
+    };
+    assert!(encloses_an_inside(&part(0), &ring(false, 10), 25));
+    assert!(!encloses_an_inside(&part(0), &ring(true, 10), 25));
+    assert!(!encloses_an_inside(&part(20), &ring(false, 3), 25));
+    // the part's footprint must hold the hole: a footprint without it encloses nothing
+    let bare =
+        Part { footprint: ring(false, 10).crop(PixelRect::new(0, 0, 16, 16)).unwrap(), ..part(0) };
+    assert!(!encloses_an_inside(&bare, &ring(false, 10), 25));
 }
 
 #[test]
