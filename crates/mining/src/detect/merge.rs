@@ -189,24 +189,26 @@ pub fn drop_duplicates(detections: Vec<Detection>, tolerance: f32) -> Vec<Detect
 pub(super) fn merge_fragments(cx: &Ctx, mask: &Mask, parts: &mut Vec<Part>) {
     let top_tol = cx.p.blur_levels.max(1);
     let one_object = cx.p.colour.max_part_solidity;
+    // an object has one inside: parts that each enclose one are hollow objects apart (kept
+    // per part, and measured again only for a merged one)
+    let encloses = |p: &Part| super::split::encloses_an_inside(p, mask, cx.min_texels);
+    let mut inside: Vec<bool> = parts.iter().map(encloses).collect();
     let mut merged = true;
     while merged {
         merged = false;
         let ground: Vec<bool> = parts.iter().map(|p| cx.on_ground(p.kmin)).collect();
-        // an object has one inside: parts that each enclose one are hollow objects apart
-        let inside: Vec<bool> = parts
-            .iter()
-            .map(|p| super::split::encloses_an_inside(p, mask, cx.min_texels))
-            .collect();
-        let two_insides = |ids: &[usize]| ids.iter().filter(|&&i| inside[i]).count() > 1;
+        let two_insides =
+            |inside: &[bool], ids: &[usize]| ids.iter().filter(|&&i| inside[i]).count() > 1;
         'pairs: for i in 0..parts.len() {
             for j in i + 1..parts.len() {
-                if !ground[i] || !ground[j] || two_insides(&[i, j]) {
+                if !ground[i] || !ground[j] || two_insides(&inside, &[i, j]) {
                     continue;
                 }
                 if let Some(m) = fragments_merged(&parts[i], &parts[j], top_tol, one_object) {
+                    inside[i] = encloses(&m);
                     parts[i] = m;
                     parts.remove(j);
+                    inside.remove(j);
                     merged = true;
                     break 'pairs;
                 }
@@ -218,7 +220,7 @@ pub(super) fn merge_fragments(cx: &Ctx, mask: &Mask, parts: &mut Vec<Part>) {
         'triples: for i in 0..parts.len() {
             for j in i + 1..parts.len() {
                 for k in j + 1..parts.len() {
-                    if !(ground[i] && ground[j] && ground[k]) || two_insides(&[i, j, k]) {
+                    if !(ground[i] && ground[j] && ground[k]) || two_insides(&inside, &[i, j, k]) {
                         continue;
                     }
                     let (a, b, c) = (&parts[i], &parts[j], &parts[k]);
@@ -230,9 +232,12 @@ pub(super) fn merge_fragments(cx: &Ctx, mask: &Mask, parts: &mut Vec<Part>) {
                         continue;
                     }
                     if let Some(m) = group_merged(&[a, b, c], top_tol, one_object) {
+                        inside[i] = encloses(&m);
                         parts[i] = m;
                         parts.remove(k);
                         parts.remove(j);
+                        inside.remove(k);
+                        inside.remove(j);
                         merged = true;
                         break 'triples;
                     }
