@@ -57,7 +57,7 @@ pub fn fill_holes(mask: &Mask) -> Mask {
 
 /// The holes of a mask (background not 4-connected to the image border), each as its texels
 /// (indices into the mask) and, over its box, its own mask.
-fn holes(mask: &Mask) -> Vec<(Vec<usize>, PixelRect, Mask)> {
+pub(super) fn holes(mask: &Mask) -> Vec<(Vec<usize>, PixelRect, Mask)> {
     let (rows, cols) = (mask.rows, mask.cols);
     let filled = fill_holes(mask);
     let mut seen = vec![false; rows * cols];

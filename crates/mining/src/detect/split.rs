@@ -451,7 +451,6 @@ pub(super) fn split_enclosures(cx: &Ctx, region: &Mask, holes: &Mask) -> Vec<Mas
         v.sort_unstable();
         v.get(v.len() / 2).copied().unwrap_or(0)
     };
-    let inradius = |hole: &Mask| distance_to_outside(hole).into_iter().max().unwrap_or(0);
     // first, each hole on its own: the walls' thickness is the median distance around it
     // to the outside of the region
     let out_dist = distance_to_outside(region);
@@ -533,43 +532,27 @@ pub(super) fn holds_an_object(inradius: usize, min_texels: usize) -> bool {
     (2 * inradius).saturating_sub(1).pow(2) >= min_texels
 }
 
-/// Whether `part`'s footprint encloses an empty inside: texels that the first-round `mask`
-/// leaves empty, out of reach of the footprint's outside (4-neighbours), in a hole that
-/// [`holds_an_object`]. A hollow object's own inside: a piece that a colour split cut out of
-/// one object encloses none of it.
+/// Whether `part`'s footprint encloses an empty inside: a hole of its own texels (what the
+/// first-round `mask` holds of its footprint; [`super::shape::holes`]) that lies within the
+/// footprint and [`holds_an_object`]. A hollow object's own inside: a piece that a colour
+/// split cut out of one object encloses none of it.
 pub(super) fn encloses_an_inside(part: &Part, mask: &Mask, min_texels: usize) -> bool {
-    let (h, w, rect) = (part.rect.rows(), part.rect.cols(), part.rect);
-    let empty =
-        Mask::from_fn(h, w, |r, c| part.footprint.get(r, c) && !mask.get(rect.r0 + r, rect.c0 + c));
-    let Ok((labels, sizes)) = crate::contours::label_components_4(&empty) else {
-        return false;
-    };
-    let mut open = vec![false; sizes.len()];
-    for r in 0..h {
-        for c in 0..w {
-            let l = labels[r * w + c];
-            if l == u32::MAX {
-                continue;
-            }
-            let edge = r == 0 || c == 0 || r + 1 == h || c + 1 == w;
-            let outside = [(0isize, 1isize), (1, 0), (0, -1), (-1, 0)].iter().any(|&(dr, dc)| {
-                let (nr, nc) = (r as isize + dr, c as isize + dc);
-                nr >= 0
-                    && nc >= 0
-                    && (nr as usize) < h
-                    && (nc as usize) < w
-                    && !part.footprint.get(nr as usize, nc as usize)
-            });
-            if edge || outside {
-                open[l as usize] = true;
-            }
-        }
-    }
-    (0..sizes.len()).filter(|&l| !open[l] && sizes[l] >= min_texels).any(|l| {
-        let hole = Mask { rows: h, cols: w, data: labels.iter().map(|&x| x == l as u32).collect() };
-        let inradius = distance_to_outside(&hole).into_iter().max().unwrap_or(0);
-        holds_an_object(inradius, min_texels)
+    let rect = part.rect;
+    let own = Mask::from_fn(rect.rows(), rect.cols(), |r, c| {
+        part.footprint.get(r, c) && mask.get(rect.r0 + r, rect.c0 + c)
+    });
+    super::shape::holes(&own).into_iter().any(|(hole, _, m)| {
+        hole.len() >= min_texels
+            && hole.iter().all(|&i| part.footprint.data[i])
+            && holds_an_object(inradius(&m), min_texels)
     })
+}
+
+/// The largest 8-connected distance from a texel of `mask` to its outside
+/// ([`distance_to_outside`]): `r`, where the largest square it holds has side `2 r - 1`
+/// texels; 0 for an empty mask.
+fn inradius(mask: &Mask) -> usize {
+    distance_to_outside(mask).into_iter().max().unwrap_or(0)
 }
 
 /// Whether what survives an opening of `mask` by `radius` covers at least `min_texels`.
