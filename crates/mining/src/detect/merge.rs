@@ -193,58 +193,66 @@ pub(super) fn merge_fragments(cx: &Ctx, mask: &Mask, parts: &mut Vec<Part>) {
     // per part, and measured again only for a merged one)
     let encloses = |p: &Part| super::split::encloses_an_inside(p, mask, cx.min_texels);
     let mut inside: Vec<bool> = parts.iter().map(encloses).collect();
-    let mut merged = true;
-    while merged {
-        merged = false;
+    loop {
         let ground: Vec<bool> = parts.iter().map(|p| cx.on_ground(p.kmin)).collect();
-        let two_insides =
-            |inside: &[bool], ids: &[usize]| ids.iter().filter(|&&i| inside[i]).count() > 1;
-        'pairs: for i in 0..parts.len() {
-            for j in i + 1..parts.len() {
-                if !ground[i] || !ground[j] || two_insides(&inside, &[i, j]) {
-                    continue;
-                }
-                if let Some(m) = fragments_merged(&parts[i], &parts[j], top_tol, one_object) {
-                    inside[i] = encloses(&m);
-                    parts[i] = m;
-                    parts.remove(j);
-                    inside.remove(j);
-                    merged = true;
-                    break 'pairs;
-                }
+        let Some((i, gone, m)) = next_merge(parts, &ground, &inside, top_tol, one_object) else {
+            break;
+        };
+        inside[i] = encloses(&m);
+        parts[i] = m;
+        // `gone` ascends: the later indices first
+        for &g in gone.iter().rev() {
+            parts.remove(g);
+            inside.remove(g);
+        }
+    }
+}
+
+/// The first merge of fragments among `parts` (those on the ground, no two of them each
+/// round an inside): a pair if any merges, else three; the part it replaces, the parts it
+/// takes in (ascending) and the merged part.
+fn next_merge(
+    parts: &[Part],
+    ground: &[bool],
+    inside: &[bool],
+    top_tol: usize,
+    one_object: f32,
+) -> Option<(usize, Vec<usize>, Part)> {
+    let apart = |ids: &[usize]| {
+        ids.iter().any(|&i| !ground[i]) || ids.iter().filter(|&&i| inside[i]).count() > 1
+    };
+    let n = parts.len();
+    for i in 0..n {
+        for j in i + 1..n {
+            if apart(&[i, j]) {
+                continue;
+            }
+            if let Some(m) = fragments_merged(&parts[i], &parts[j], top_tol, one_object) {
+                return Some((i, vec![j], m));
             }
         }
-        if merged {
-            continue;
-        }
-        'triples: for i in 0..parts.len() {
-            for j in i + 1..parts.len() {
-                for k in j + 1..parts.len() {
-                    if !(ground[i] && ground[j] && ground[k]) || two_insides(&inside, &[i, j, k]) {
-                        continue;
-                    }
-                    let (a, b, c) = (&parts[i], &parts[j], &parts[k]);
-                    // one box meets both others (a quick test before the masks)
-                    let hub = [(a, b, c), (b, a, c), (c, a, b)]
-                        .iter()
-                        .any(|(h, x, y)| h.rect.overlaps(&x.rect) && h.rect.overlaps(&y.rect));
-                    if !hub {
-                        continue;
-                    }
-                    if let Some(m) = group_merged(&[a, b, c], top_tol, one_object) {
-                        inside[i] = encloses(&m);
-                        parts[i] = m;
-                        parts.remove(k);
-                        parts.remove(j);
-                        inside.remove(k);
-                        inside.remove(j);
-                        merged = true;
-                        break 'triples;
-                    }
+    }
+    for i in 0..n {
+        for j in i + 1..n {
+            for k in j + 1..n {
+                if apart(&[i, j, k]) {
+                    continue;
+                }
+                let (a, b, c) = (&parts[i], &parts[j], &parts[k]);
+                // one box meets both others (a quick test before the masks)
+                let hub = [(a, b, c), (b, a, c), (c, a, b)]
+                    .iter()
+                    .any(|(h, x, y)| h.rect.overlaps(&x.rect) && h.rect.overlaps(&y.rect));
+                if !hub {
+                    continue;
+                }
+                if let Some(m) = group_merged(&[a, b, c], top_tol, one_object) {
+                    return Some((i, vec![j, k], m));
                 }
             }
         }
     }
+    None
 }
 
 /// An object inside or partly under another (nested in its outline, or separated in 3D):
