@@ -55,7 +55,9 @@ const SURFACE_TRANSMITTANCE: f32 = 0.5; // fixed: the middle
 /// column's surface is the level where the opacity accumulated from the top reaches one
 /// half ([`surface_levels`]); the floor's top is the lowest level at or below which
 /// [`DetectParams::floor_coverage`] of the plane has its surface (counting the floor hidden
-/// under what stands on it, [`hidden_floor`]), raised while the next
+/// under what stands on it, [`hidden_floor`]) and where one connected piece of the plane
+/// holds that share ([`largest_ground_piece`]: a floor is one surface, the tops of objects on
+/// an invisible ground are many), raised while the next
 /// level up still holds [`FLOOR_STEP_SHARE`] of the columns of the level
 /// below it (a gently tilted or stepped floor spreads over a few levels; objects start
 /// much sparser), and raised to a higher level of the lower half that is on its own the
@@ -93,8 +95,9 @@ pub fn floor_on_surfaces(
     let mut below = 0usize;
     let mut hi = (0..half).find(|&k| {
         below += count[k];
-        below as f32 >= need
-            || (below > 0 && (below + hidden_floor(vol, surfaces, k)) as f32 >= need)
+        (below as f32 >= need
+            || (below > 0 && (below + hidden_floor(vol, surfaces, k)) as f32 >= need))
+            && largest_ground_piece(vol, surfaces, k) as f32 >= need
     })?;
     let step_up = |mut hi: usize| {
         while hi + 1 < half && count[hi + 1] as f32 >= FLOOR_STEP_SHARE * count[hi] as f32 {
@@ -125,6 +128,24 @@ pub fn floor_on_surfaces(
     let lo = (0..=hi).find(|&k| opaque_share(k) >= p.floor_coverage).unwrap_or(hi);
     let coverage = count[..=hi].iter().sum::<usize>() as f32 / n as f32;
     Some(FloorBand { lo, hi, z_top: vol.height(hi), coverage })
+}
+
+/// The largest 4-connected piece of the plane that a floor at level `k` could be: columns
+/// whose surface is at or below `k`, or opaque (0.5) at `k` (the slab under what stands on
+/// it, the walls and furniture that stand on it). A floor is one surface, continuous under
+/// what stands on it and through the walls that divide it, so it is one such piece. The tops
+/// of objects standing on an invisible ground, however many reach one height, are separate
+/// pieces with empty columns between them, each smaller than a floor. Not tuned: the
+/// floor's coverage applies to the piece as to the sum.
+fn largest_ground_piece(vol: &OpacityVolume, surfaces: &[Option<usize>], k: usize) -> usize {
+    let member =
+        |i: usize| surfaces[i].is_some_and(|s| s <= k) || vol.data[i * vol.nz + k] >= FLOOR_OPACITY;
+    let m = Mask {
+        rows: vol.rows,
+        cols: vol.cols,
+        data: (0..vol.rows * vol.cols).map(member).collect(),
+    };
+    label_components_4(&m).map_or(0, |(_, sizes)| sizes.into_iter().max().unwrap_or(0))
 }
 
 /// The columns whose floor at level `k` is hidden from above by what stands on it: patches of

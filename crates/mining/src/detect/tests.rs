@@ -1224,6 +1224,29 @@ fn a_partial_floor_counts_what_stands_on_it() {
 }
 
 #[test]
+fn tops_on_an_invisible_ground_are_no_floor_however_much_they_cover() {
+    // 30 boxes on an invisible ground, two texels apart, their tops at level 7: 62% of the
+    // plane sees a surface at or below level 7, but the tops are 30 pieces with empty
+    // columns between them, none a floor
+    let (rows, cols, nz) = (60, 80, 24);
+    let mut v = OpacityVolume::empty(rows, cols, nz, 0.05);
+    for r0 in (0..rows).step_by(12) {
+        for c0 in (1..cols - 10).step_by(13) {
+            fill(&mut v, (r0, r0 + 10), (c0, c0 + 10), (0, 8), 0.9);
+        }
+    }
+    assert_eq!(floor_band(&v, &params()), None);
+    // a floor divided into four rooms by walls: each room shows less than the coverage, but
+    // the floor runs on through the walls' feet, one piece
+    let mut rooms = OpacityVolume::empty(rows, cols, nz, 0.05);
+    fill(&mut rooms, (0, rows), (0, cols), (0, 2), 0.95);
+    fill(&mut rooms, (29, 31), (0, cols), (2, 16), 0.95);
+    fill(&mut rooms, (0, rows), (39, 41), (2, 16), 0.95);
+    let f = floor_band(&rooms, &params()).expect("the floor of the four rooms");
+    assert_eq!(f.hi, 1, "{f:?}");
+}
+
+#[test]
 fn a_hollow_slab_seen_through_its_thin_top_has_its_top_as_the_floor() {
     // a thick slab as a field leaves it: its bottom face at level 1 and its top at level 5,
     // nothing inside (never seen), and the top left out along a network of lines every nine
