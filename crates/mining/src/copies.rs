@@ -17,7 +17,11 @@
 //! contact measure between `k` of `T`'s sides (rectangles) and `k` copies one reach of `T`
 //! apart (round objects: [`stacked_side`]). `R` is cut across the stacking direction into
 //! `k` equal slabs, and each slab must again be `T`'s rectangle; every way `R` fits is
-//! tried, best fit first, and the closest `T` whose cut fits is taken.
+//! tried, best fit first, and the closest `T` whose cut fits is taken. Two copies that touch
+//! at any angle or offset (two counters in an L, two vans parked askew against each other),
+//! where no stacking fits, are found by placing `T`'s rectangle on `R` where it covers most
+//! of it and least outside it, turned in steps that move its corners by half a texel: the
+//! rest must be `T`'s rectangle and area again ([`place_pair`]).
 //!
 //! The same premise keeps whole objects whole: a region whose own rectangle and look stand
 //! elsewhere too (four cars of one model) is that object, and is not cut into copies of a
@@ -438,6 +442,138 @@ fn cut_copies(
     Some(pieces)
 }
 
+/// `d` as two copies of a detection whose rectangle is `tr` and area `t_count`, touching at
+/// any angle and offset: `tr`'s rectangle placed on `d`'s footprint where it covers most of
+/// it and least outside it (turned in steps that move its corners by at most half a texel,
+/// centred on every texel of the footprint), and the rest (opened once against the slivers
+/// a placement to the texel leaves, its largest piece; the slivers go with the placed copy).
+/// `None` unless both pieces are `tr`'s rectangle and `t_count`'s area again, within `tol`
+/// (log ratio), as [`cut_copies`] asks of its slabs.
+fn place_pair(
+    d: &Detection,
+    tr: &FootprintRect,
+    t_count: usize,
+    tol: f64,
+    det: &Detections,
+) -> Option<[Detection; 2]> {
+    let m = &d.footprint;
+    let (tl, tw) = tr.sides();
+    let (hl, hw) = (0.5 * tl, 0.5 * tw);
+    // turning by this moves the rectangle's corners by half a texel
+    let half_diagonal = hl.hypot(hw).max(1.0);
+    let steps = (std::f64::consts::PI * half_diagonal / 0.5).ceil().max(1.0) as usize; // fixed: half a texel
+    // the copy in whole cells of the turned grid
+    let (lc, wc) = (tl.round().max(1.0) as usize, tw.round().max(1.0) as usize);
+    let area = (lc * wc) as isize;
+    // the turned grid's middle on a texel's centre (unturned, it samples every texel's centre)
+    let (cy, cx) = ((m.rows / 2) as f64 + 0.5, (m.cols / 2) as f64 + 0.5);
+    let radius = cx.hypot(cy).ceil() as isize + 1;
+    let side = (2 * radius + 1) as usize;
+    // every placement that covers the footprint well: its score (cells covered less cells
+    // outside), its angle's cosine and sine, its centre (column, row: the footprint's plane)
+    let mut placements: Vec<Placement> = Vec::new();
+    let mut sum = vec![0isize; (side + 1) * (side + 1)];
+    for s in 0..steps {
+        let a = std::f64::consts::PI * s as f64 / steps as f64;
+        let (ca, sa) = (a.cos(), a.sin());
+        // the footprint sampled on a grid turned by `a` about its middle (cell (i, j) at
+        // u = i - radius along the copy's length, v = j - radius across), summed
+        let at = |i: isize, j: isize| {
+            let (u, v) = ((i - radius) as f64, (j - radius) as f64);
+            let (x, y) = (cx + u * ca - v * sa, cy + u * sa + v * ca);
+            let (c, r) = (x.floor(), y.floor());
+            c >= 0.0 && r >= 0.0 && m.get(r as usize, c as usize)
+        };
+        for j in 0..side {
+            for i in 0..side {
+                let k = (j + 1) * (side + 1) + i + 1;
+                sum[k] = sum[k - 1] + sum[k - side - 1] - sum[k - side - 2]
+                    + isize::from(at(i as isize, j as isize));
+            }
+        }
+        let window = |i: usize, j: usize| {
+            let (i1, j1) = (i + lc, j + wc);
+            sum[j1 * (side + 1) + i1] - sum[j * (side + 1) + i1] - sum[j1 * (side + 1) + i]
+                + sum[j * (side + 1) + i]
+        };
+        for j in 0..=side.saturating_sub(wc) {
+            for i in 0..=side.saturating_sub(lc) {
+                let score = 2 * window(i, j) - area;
+                if score >= area / 2 {
+                    // fixed: most of the copy on the footprint
+                    let (u, v) = (
+                        i as f64 + 0.5 * (lc - 1) as f64 - radius as f64,
+                        j as f64 + 0.5 * (wc - 1) as f64 - radius as f64,
+                    );
+                    let centre = (cx + u * ca - v * sa, cy + u * sa + v * ca);
+                    placements.push(Placement { score, turn: (ca, sa), centre });
+                }
+            }
+        }
+    }
+    // the best first; among placements that fit alike, the first whose rest is a copy too
+    placements.sort_by_key(|p| std::cmp::Reverse(p.score));
+    placements.iter().take(PLACEMENTS_TRIED).find_map(|p| {
+        let ((ca, sa), (px, py)) = (p.turn, p.centre);
+        let placed = Mask::from_fn(m.rows, m.cols, |r, c| {
+            let (x, y) = (c as f64 + 0.5 - px, r as f64 + 0.5 - py);
+            let (u, v) = (x * ca + y * sa, -x * sa + y * ca);
+            m.get(r, c) && u.abs() < hl && v.abs() < hw
+        });
+        split_placed(d, &placed, tr, t_count, tol, det)
+    })
+}
+
+/// One placement of a copy's rectangle on a region ([`place_pair`]).
+struct Placement {
+    /// Cells of the copy on the region, less cells off it.
+    score: isize,
+    /// The cosine and sine of the copy's turn.
+    turn: (f64, f64),
+    /// Its centre (column, row) in the region's footprint, texel units.
+    centre: (f64, f64),
+}
+
+/// How many of the best placements [`place_pair`] tries (the ties of a clean footprint: a
+/// copy fits an L of two copies exactly in either arm, or across the corner).
+const PLACEMENTS_TRIED: usize = 64; // fixed: a bound on work, not a threshold
+
+/// `d` cut into the copy `placed` covers and the rest ([`place_pair`]).
+fn split_placed(
+    d: &Detection,
+    placed: &Mask,
+    tr: &FootprintRect,
+    t_count: usize,
+    tol: f64,
+    det: &Detections,
+) -> Option<[Detection; 2]> {
+    let m = &d.footprint;
+    let rest = Mask::from_fn(m.rows, m.cols, |r, c| m.get(r, c) && !placed.get(r, c));
+    let opened = open(&rest, 1).ok()?;
+    let (labels, sizes) = crate::contours::label_components_4(&opened).ok()?;
+    let biggest = (0..sizes.len()).max_by_key(|&i| sizes[i])? as u32;
+    let second = Mask::from_fn(m.rows, m.cols, |r, c| labels[r * m.cols + c] == biggest);
+    let first = Mask::from_fn(m.rows, m.cols, |r, c| m.get(r, c) && !second.get(r, c));
+    let mut pieces = Vec::with_capacity(2);
+    for keep in [&first, &second] {
+        let p = piece(d, keep, det)?;
+        let fits = footprint_rect(&p.footprint, p.rect.r0, p.rect.c0).is_some_and(|pr| {
+            let ((pl, pw), (ql, qw)) = (pr.sides(), tr.sides());
+            same_length(pl, ql, tol) && same_length(pw, qw, tol)
+        });
+        if !fits
+            || p.own.count() == 0
+            || log_ratio(p.footprint.count() as f64, t_count as f64) > tol
+        {
+            return None;
+        }
+        pieces.push(p);
+    }
+    let second = pieces.pop()?;
+    let first = pieces.pop()?;
+    Some([first, second])
+}
+
 /// One way a region may be copies of another: how unlike they are, the other detection,
 /// how many copies, and whether they stack along the region's axis.
 type CopyMatch = (f64, usize, usize, bool);
@@ -475,6 +611,9 @@ pub fn split_copies(
     let counts: Vec<usize> = det.detections.iter().map(|d| d.footprint.count()).collect();
     // per region, every match over the other detections, the closest colours first
     let mut plans: Vec<(usize, Vec<CopyMatch>)> = Vec::new();
+    // per region, the alike detections of half its area (closest colours first), for two
+    // copies placed apart from any stacking
+    let mut placed_plans: Vec<(usize, Vec<(f64, usize)>)> = Vec::new();
     for ri in 0..n {
         let Some(rr) = rects[ri] else { continue };
         // a region whose own shape and look stand elsewhere too is an object in its own
@@ -483,11 +622,15 @@ pub fn split_copies(
             continue;
         }
         let mut matches: Vec<CopyMatch> = Vec::new();
+        let mut pairs: Vec<(f64, usize)> = Vec::new();
         for ti in (0..n).filter(|&t| t != ri) {
             let Some(tr) = rects[ti] else { continue };
             let colour = unlike(ri, ti);
             if colour.is_nan() || colour > alike_tol {
                 continue;
+            }
+            if log_ratio(counts[ri] as f64, (2 * counts[ti]) as f64) <= tol {
+                pairs.push((colour, ti));
             }
             for k in 2..=MAX_COPIES {
                 if log_ratio(counts[ri] as f64, (k * counts[ti]) as f64) > tol {
@@ -502,6 +645,10 @@ pub fn split_copies(
             // stable: a match's ways keep their order of fit
             matches.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
             plans.push((ri, matches));
+        }
+        if !pairs.is_empty() {
+            pairs.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            placed_plans.push((ri, pairs));
         }
     }
     let mut done = Vec::new();
@@ -521,6 +668,23 @@ pub fn split_copies(
         }
         appended.extend(it);
         done.push(CopySplit { detection: ri, copy_of: ti, pieces: k });
+    }
+    // two copies that touch at any angle and offset (two tables meeting at a corner, two
+    // counters in an L): the region is the copy's rectangle placed where it fits best and a
+    // rest that is the copy's rectangle again
+    for (ri, pairs) in placed_plans {
+        if done.iter().any(|d| d.detection == ri) {
+            continue;
+        }
+        let cut = pairs.iter().find_map(|&(_, ti)| {
+            let tr = rects[ti]?;
+            place_pair(&det.detections[ri], &tr, counts[ti], tol, det).map(|p| (ti, p))
+        });
+        let Some((ti, [first, second])) = cut else { continue };
+        tracing::debug!(detection = ri, copy_of = ti, "copies placed apart split");
+        det.detections[ri] = first;
+        appended.push(second);
+        done.push(CopySplit { detection: ri, copy_of: ti, pieces: 2 });
     }
     for mut p in appended {
         p.id = det.detections.len();
@@ -588,6 +752,28 @@ mod tests {
         assert_eq!(a.rect, PixelRect::new(20, 5, 26, 15));
         assert_eq!(b.rect, PixelRect::new(20, 15, 26, 25));
         assert_eq!(det.detections[2].footprint.count(), 120, "the bench stays whole");
+    }
+
+    #[test]
+    fn two_copies_meeting_in_an_l_are_cut_as_two_of_a_lone_one() {
+        // a lone 16 x 6 counter; two more meeting in an L (one along the rows, one down the
+        // columns from its end); a 24 x 8 block of the same colours, whose area is two
+        // counters' but no two counters make it
+        let lone = rect_mask(60, 60, 2, 2, 6, 16);
+        let l = Mask::from_fn(60, 60, |r, c| {
+            ((12..18).contains(&r) && (2..18).contains(&c))
+                || ((18..34).contains(&r) && (12..18).contains(&c))
+        });
+        let block = rect_mask(60, 60, 36, 30, 8, 24);
+        let mut det = scene(&[lone, l, block]);
+        let done = split_copies(&mut det, |_, _| 0.02, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }], "{done:?}");
+        let mut counts = [det.detections[1].footprint.count(), det.detections[3].footprint.count()];
+        counts.sort_unstable();
+        // the placed counter and the rest, each the lone one's 96 texels to a sliver
+        assert_eq!(counts.iter().sum::<usize>(), 2 * 96);
+        assert!(counts[0] >= 88 && counts[1] <= 104, "{counts:?}");
+        assert_eq!(det.detections[2].footprint.count(), 192, "the block stays whole");
     }
 
     fn disc(cy: f64, cx: f64, radius: f64) -> Mask {
