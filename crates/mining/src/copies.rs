@@ -442,22 +442,24 @@ fn cut_copies(
     Some(pieces)
 }
 
-/// `d` as two copies of a detection whose rectangle is `tr` and area `t_count`, touching at
-/// any angle and offset: `tr`'s rectangle placed on `d`'s footprint where it covers most of
-/// it and least outside it (turned in steps that move its corners by at most half a texel,
-/// centred on every texel of the footprint), and the rest (opened once against the slivers
-/// a placement to the texel leaves, its largest piece; the slivers go with the placed copy).
-/// `None` unless both pieces are `tr`'s rectangle and `t_count`'s area again, within `tol`
-/// (log ratio), as [`cut_copies`] asks of its slabs.
-fn place_pair(
-    d: &Detection,
-    tr: &FootprintRect,
-    t_count: usize,
+/// The copy a region is tested against by [`place_pair`]: its rectangle and area (texels),
+/// and the largest log ratio between two lengths of one object.
+struct CopyModel {
+    rect: FootprintRect,
+    count: usize,
     tol: f64,
-    det: &Detections,
-) -> Option<[Detection; 2]> {
+}
+
+/// `d` as two copies of `copy`, touching at any angle and offset: the copy's rectangle placed
+/// on `d`'s footprint where it covers most of it and least outside it (turned in steps that
+/// move its corners by at most half a texel, the footprint sampled on each turned grid and
+/// summed, every cell of it a centre), and the rest (opened once against the slivers a
+/// placement to the texel leaves, its largest piece; the slivers go with the placed copy).
+/// `None` unless both pieces are the copy's rectangle and area again, within its tolerance
+/// (log ratio), as [`cut_copies`] asks of its slabs.
+fn place_pair(d: &Detection, copy: &CopyModel, det: &Detections) -> Option<[Detection; 2]> {
     let m = &d.footprint;
-    let (tl, tw) = tr.sides();
+    let (tl, tw) = copy.rect.sides();
     let (hl, hw) = (0.5 * tl, 0.5 * tw);
     // turning by this moves the rectangle's corners by half a texel
     let half_diagonal = hl.hypot(hw).max(1.0);
@@ -520,7 +522,7 @@ fn place_pair(
             let (u, v) = (x * ca + y * sa, -x * sa + y * ca);
             m.get(r, c) && u.abs() < hl && v.abs() < hw
         });
-        split_placed(d, &placed, tr, t_count, tol, det)
+        split_placed(d, &placed, copy, det)
     })
 }
 
@@ -542,9 +544,7 @@ const PLACEMENTS_TRIED: usize = 64; // fixed: a bound on work, not a threshold
 fn split_placed(
     d: &Detection,
     placed: &Mask,
-    tr: &FootprintRect,
-    t_count: usize,
-    tol: f64,
+    copy: &CopyModel,
     det: &Detections,
 ) -> Option<[Detection; 2]> {
     let m = &d.footprint;
@@ -558,12 +558,12 @@ fn split_placed(
     for keep in [&first, &second] {
         let p = piece(d, keep, det)?;
         let fits = footprint_rect(&p.footprint, p.rect.r0, p.rect.c0).is_some_and(|pr| {
-            let ((pl, pw), (ql, qw)) = (pr.sides(), tr.sides());
-            same_length(pl, ql, tol) && same_length(pw, qw, tol)
+            let ((pl, pw), (ql, qw)) = (pr.sides(), copy.rect.sides());
+            same_length(pl, ql, copy.tol) && same_length(pw, qw, copy.tol)
         });
         if !fits
             || p.own.count() == 0
-            || log_ratio(p.footprint.count() as f64, t_count as f64) > tol
+            || log_ratio(p.footprint.count() as f64, copy.count as f64) > copy.tol
         {
             return None;
         }
@@ -677,8 +677,8 @@ pub fn split_copies(
             continue;
         }
         let cut = pairs.iter().find_map(|&(_, ti)| {
-            let tr = rects[ti]?;
-            place_pair(&det.detections[ri], &tr, counts[ti], tol, det).map(|p| (ti, p))
+            let copy = CopyModel { rect: rects[ti]?, count: counts[ti], tol };
+            place_pair(&det.detections[ri], &copy, det).map(|p| (ti, p))
         });
         let Some((ti, [first, second])) = cut else { continue };
         tracing::debug!(detection = ri, copy_of = ti, "copies placed apart split");
