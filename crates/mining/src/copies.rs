@@ -430,16 +430,21 @@ fn cut_copies(
         let keep = slab(&d.footprint, d.rect, dir, a, b);
         let p = piece(d, &keep, det)?;
         // every piece is t's rectangle again
-        let fits = footprint_rect(&p.footprint, p.rect.r0, p.rect.c0).is_some_and(|pr| {
-            let ((pl, pw), (tl, tw)) = (pr.sides(), tr.sides());
-            same_length(pl, tl, tol) && same_length(pw, tw, tol)
-        });
-        if !fits || p.own.count() == 0 {
+        if !has_rect_of(&p, tr, tol) || p.own.count() == 0 {
             return None;
         }
         pieces.push(p);
     }
     Some(pieces)
+}
+
+/// Whether piece `p`'s rectangle has the sides of `tr`, each within `tol` (log ratio) or a
+/// texel ([`same_length`]).
+fn has_rect_of(p: &Detection, tr: &FootprintRect, tol: f64) -> bool {
+    footprint_rect(&p.footprint, p.rect.r0, p.rect.c0).is_some_and(|pr| {
+        let ((pl, pw), (tl, tw)) = (pr.sides(), tr.sides());
+        same_length(pl, tl, tol) && same_length(pw, tw, tol)
+    })
 }
 
 /// The copy a region is tested against by [`place_pair`]: its rectangle and area (texels),
@@ -554,24 +559,15 @@ fn split_placed(
     let biggest = (0..sizes.len()).max_by_key(|&i| sizes[i])? as u32;
     let second = Mask::from_fn(m.rows, m.cols, |r, c| labels[r * m.cols + c] == biggest);
     let first = Mask::from_fn(m.rows, m.cols, |r, c| m.get(r, c) && !second.get(r, c));
-    let mut pieces = Vec::with_capacity(2);
-    for keep in [&first, &second] {
-        let p = piece(d, keep, det)?;
-        let fits = footprint_rect(&p.footprint, p.rect.r0, p.rect.c0).is_some_and(|pr| {
-            let ((pl, pw), (ql, qw)) = (pr.sides(), copy.rect.sides());
-            same_length(pl, ql, copy.tol) && same_length(pw, qw, copy.tol)
-        });
-        if !fits
-            || p.own.count() == 0
-            || log_ratio(p.footprint.count() as f64, copy.count as f64) > copy.tol
-        {
-            return None;
-        }
-        pieces.push(p);
-    }
-    let second = pieces.pop()?;
-    let first = pieces.pop()?;
-    Some([first, second])
+    // each piece is the copy's rectangle and area again
+    let judged = |keep: &Mask| {
+        piece(d, keep, det).filter(|p| {
+            has_rect_of(p, &copy.rect, copy.tol)
+                && p.own.count() > 0
+                && log_ratio(p.footprint.count() as f64, copy.count as f64) <= copy.tol
+        })
+    };
+    Some([judged(&first)?, judged(&second)?])
 }
 
 /// One way a region may be copies of another: how unlike they are, the other detection,
@@ -629,12 +625,12 @@ pub fn split_copies(
             if colour.is_nan() || colour > alike_tol {
                 continue;
             }
-            if log_ratio(counts[ri] as f64, (2 * counts[ti]) as f64) <= tol {
-                pairs.push((colour, ti));
-            }
             for k in 2..=MAX_COPIES {
                 if log_ratio(counts[ri] as f64, (k * counts[ti]) as f64) > tol {
                     continue;
+                }
+                if k == 2 {
+                    pairs.push((colour, ti));
                 }
                 for along in stacking(&rr, &tr, k, tol) {
                     matches.push((colour, ti, k, along));
