@@ -6,10 +6,12 @@
 //! height, their colours one. No cue inside the region separates them. What does is the
 //! scene's repetition, the paper's premise: if the same object also stands alone elsewhere,
 //! the joined region is exactly two (or three) of it. [`split_copies`] tests every
-//! free-standing detection `R` against every other `T` that is alike: its label histogram
-//! (colours) and its vertical profile (how its occupied voxels spread over the levels above
-//! its base: a chest is solid from the floor up, a chair is a seat on legs and a back) both
-//! within the divergence copies may have. `R`'s rectangle (the one with its footprint's
+//! detection `R` standing on the ground against every other `T` that is alike: its label
+//! histogram (colours) and its vertical profile (how its occupied voxels spread over the
+//! levels above its base: a chest is solid from the floor up, a chair is a seat on legs and
+//! a back) both within the divergence copies may have. Both are of the objects' own texels,
+//! so what stands on an object is no part of it: a table with a monitor on it is a copy of a
+//! bare one, and what stood on a region that is cut stands on the piece under it. `R`'s rectangle (the one with its footprint's
 //! second moments, [`footprint_rect`]) must then be `k` of `T`'s stacked along one of `T`'s
 //! sides and its footprint `k` times `T`'s, each within the grouping's tolerance of a
 //! length (the reconstruction noise between two instances of one object; sides also within
@@ -327,7 +329,8 @@ fn piece(d: &Detection, keep: &Mask, det: &Detections) -> Option<Detection> {
 }
 
 /// How the occupied voxels of a detection spread over the levels from its base up: per
-/// level, the number of footprint columns with a voxel above `tau` there, normalised to
+/// level, the number of its own columns (not those of what stands on it) with a voxel above
+/// `tau` there, normalised to
 /// sum 1 (all zero for an empty footprint), `vol.nz` bins whatever the base (the levels past
 /// the top are empty), so that the profiles of one volume compare bin by bin. Compared with
 /// the Jensen-Shannon divergence, it tells a solid block from a seat on legs of the same size.
@@ -336,7 +339,7 @@ pub fn vertical_profile(vol: &crate::planes::OpacityVolume, d: &Detection, tau: 
     let mut h = vec![0f64; vol.nz];
     for r in 0..d.rect.rows() {
         for c in 0..d.rect.cols() {
-            if d.footprint.get(r, c) {
+            if d.own.get(r, c) {
                 let col = vol.column(d.rect.r0 + r, d.rect.c0 + c);
                 for (k, v) in col[base..].iter().enumerate() {
                     if *v > tau {
@@ -384,7 +387,7 @@ pub fn profile_jsd(a: &[f64], b: &[f64]) -> f64 {
     crate::histogram::jsd(&pad(a), &pad(b)).unwrap_or(1.0)
 }
 
-/// Whether another free-standing detection is one copy of detection `i`: alike (`unlike`
+/// Whether another detection on the ground is one copy of detection `i`: alike (`unlike`
 /// within `alike_tol`), its rectangle `i`'s and its area `i`'s (within `tol`, a log ratio).
 fn recurs(
     i: usize,
@@ -585,7 +588,7 @@ pub struct CopySplit {
     pub pieces: usize,
 }
 
-/// Split every free-standing detection that is `k` copies (`2..=MAX_COPIES`) of another
+/// Split every detection on the ground that is `k` copies (`2..=MAX_COPIES`) of another
 /// (see the module docs). `unlike(i, j)` is how different two detections look (colours and
 /// vertical profile, in bits), `alike_tol` the most that counts as one object, `tol` the
 /// largest log ratio between two lengths of one object.
@@ -598,12 +601,17 @@ pub fn split_copies(
     tol: f64,
 ) -> Vec<CopySplit> {
     let n = det.detections.len();
-    let free = |d: &Detection| d.parent.is_none() && d.children.is_empty();
-    let rects: Vec<Option<FootprintRect>> = det
-        .detections
-        .iter()
-        .map(|d| if free(d) { footprint_rect(&d.footprint, d.rect.r0, d.rect.c0) } else { None })
-        .collect();
+    // what stands on the ground, holding something or not: what an object holds is no part
+    // of it (its colours and profile are of its own texels), and copies in contact may hold
+    // different things
+    let on_ground = |d: &Detection| d.parent.is_none();
+    let rects: Vec<Option<FootprintRect>> =
+        det.detections
+            .iter()
+            .map(|d| {
+                if on_ground(d) { footprint_rect(&d.footprint, d.rect.r0, d.rect.c0) } else { None }
+            })
+            .collect();
     let counts: Vec<usize> = det.detections.iter().map(|d| d.footprint.count()).collect();
     // per region, every match over the other detections, the closest colours first
     let mut plans: Vec<(usize, Vec<CopyMatch>)> = Vec::new();
@@ -658,11 +666,7 @@ pub fn split_copies(
         });
         let Some((ti, k, pieces)) = cut else { continue };
         tracing::debug!(detection = ri, copy_of = ti, pieces = k, "copies split");
-        let mut it = pieces.into_iter();
-        if let Some(first) = it.next() {
-            det.detections[ri] = first;
-        }
-        appended.extend(it);
+        replace_by_pieces(det, ri, pieces, n, &mut appended);
         done.push(CopySplit { detection: ri, copy_of: ti, pieces: k });
     }
     // two copies that touch at any angle and offset (two tables meeting at a corner, two
@@ -676,17 +680,59 @@ pub fn split_copies(
             let copy = CopyModel { rect: rects[ti]?, count: counts[ti], tol };
             place_pair(&det.detections[ri], &copy, det).map(|p| (ti, p))
         });
-        let Some((ti, [first, second])) = cut else { continue };
+        let Some((ti, pieces)) = cut else { continue };
         tracing::debug!(detection = ri, copy_of = ti, "copies placed apart split");
-        det.detections[ri] = first;
-        appended.push(second);
+        replace_by_pieces(det, ri, pieces.into(), n, &mut appended);
         done.push(CopySplit { detection: ri, copy_of: ti, pieces: 2 });
     }
-    for mut p in appended {
-        p.id = det.detections.len();
+    for p in appended {
+        debug_assert_eq!(p.id, det.detections.len());
         det.detections.push(p);
     }
     done
+}
+
+/// Detection `ri` replaced by `pieces`: the first keeps its id, the others are queued on
+/// `appended` with the ids they will have (after the `n` detections and what is queued
+/// before them). What stood on `ri` stands on the piece that holds most of its footprint.
+fn replace_by_pieces(
+    det: &mut Detections,
+    ri: usize,
+    pieces: Vec<Detection>,
+    n: usize,
+    appended: &mut Vec<Detection>,
+) {
+    let children = std::mem::take(&mut det.detections[ri].children);
+    let mut pieces = pieces;
+    for (i, p) in pieces.iter_mut().enumerate() {
+        p.id = if i == 0 { ri } else { n + appended.len() + i - 1 };
+    }
+    for c in children {
+        let child = &det.detections[c];
+        let held = |p: &Detection| {
+            let mut count = 0usize;
+            for r in 0..child.rect.rows() {
+                for col in 0..child.rect.cols() {
+                    let (pr, pc) = (child.rect.r0 + r, child.rect.c0 + col);
+                    count += usize::from(
+                        child.footprint.get(r, col)
+                            && p.rect.contains(pr, pc)
+                            && p.footprint.get(pr - p.rect.r0, pc - p.rect.c0),
+                    );
+                }
+            }
+            count
+        };
+        // the first piece on a tie (a child on none keeps standing on the detection's id)
+        let best = (0..pieces.len()).rev().max_by_key(|&i| held(&pieces[i])).unwrap_or(0);
+        det.detections[c].parent = Some(pieces[best].id);
+        pieces[best].children.push(c);
+    }
+    let mut it = pieces.into_iter();
+    if let Some(first) = it.next() {
+        det.detections[ri] = first;
+    }
+    appended.extend(it);
 }
 
 #[cfg(test)]
@@ -748,6 +794,55 @@ mod tests {
         assert_eq!(a.rect, PixelRect::new(20, 5, 26, 15));
         assert_eq!(b.rect, PixelRect::new(20, 15, 26, 25));
         assert_eq!(det.detections[2].footprint.count(), 120, "the bench stays whole");
+    }
+
+    /// Detection `child` made to stand on `parent`: linked both ways, its texels no longer
+    /// the parent's own.
+    fn stand_on(det: &mut Detections, child: usize, parent: usize) {
+        let c = det.detections[child].clone();
+        let p = &mut det.detections[parent];
+        for r in 0..c.rect.rows() {
+            for col in 0..c.rect.cols() {
+                let (pr, pc) = (c.rect.r0 + r, c.rect.c0 + col);
+                if c.footprint.get(r, col) && p.rect.contains(pr, pc) {
+                    p.own.set(pr - p.rect.r0, pc - p.rect.c0, false);
+                }
+            }
+        }
+        p.children.push(child);
+        det.detections[child].parent = Some(parent);
+    }
+
+    #[test]
+    fn copies_holding_things_are_copies_and_what_they_hold_stays_on_its_piece() {
+        // a lone 10 x 6 chest with a box on it; a pair of them end to end (20 x 6) with a
+        // box on the far one
+        let single = rect_mask(60, 60, 5, 5, 6, 10);
+        let pair = rect_mask(60, 60, 20, 5, 6, 20);
+        let box_on_single = rect_mask(60, 60, 7, 7, 2, 2);
+        let box_on_pair = rect_mask(60, 60, 22, 19, 2, 3);
+        let mut det = scene(&[single, pair, box_on_single, box_on_pair]);
+        stand_on(&mut det, 2, 0);
+        stand_on(&mut det, 3, 1);
+        // the chests alike; the boxes like nothing else
+        let colour = |i: usize, j: usize| if i >= 2 || j >= 2 { 0.8 } else { 0.02 };
+        let done = split_copies(&mut det, colour, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        assert_eq!(det.detections.len(), 5);
+        let (near, far) = (&det.detections[1], &det.detections[4]);
+        assert_eq!(
+            (near.rect, far.rect),
+            (PixelRect::new(20, 5, 26, 15), PixelRect::new(20, 15, 26, 25))
+        );
+        // the box on the pair's far half stands on that piece, which now holds it
+        assert_eq!((near.children.clone(), far.children.clone()), (vec![], vec![3]));
+        assert_eq!(det.detections[3].parent, Some(4));
+        assert_eq!(far.own.count(), 60 - 6, "the box's texels are not the piece's own");
+        // the box on the lone chest is untouched, and boxes are never cut
+        assert_eq!(
+            (det.detections[0].children.clone(), det.detections[2].parent),
+            (vec![2], Some(0))
+        );
     }
 
     #[test]
@@ -972,5 +1067,34 @@ mod tests {
             profile_jsd(&blurred(&pb, 3), &blurred(&vertical_profile(&vol, &raised, 0.5), 3));
         assert!(soft < sharp && soft < 0.05, "{soft} vs {sharp}");
         assert_eq!(profile_jsd(&[], &[]), 1.0);
+    }
+
+    #[test]
+    fn what_stands_on_an_object_is_no_part_of_its_profile() {
+        use crate::planes::OpacityVolume;
+        // two 6 x 6 blocks (levels 0..4); a 2 x 2 box on the right one (levels 4..8)
+        let (rows, cols, nz) = (6, 14, 12);
+        let mut data = vec![0f32; rows * cols * nz];
+        let mut set = |r: usize, c: usize, k: usize| data[(r * cols + c) * nz + k] = 1.0;
+        for r in 0..6 {
+            for c in (0..6).chain(8..14) {
+                (0..4).for_each(|k| set(r, c, k));
+            }
+        }
+        for (r, c) in [(2, 10), (2, 11), (3, 10), (3, 11)] {
+            (4..8).for_each(|k| set(r, c, k));
+        }
+        let vol = OpacityVolume { rows, cols, nz, z0: 0.0, dz: 1.0, data };
+        let grid = PlaneGrid { rows, cols, origin: [0.0, 0.0], texel: [1.0, 1.0] };
+        let bare = detection(0, &grid, &rect_mask(rows, cols, 0, 0, 6, 6));
+        let mut holding = detection(1, &grid, &rect_mask(rows, cols, 0, 8, 6, 6));
+        let whole = vertical_profile(&vol, &holding, 0.5);
+        assert!(profile_jsd(&vertical_profile(&vol, &bare, 0.5), &whole) > 0.05);
+        // the box's texels are not the block's own: the two blocks' profiles are one
+        for (r, c) in [(2, 2), (2, 3), (3, 2), (3, 3)] {
+            holding.own.set(r, c, false);
+        }
+        let own = vertical_profile(&vol, &holding, 0.5);
+        assert_eq!(profile_jsd(&vertical_profile(&vol, &bare, 0.5), &own), 0.0);
     }
 }

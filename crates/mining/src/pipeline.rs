@@ -559,7 +559,8 @@ pub fn category_name(k: usize) -> String {
 pub enum YawOn {
     /// The objects' own voxels for categories with a member standing on another object (a
     /// laptop on a table: the table's legs and crossbars, in the laptop's plane column, do
-    /// not turn with the laptop), the density plane for the rest.
+    /// not turn with the laptop) or holding one (a table with a monitor on it against a bare
+    /// one), the density plane for the rest.
     #[default]
     Auto,
     /// The density plane's patches.
@@ -594,9 +595,11 @@ fn yaw_sources<'a>(
     vol: &'a OpacityVolume,
 ) -> Result<Vec<PatchSource<'a>>> {
     let k = category.iter().max().map_or(0, |&m| m + 1);
+    // a category with a member on another object or holding one: a plane texel describes
+    // its whole column, the other object's part of it too
     let mut stacked = vec![false; k];
     for (d, &c) in dets.detections.iter().zip(category) {
-        stacked[c] |= d.parent.is_some();
+        stacked[c] |= d.parent.is_some() || !d.children.is_empty();
     }
     stacked
         .into_iter()
