@@ -25,6 +25,15 @@
 //! of it and least outside it, turned in steps that move its corners by half a texel: the
 //! rest must be `T`'s rectangle and area again ([`place_pair`]).
 //!
+//! Two different objects in contact (a car parked against a fountain) are found the same
+//! way when each stands alone elsewhere: the larger one's rectangle `T` placed on `R`, the
+//! rest `U`'s rectangle and area, their areas summing to `R`'s within the tolerance, and
+//! each piece alike its object in its own colours (counted on the grouping's labels) and
+//! sharp profile, within the divergence copies may have ([`place_two`]). A region of
+//! haze or an object with no such pair of rectangles is left whole; so is a pair of
+//! objects that merely has the shapes of two others (two dressers the size of two chests
+//! of another finish).
+//!
 //! The same premise keeps whole objects whole: a region whose own rectangle and look stand
 //! elsewhere too (four cars of one model) is that object, and is not cut into copies of a
 //! piece that happens to be half of it (a fragment the colour split cut out of a fifth car).
@@ -466,6 +475,20 @@ struct CopyModel {
 /// `None` unless both pieces are the copy's rectangle and area again, within its tolerance
 /// (log ratio), as [`cut_copies`] asks of its slabs.
 fn place_pair(d: &Detection, copy: &CopyModel, det: &Detections) -> Option<[Detection; 2]> {
+    place_two(d, copy, copy, det, &|_, _| true)
+}
+
+/// `d` as `placed` and `rest` touching at any angle and offset, as [`place_pair`] places
+/// two copies of one object: `placed`'s rectangle where it covers most of `d`, the rest
+/// `rest`'s rectangle and area again, and both pieces passing `looks` (the placed piece,
+/// then the rest).
+fn place_two(
+    d: &Detection,
+    copy: &CopyModel,
+    rest: &CopyModel,
+    det: &Detections,
+    looks: &dyn Fn(&Detection, &Detection) -> bool,
+) -> Option<[Detection; 2]> {
     let m = &d.footprint;
     let (tl, tw) = copy.rect.sides();
     let (hl, hw) = (0.5 * tl, 0.5 * tw);
@@ -479,6 +502,10 @@ fn place_pair(d: &Detection, copy: &CopyModel, det: &Detections) -> Option<[Dete
     let (cy, cx) = ((m.rows / 2) as f64 + 0.5, (m.cols / 2) as f64 + 0.5);
     let radius = cx.hypot(cy).ceil() as isize + 1;
     let side = (2 * radius + 1) as usize;
+    if lc > side || wc > side {
+        // the copy reaches past the region whichever way it turns
+        return None;
+    }
     // every placement that covers the footprint well: its score (cells covered less cells
     // outside), its angle's cosine and sine, its centre (column, row: the footprint's plane)
     let mut placements: Vec<Placement> = Vec::new();
@@ -530,7 +557,7 @@ fn place_pair(d: &Detection, copy: &CopyModel, det: &Detections) -> Option<[Dete
             let (u, v) = (x * ca + y * sa, -x * sa + y * ca);
             m.get(r, c) && u.abs() < hl && v.abs() < hw
         });
-        split_placed(d, &placed, copy, det)
+        split_placed(d, &placed, [copy, rest], det).filter(|[a, b]| looks(a, b))
     })
 }
 
@@ -548,11 +575,12 @@ struct Placement {
 /// copy fits an L of two copies exactly in either arm, or across the corner).
 const PLACEMENTS_TRIED: usize = 64; // fixed: a bound on work, not a threshold
 
-/// `d` cut into the copy `placed` covers and the rest ([`place_pair`]).
+/// `d` cut into what `placed` covers and the rest ([`place_two`]), each the rectangle and
+/// area of its model (`models`: the placed piece's, the rest's).
 fn split_placed(
     d: &Detection,
     placed: &Mask,
-    copy: &CopyModel,
+    models: [&CopyModel; 2],
     det: &Detections,
 ) -> Option<[Detection; 2]> {
     let m = &d.footprint;
@@ -562,15 +590,15 @@ fn split_placed(
     let biggest = (0..sizes.len()).max_by_key(|&i| sizes[i])? as u32;
     let second = Mask::from_fn(m.rows, m.cols, |r, c| labels[r * m.cols + c] == biggest);
     let first = Mask::from_fn(m.rows, m.cols, |r, c| m.get(r, c) && !second.get(r, c));
-    // each piece is the copy's rectangle and area again
-    let judged = |keep: &Mask| {
+    // each piece is its model's rectangle and area again
+    let judged = |keep: &Mask, copy: &CopyModel| {
         piece(d, keep, det).filter(|p| {
             has_rect_of(p, &copy.rect, copy.tol)
                 && p.own.count() > 0
                 && log_ratio(p.footprint.count() as f64, copy.count as f64) <= copy.tol
         })
     };
-    Some([judged(&first)?, judged(&second)?])
+    Some([judged(&first, models[0])?, judged(&second, models[1])?])
 }
 
 /// One way a region may be copies of another: how unlike they are, the other detection,
@@ -586,17 +614,23 @@ pub struct CopySplit {
     pub copy_of: usize,
     /// Into how many pieces.
     pub pieces: usize,
+    /// The other object, where the region was two different objects in contact
+    /// ([`split_copies`]): `copy_of` and this one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub also: Option<usize>,
 }
 
 /// Split every detection on the ground that is `k` copies (`2..=MAX_COPIES`) of another
-/// (see the module docs). `unlike(i, j)` is how different two detections look (colours and
-/// vertical profile, in bits), `alike_tol` the most that counts as one object, `tol` the
-/// largest log ratio between two lengths of one object.
+/// (see the module docs), or two other objects in contact. `unlike(i, j)` is how different
+/// two detections look (colours and vertical profile, in bits), `piece_unlike(p, j)` how
+/// different a piece cut from a detection looks from detection `j`, `alike_tol` the most
+/// that counts as one object, `tol` the largest log ratio between two lengths of one object.
 /// The pieces keep the cut detection's id for the first and are appended for the others;
 /// no other detection changes id. Returns what was split.
 pub fn split_copies(
     det: &mut Detections,
     unlike: impl Fn(usize, usize) -> f64,
+    piece_unlike: impl Fn(&Detection, usize) -> f64,
     alike_tol: f64,
     tol: f64,
 ) -> Vec<CopySplit> {
@@ -667,7 +701,7 @@ pub fn split_copies(
         let Some((ti, k, pieces)) = cut else { continue };
         tracing::debug!(detection = ri, copy_of = ti, pieces = k, "copies split");
         replace_by_pieces(det, ri, pieces, n, &mut appended);
-        done.push(CopySplit { detection: ri, copy_of: ti, pieces: k });
+        done.push(CopySplit { detection: ri, copy_of: ti, pieces: k, also: None });
     }
     // two copies that touch at any angle and offset (two tables meeting at a corner, two
     // counters in an L): the region is the copy's rectangle placed where it fits best and a
@@ -683,7 +717,53 @@ pub fn split_copies(
         let Some((ti, pieces)) = cut else { continue };
         tracing::debug!(detection = ri, copy_of = ti, "copies placed apart split");
         replace_by_pieces(det, ri, pieces.into(), n, &mut appended);
-        done.push(CopySplit { detection: ri, copy_of: ti, pieces: 2 });
+        done.push(CopySplit { detection: ri, copy_of: ti, pieces: 2, also: None });
+    }
+    // two different objects in contact (a car parked against a fountain), each standing
+    // alone elsewhere: the region is the larger one's rectangle placed where it fits best
+    // and a rest that is the other's rectangle and area, each piece alike its object
+    for ri in 0..n {
+        if rects[ri].is_none()
+            || done.iter().any(|d| d.detection == ri)
+            || recurs(ri, &rects, &counts, &unlike, alike_tol, tol)
+        {
+            continue;
+        }
+        let mut twos: Vec<(f64, usize, usize)> = Vec::new();
+        for ti in (0..n).filter(|&t| t != ri && rects[t].is_some()) {
+            for ui in (0..n).filter(|&u| u != ri && u != ti && rects[u].is_some()) {
+                // the larger placed first (the smaller fits in more ways)
+                if (counts[ui], ui) > (counts[ti], ti) {
+                    continue;
+                }
+                let fit = log_ratio(counts[ri] as f64, (counts[ti] + counts[ui]) as f64);
+                if fit <= tol {
+                    twos.push((fit, ti, ui));
+                }
+            }
+        }
+        twos.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+        let cut = twos.iter().find_map(|&(_, ti, ui)| {
+            let first = CopyModel { rect: rects[ti]?, count: counts[ti], tol };
+            let second = CopyModel { rect: rects[ui]?, count: counts[ui], tol };
+            let looks = |a: &Detection, b: &Detection| {
+                let (ua, ub) = (piece_unlike(a, ti), piece_unlike(b, ui));
+                tracing::trace!(
+                    detection = ri,
+                    first = ti,
+                    second = ui,
+                    ua,
+                    ub,
+                    "two objects placed"
+                );
+                ua <= alike_tol && ub <= alike_tol
+            };
+            place_two(&det.detections[ri], &first, &second, det, &looks).map(|p| (ti, ui, p))
+        });
+        let Some((ti, ui, pieces)) = cut else { continue };
+        tracing::debug!(detection = ri, first = ti, second = ui, "two objects in contact split");
+        replace_by_pieces(det, ri, pieces.into(), n, &mut appended);
+        done.push(CopySplit { detection: ri, copy_of: ti, pieces: 2, also: Some(ui) });
     }
     for p in appended {
         debug_assert_eq!(p.id, det.detections.len());
@@ -783,8 +863,8 @@ mod tests {
         let mut det = scene(&[single, pair, bench]);
         // the bench has other colours than the chests
         let colour = |i: usize, j: usize| if i == 2 || j == 2 { 0.8 } else { 0.02 };
-        let done = split_copies(&mut det, colour, 0.12, 0.15);
-        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        let done = split_copies(&mut det, colour, |_, _| f64::INFINITY, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2, also: None }]);
         assert_eq!(det.detections.len(), 4);
         for (i, d) in det.detections.iter().enumerate() {
             assert_eq!(d.id, i);
@@ -826,8 +906,8 @@ mod tests {
         stand_on(&mut det, 3, 1);
         // the chests alike; the boxes like nothing else
         let colour = |i: usize, j: usize| if i >= 2 || j >= 2 { 0.8 } else { 0.02 };
-        let done = split_copies(&mut det, colour, 0.12, 0.15);
-        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        let done = split_copies(&mut det, colour, |_, _| f64::INFINITY, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2, also: None }]);
         assert_eq!(det.detections.len(), 5);
         let (near, far) = (&det.detections[1], &det.detections[4]);
         assert_eq!(
@@ -857,14 +937,74 @@ mod tests {
         });
         let block = rect_mask(60, 60, 36, 30, 8, 24);
         let mut det = scene(&[lone, l, block]);
-        let done = split_copies(&mut det, |_, _| 0.02, 0.12, 0.15);
-        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }], "{done:?}");
+        let done = split_copies(&mut det, |_, _| 0.02, |_, _| f64::INFINITY, 0.12, 0.15);
+        assert_eq!(
+            done,
+            vec![CopySplit { detection: 1, copy_of: 0, pieces: 2, also: None }],
+            "{done:?}"
+        );
         let mut counts = [det.detections[1].footprint.count(), det.detections[3].footprint.count()];
         counts.sort_unstable();
         // the placed counter and the rest, each the lone one's 96 texels to a sliver
         assert_eq!(counts.iter().sum::<usize>(), 2 * 96);
         assert!(counts[0] >= 88 && counts[1] <= 104, "{counts:?}");
         assert_eq!(det.detections[2].footprint.count(), 192, "the block stays whole");
+    }
+
+    #[test]
+    fn two_different_objects_in_contact_are_cut_where_each_stands_alone_elsewhere() {
+        // a lone 16 x 6 counter and a lone 8 x 8 crate; a counter with a crate against its
+        // side (a region with the area of both); a 16 x 10 block of the counter's look, whose
+        // area is theirs too, but no counter and crate make it
+        let counter = rect_mask(60, 60, 2, 2, 6, 16);
+        let crate_ = rect_mask(60, 60, 2, 30, 8, 8);
+        let pair = Mask::from_fn(60, 60, |r, c| {
+            ((14..20).contains(&r) && (2..18).contains(&c))
+                || ((20..28).contains(&r) && (6..14).contains(&c))
+        });
+        let block = rect_mask(60, 60, 40, 30, 10, 16);
+        // the look of a texel: crates' columns are their own
+        let is_crate = |r: usize, c: usize| {
+            ((2..10).contains(&r) && (30..38).contains(&c)) || (20..28).contains(&r)
+        };
+        let mut det = scene(&[counter, crate_, pair, block]);
+        let crate_share = |d: &Detection| {
+            let n = d.footprint.count() as f64;
+            let mut k = 0usize;
+            for r in 0..d.rect.rows() {
+                for c in 0..d.rect.cols() {
+                    k += usize::from(
+                        d.footprint.get(r, c) && is_crate(d.rect.r0 + r, d.rect.c0 + c),
+                    );
+                }
+            }
+            k as f64 / n
+        };
+        let shares: Vec<f64> = det.detections.iter().map(crate_share).collect();
+        // whole detections: nothing alike enough to be copies
+        let unlike = |i: usize, j: usize| if i == j { 0.0 } else { 0.5 };
+        let piece_unlike = |p: &Detection, j: usize| (crate_share(p) - shares[j]).abs();
+        let done = split_copies(&mut det, unlike, piece_unlike, 0.12, 0.15);
+        assert_eq!(
+            done,
+            vec![CopySplit { detection: 2, copy_of: 0, pieces: 2, also: Some(1) }],
+            "{done:?}"
+        );
+        let (a, b) = (&det.detections[2], &det.detections[4]);
+        assert!((a.footprint.count() as i64 - 96).abs() <= 8, "{}", a.footprint.count());
+        assert!((b.footprint.count() as i64 - 64).abs() <= 8, "{}", b.footprint.count());
+        assert!(crate_share(b) > 0.9 && crate_share(a) < 0.1);
+        assert_eq!(det.detections[3].footprint.count(), 160, "the block stays whole");
+        // pieces that do not look like the objects whose rectangles they have: no cut
+        let mut det = scene(&[
+            rect_mask(60, 60, 2, 2, 6, 16),
+            rect_mask(60, 60, 2, 30, 8, 8),
+            Mask::from_fn(60, 60, |r, c| {
+                ((14..20).contains(&r) && (2..18).contains(&c))
+                    || ((20..28).contains(&r) && (6..14).contains(&c))
+            }),
+        ]);
+        assert!(split_copies(&mut det, unlike, |_, _| 0.5, 0.12, 0.15).is_empty());
     }
 
     fn disc(cy: f64, cx: f64, radius: f64) -> Mask {
@@ -890,8 +1030,8 @@ mod tests {
         assert!((r.len - stacked_side(t.sides().0, t.reach.0, 2)).abs() < 1e-6, "{r:?}");
         // so even within a tolerance under that bias the pair is cut
         let mut det = scene(&[lone, pair]);
-        let done = split_copies(&mut det, |_, _| 0.0, 0.12, 0.1);
-        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        let done = split_copies(&mut det, |_, _| 0.0, |_, _| f64::INFINITY, 0.12, 0.1);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2, also: None }]);
         // for rectangles the stacked side is k times the side, as before
         assert!((stacked_side(10.0, 10.0, 3) - 30.0).abs() < 1e-9);
         assert!((stacked_side(6.0, 6.0, 1) - 6.0).abs() < 1e-9);
@@ -916,6 +1056,15 @@ mod tests {
     }
 
     #[test]
+    fn a_copy_longer_than_the_region_is_placed_nowhere() {
+        // a 40 x 2 rail against a 6 x 6 region: no turn holds it
+        let det = scene(&[rect_mask(60, 60, 2, 2, 2, 40), rect_mask(60, 60, 20, 20, 6, 6)]);
+        let rail = footprint_rect(&det.detections[0].footprint, 2, 2).unwrap();
+        let copy = CopyModel { rect: rail, count: 80, tol: 0.15 };
+        assert!(place_pair(&det.detections[1], &copy, &det).is_none());
+    }
+
+    #[test]
     fn a_speck_does_not_reach() {
         // a 10 x 7 block and a detached speck level with its middle, on the mask's edge
         let mut m = rect_mask(9, 14, 1, 0, 7, 10);
@@ -933,17 +1082,17 @@ mod tests {
         // a 15 x 6 table of the same colours: 1.5 copies, no split
         let odd = rect_mask(60, 60, 40, 5, 6, 15);
         let mut det = scene(&[single, pair, odd]);
-        let done = split_copies(&mut det, |_, _| 0.0, 0.12, 0.15);
-        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        let done = split_copies(&mut det, |_, _| 0.0, |_, _| f64::INFINITY, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2, also: None }]);
         assert_eq!(det.detections[1].rect, PixelRect::new(20, 5, 26, 15));
         assert_eq!(det.detections[3].rect, PixelRect::new(26, 5, 32, 15));
         // what looks different (another profile) is no copy
         let mut det = scene(&[rect_mask(60, 60, 5, 5, 6, 10), rect_mask(60, 60, 20, 5, 12, 10)]);
-        assert!(split_copies(&mut det, |_, _| 0.5, 0.12, 0.15).is_empty());
+        assert!(split_copies(&mut det, |_, _| 0.5, |_, _| f64::INFINITY, 0.12, 0.15).is_empty());
         // three in a row
         let mut det = scene(&[rect_mask(60, 60, 5, 5, 6, 10), rect_mask(60, 60, 20, 5, 6, 30)]);
-        let done = split_copies(&mut det, |_, _| 0.0, 0.12, 0.15);
-        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 3 }]);
+        let done = split_copies(&mut det, |_, _| 0.0, |_, _| f64::INFINITY, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 3, also: None }]);
         assert_eq!(det.detections.len(), 4);
     }
 
@@ -955,13 +1104,13 @@ mod tests {
         let single = rect_mask(60, 60, 5, 5, 7, 7);
         let pair = rect_mask(60, 60, 20, 5, 7, 13);
         let mut det = scene(&[single, pair]);
-        let done = split_copies(&mut det, |_, _| 0.0, 0.12, 0.15);
-        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        let done = split_copies(&mut det, |_, _| 0.0, |_, _| f64::INFINITY, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2, also: None }]);
         let widths: Vec<usize> = det.detections[1..].iter().map(|d| d.rect.cols()).collect();
         assert_eq!(widths, vec![6, 7]);
         // a 7 x 10 table beside the 7 x 7 chair is no one and a half chairs
         let mut det = scene(&[rect_mask(60, 60, 5, 5, 7, 7), rect_mask(60, 60, 20, 5, 7, 10)]);
-        assert!(split_copies(&mut det, |_, _| 0.0, 0.12, 0.15).is_empty());
+        assert!(split_copies(&mut det, |_, _| 0.0, |_, _| f64::INFINITY, 0.12, 0.15).is_empty());
     }
 
     /// A `len x wid` rectangle turned by `deg` about `(cx, cy)`, rasterised on `n x n`.
@@ -981,8 +1130,8 @@ mod tests {
         let pair = turned(100, (30.0, 30.0), (20.0, 20.0), 30.0);
         let single = turned(100, (70.0, 70.0), (20.0, 10.0), 30.0);
         let mut det = scene(&[single, pair]);
-        let done = split_copies(&mut det, |_, _| 0.0, 0.12, 0.15);
-        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2 }]);
+        let done = split_copies(&mut det, |_, _| 0.0, |_, _| f64::INFINITY, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 1, copy_of: 0, pieces: 2, also: None }]);
         for d in &det.detections[1..] {
             let r = footprint_rect(&d.footprint, d.rect.r0, d.rect.c0).unwrap();
             let (l, w) = r.sides();
@@ -1015,10 +1164,10 @@ mod tests {
         let car_b = rect_mask(80, 80, 20, 5, 8, 30);
         let half = rect_mask(80, 80, 40, 5, 8, 15);
         let mut det = scene(&[car_a, car_b, half]);
-        assert!(split_copies(&mut det, |_, _| 0.0, 0.12, 0.15).is_empty());
+        assert!(split_copies(&mut det, |_, _| 0.0, |_, _| f64::INFINITY, 0.12, 0.15).is_empty());
         // one pair of chests and a lone chest: the pair is cut
         let mut det = scene(&[rect_mask(80, 80, 5, 5, 8, 30), rect_mask(80, 80, 40, 5, 8, 15)]);
-        assert_eq!(split_copies(&mut det, |_, _| 0.0, 0.12, 0.15).len(), 1);
+        assert_eq!(split_copies(&mut det, |_, _| 0.0, |_, _| f64::INFINITY, 0.12, 0.15).len(), 1);
         // the other car looks different: the first is a pair again
         let mut det = scene(&[
             rect_mask(80, 80, 5, 5, 8, 30),
@@ -1026,8 +1175,8 @@ mod tests {
             rect_mask(80, 80, 40, 5, 8, 15),
         ]);
         let colour = |i: usize, j: usize| if i == 1 || j == 1 { 0.8 } else { 0.02 };
-        let done = split_copies(&mut det, colour, 0.12, 0.15);
-        assert_eq!(done, vec![CopySplit { detection: 0, copy_of: 2, pieces: 2 }]);
+        let done = split_copies(&mut det, colour, |_, _| f64::INFINITY, 0.12, 0.15);
+        assert_eq!(done, vec![CopySplit { detection: 0, copy_of: 2, pieces: 2, also: None }]);
     }
 
     #[test]

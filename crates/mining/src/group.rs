@@ -158,6 +158,9 @@ fn one() -> f64 {
 pub struct Grouping {
     /// Label histogram of every detection (over its own samples).
     pub histograms: Vec<Vec<f64>>,
+    /// The labels the histograms count (none without detections): a piece of a detection
+    /// is counted on them too ([`Codebook::histogram`]).
+    pub codebook: Option<Codebook>,
     /// JSD between the histograms.
     pub jsd: DistanceMatrix,
     /// The distance actually clustered (JSD plus the shape term).
@@ -377,6 +380,8 @@ pub struct Samples {
     pub weights: Vec<f32>,
     /// Index of the detection of every sample.
     pub owner: Vec<u32>,
+    /// The texel (row, column) of every sample, where known (empty otherwise).
+    pub at: Vec<(u32, u32)>,
 }
 
 impl Samples {
@@ -414,6 +419,7 @@ impl Samples {
                 let i = r * cols + c;
                 // fixed: a weight floor (every texel counts)
                 s.push(d.id, dets.evidence[i].max(1e-3), &feature.data[i * ch..(i + 1) * ch]);
+                s.at.push((r as u32, c as u32));
             }
         }
         Ok(s)
@@ -448,6 +454,7 @@ impl Samples {
             // fixed: a weight floor (every voxel counts)
             weights: sites.iter().map(|x| x.opacity.max(1e-3)).collect(),
             owner: sites.iter().map(|x| x.owner as u32).collect(),
+            at: sites.iter().map(|x| (x.at.0 as u32, x.at.1 as u32)).collect(),
         };
         const TILE: usize = 4096; // fixed: a work size of the parallel loop
         // fixed: three CIELAB axes per point
@@ -641,6 +648,7 @@ pub fn group_samples_profiled(
     if n == 0 {
         return Ok(Grouping {
             histograms: Vec::new(),
+            codebook: None,
             jsd: DistanceMatrix::new(0, Vec::new())?,
             distance: DistanceMatrix::new(0, Vec::new())?,
             merges: Vec::new(),
@@ -649,7 +657,7 @@ pub fn group_samples_profiled(
             cut: "no detections".into(),
         });
     }
-    let histograms = label_histograms(samples, n, opts)?;
+    let (histograms, codebook) = label_histograms(samples, n, opts)?;
     let jsd = jsd_matrix(&histograms)?;
     // the profile holds the height where there is one; the height stands in for it otherwise
     let profiled = !profiles.is_empty() && opts.profile_weight > 0.0;
@@ -665,6 +673,7 @@ pub fn group_samples_profiled(
     let n_categories = category.iter().max().map_or(0, |&m| m + 1);
     Ok(Grouping {
         histograms,
+        codebook: Some(codebook),
         jsd,
         distance,
         merges: dendro.merges,
@@ -744,10 +753,74 @@ fn check_inputs(
     Ok(())
 }
 
-/// Every detection's normalised label histogram: K-means labels fitted on at most
-/// [`GroupOptions::max_samples`] of the samples, then every sample's label (or soft
+/// The colour labels of a grouping: the K-means centroids over the samples, and how a
+/// sample is spread over them ([`Codebook::add`]).
+#[derive(Debug, Clone)]
+pub struct Codebook {
+    dim: usize,
+    centroids: Vec<f32>,
+    /// The mean squared distance of the fitted points to their centroid.
+    s2: f64,
+    soft: bool,
+}
+
+impl Codebook {
+    /// Number of labels.
+    pub fn labels(&self) -> usize {
+        self.centroids.len().checked_div(self.dim).unwrap_or(0)
+    }
+
+    /// Add `point` with weight `wt` to `hist` (one bin per label): to its nearest label, or
+    /// soft memberships `exp(-(d_j^2 - d_min^2) / (2 s^2))`, so that a colour the codebook
+    /// happens to split between two labels does not make identical objects look different.
+    /// `d` is scratch of one value per label.
+    fn add(&self, point: &[f32], wt: f64, hist: &mut [f64], d: &mut [f32]) {
+        for (j, dj) in d.iter_mut().enumerate() {
+            let c = &self.centroids[j * self.dim..(j + 1) * self.dim];
+            *dj = c.iter().zip(point).map(|(a, b)| (a - b) * (a - b)).sum();
+        }
+        let (best, dmin) = d
+            .iter()
+            .enumerate()
+            .fold((0usize, f32::INFINITY), |b, (j, &v)| if v < b.1 { (j, v) } else { b });
+        if self.soft {
+            let e = |v: f32| (-(f64::from(v - dmin)) / (2.0 * self.s2)).exp();
+            let t: f64 = d.iter().map(|&v| e(v)).sum();
+            hist.iter_mut().zip(d.iter()).for_each(|(h, &v)| *h += wt * e(v) / t);
+        } else {
+            hist[best] += wt;
+        }
+    }
+
+    /// The normalised label histogram of the samples `which` (indices into `samples`, whose
+    /// points must have this codebook's dimension); `None` when they weigh nothing.
+    pub fn histogram(
+        &self,
+        samples: &Samples,
+        which: impl IntoIterator<Item = usize>,
+    ) -> Option<Vec<f64>> {
+        let (k, ch) = (self.labels(), samples.dim);
+        if ch != self.dim || k == 0 {
+            return None;
+        }
+        let (mut hist, mut d) = (vec![0f64; k], vec![0f32; k]);
+        for i in which {
+            let p = samples.points.get(i * ch..(i + 1) * ch)?;
+            self.add(p, f64::from(samples.weights[i]), &mut hist, &mut d);
+        }
+        let total: f64 = hist.iter().sum();
+        (total > 0.0).then(|| hist.into_iter().map(|h| h / total).collect())
+    }
+}
+
+/// Every detection's normalised label histogram, and the codebook: K-means labels fitted on
+/// at most [`GroupOptions::max_samples`] of the samples, then every sample's label (or soft
 /// memberships) added to its owner's histogram with the sample's weight.
-fn label_histograms(samples: &Samples, n: usize, opts: &GroupOptions) -> Result<Vec<Vec<f64>>> {
+fn label_histograms(
+    samples: &Samples,
+    n: usize,
+    opts: &GroupOptions,
+) -> Result<(Vec<Vec<f64>>, Codebook)> {
     let ch = samples.dim;
     let stride = samples.len().div_ceil(opts.max_samples.max(opts.labels)).max(1);
     let fit: Vec<usize> = (0..samples.len()).step_by(stride).collect();
@@ -761,11 +834,14 @@ fn label_histograms(samples: &Samples, n: usize, opts: &GroupOptions) -> Result<
         Some(&w),
         &KMeansOptions { k, seed: opts.seed, ..KMeansOptions::default() },
     )?;
-    // Hard labels, or soft memberships: exp(-(d_j^2 - d_min^2) / (2 s^2)) with s^2 the mean
-    // squared distance of the points to their centroid, so that a colour the codebook
-    // happens to split between two labels does not make identical objects look different.
+    // s^2 of the soft memberships: the mean squared distance of the points to their centroid
     let s2 = (km.inertia / w.iter().map(|&x| f64::from(x)).sum::<f64>().max(1e-12)).max(1e-12);
-    let soft = opts.soft;
+    let book = Codebook {
+        dim: ch,
+        centroids: (0..k).flat_map(|j| km.centroid(j).iter().copied()).collect(),
+        s2,
+        soft: opts.soft,
+    };
     const CHUNK: usize = 8192; // fixed: a work size of the parallel loop
     let mut histograms: Vec<Vec<f64>> = (0..samples.len())
         .into_par_iter()
@@ -775,22 +851,8 @@ fn label_histograms(samples: &Samples, n: usize, opts: &GroupOptions) -> Result<
             let mut d = vec![0f32; k];
             for i in from..(from + CHUNK).min(samples.len()) {
                 let p = &samples.points[i * ch..(i + 1) * ch];
-                for (j, dj) in d.iter_mut().enumerate() {
-                    *dj = km.centroid(j).iter().zip(p).map(|(a, b)| (a - b) * (a - b)).sum();
-                }
-                let (best, dmin) = d
-                    .iter()
-                    .enumerate()
-                    .fold((0usize, f32::INFINITY), |b, (j, &v)| if v < b.1 { (j, v) } else { b });
                 let h = &mut hist[samples.owner[i] as usize * k..][..k];
-                let wt = f64::from(samples.weights[i]);
-                if soft {
-                    let e = |v: f32| (-(f64::from(v - dmin)) / (2.0 * s2)).exp();
-                    let t: f64 = d.iter().map(|&v| e(v)).sum();
-                    h.iter_mut().zip(&d).for_each(|(h, &v)| *h += wt * e(v) / t);
-                } else {
-                    h[best] += wt;
-                }
+                book.add(p, f64::from(samples.weights[i]), h, &mut d);
             }
             hist
         })
@@ -811,7 +873,7 @@ fn label_histograms(samples: &Samples, n: usize, opts: &GroupOptions) -> Result<
         }
         hist.iter_mut().for_each(|h| *h /= total);
     }
-    Ok(histograms)
+    Ok((histograms, book))
 }
 
 /// Where to cut the dendrogram of `n` detections, and a description of the cut.
@@ -992,6 +1054,30 @@ mod tests {
             }
         }
         s
+    }
+
+    #[test]
+    fn a_piece_is_counted_on_the_groupings_labels() {
+        // two red detections, one blue; a fourth half red, half blue
+        let (red, blue) = ([1.0, 0.0], [0.0, 1.0]);
+        let mut s = samples(&[red, red, blue], 40);
+        for j in 0..40 {
+            s.push(3, 1.0, if j < 20 { &red } else { &blue });
+        }
+        let shapes = vec![Shape::round(1.0, 1.0); 4];
+        let opts = GroupOptions { labels: 4, ..Default::default() };
+        let g = group_samples(&s, 4, &shapes, &opts).unwrap();
+        let book = g.codebook.as_ref().unwrap();
+        // a detection's own samples give its histogram
+        let owner = &s.owner;
+        let of = |d: u32| (0..owner.len()).filter(move |&i| owner[i] == d);
+        let whole = book.histogram(&s, of(3)).unwrap();
+        assert!(crate::histogram::jsd(&whole, &g.histograms[3]).unwrap() < 1e-12);
+        // its red half looks like the red ones, not the blue one
+        let half = book.histogram(&s, of(3).take(20)).unwrap();
+        assert!(crate::histogram::jsd(&half, &g.histograms[0]).unwrap() < 0.05);
+        assert!(crate::histogram::jsd(&half, &g.histograms[2]).unwrap() > 0.5);
+        assert!(book.histogram(&s, std::iter::empty()).is_none());
     }
 
     #[test]
