@@ -11,11 +11,12 @@
 //! levels above its base: a chest is solid from the floor up, a chair is a seat on legs and
 //! a back) both within the divergence copies may have. Both are of the objects' own texels,
 //! so what stands on an object is no part of it: a table with a monitor on it is a copy of a
-//! bare one, and what stood on a region that is cut stands on the piece under it. `R`'s rectangle (the one with its footprint's
-//! second moments, [`footprint_rect`]) must then be `k` of `T`'s stacked along one of `T`'s
-//! sides and its footprint `k` times `T`'s, each within the grouping's tolerance of a
-//! length (the reconstruction noise between two instances of one object; sides also within
-//! one texel, the resolution they are measured at). Along the stacking, `k` copies in
+//! bare one, and what stood on a region that is cut stands on the piece under it. `R`'s
+//! rectangle (the one with its footprint's second moments, [`footprint_rect`]) must then be
+//! `k` of `T`'s stacked along one of `T`'s sides and its footprint `k` times `T`'s, each
+//! within the grouping's tolerance of a length (the reconstruction noise between two
+//! instances of one object; sides also within one texel, the resolution they are measured
+//! at). Along the stacking, `k` copies in
 //! contact measure between `k` of `T`'s sides (rectangles) and `k` copies one reach of `T`
 //! apart (round objects: [`stacked_side`]). `R` is cut across the stacking direction into
 //! `k` equal slabs, and each slab must again be `T`'s rectangle; every way `R` fits is
@@ -29,7 +30,8 @@
 //! way when each stands alone elsewhere: the larger one's rectangle `T` placed on `R`, the
 //! rest `U`'s rectangle and area, their areas summing to `R`'s within the tolerance, and
 //! each piece alike its object in its own colours (counted on the grouping's labels) and
-//! sharp profile, within the divergence copies may have ([`place_two`]). A region of
+//! sharp profile, within the divergence copies may have ([`place_two`]); two that touch
+//! each other are pieces of one object, not two alone. A region of
 //! haze or an object with no such pair of rectangles is left whole; so is a pair of
 //! objects that merely has the shapes of two others (two dressers the size of two chests
 //! of another finish).
@@ -49,6 +51,7 @@
 //! stands in the scene: it is split.
 
 use crate::detect::{Detection, Detections};
+use crate::halves::touching;
 use crate::image::{Mask, PixelRect};
 use crate::morphology::open;
 
@@ -339,10 +342,10 @@ fn piece(d: &Detection, keep: &Mask, det: &Detections) -> Option<Detection> {
 
 /// How the occupied voxels of a detection spread over the levels from its base up: per
 /// level, the number of its own columns (not those of what stands on it) with a voxel above
-/// `tau` there, normalised to
-/// sum 1 (all zero for an empty footprint), `vol.nz` bins whatever the base (the levels past
-/// the top are empty), so that the profiles of one volume compare bin by bin. Compared with
-/// the Jensen-Shannon divergence, it tells a solid block from a seat on legs of the same size.
+/// `tau` there, normalised to sum 1 (all zero for an empty footprint), `vol.nz` bins
+/// whatever the base (the levels past the top are empty), so that the profiles of one volume
+/// compare bin by bin. Compared with the Jensen-Shannon divergence, it tells a solid block
+/// from a seat on legs of the same size.
 pub fn vertical_profile(vol: &crate::planes::OpacityVolume, d: &Detection, tau: f32) -> Vec<f64> {
     let base = (((d.base - vol.z0) / vol.dz).round().max(0.0) as usize).min(vol.nz);
     let mut h = vec![0f64; vol.nz];
@@ -732,8 +735,12 @@ pub fn split_copies(
         let mut twos: Vec<(f64, usize, usize)> = Vec::new();
         for ti in (0..n).filter(|&t| t != ri && rects[t].is_some()) {
             for ui in (0..n).filter(|&u| u != ri && u != ti && rects[u].is_some()) {
-                // the larger placed first (the smaller fits in more ways)
-                if (counts[ui], ui) > (counts[ti], ti) {
+                // the larger placed first (the smaller fits in more ways); two that stand
+                // together elsewhere too are no two objects alone but pieces of one (a
+                // car the colour split cut in two is no template for cutting another)
+                if (counts[ui], ui) > (counts[ti], ti)
+                    || touching(&det.detections[ti], &det.detections[ui])
+                {
                     continue;
                 }
                 let fit = log_ratio(counts[ri] as f64, (counts[ti] + counts[ui]) as f64);
@@ -778,12 +785,11 @@ pub fn split_copies(
 fn replace_by_pieces(
     det: &mut Detections,
     ri: usize,
-    pieces: Vec<Detection>,
+    mut pieces: Vec<Detection>,
     n: usize,
     appended: &mut Vec<Detection>,
 ) {
     let children = std::mem::take(&mut det.detections[ri].children);
-    let mut pieces = pieces;
     for (i, p) in pieces.iter_mut().enumerate() {
         p.id = if i == 0 { ri } else { n + appended.len() + i - 1 };
     }
@@ -1005,6 +1011,17 @@ mod tests {
             }),
         ]);
         assert!(split_copies(&mut det, unlike, |_, _| 0.5, 0.12, 0.15).is_empty());
+        // a counter and a crate that touch each other are pieces of one object (as the
+        // region is): no template for cutting it
+        let mut det = scene(&[
+            rect_mask(60, 60, 2, 2, 6, 16),
+            rect_mask(60, 60, 8, 6, 8, 8),
+            Mask::from_fn(60, 60, |r, c| {
+                ((24..30).contains(&r) && (2..18).contains(&c))
+                    || ((30..38).contains(&r) && (6..14).contains(&c))
+            }),
+        ]);
+        assert!(split_copies(&mut det, unlike, |_, _| 0.0, 0.12, 0.15).is_empty());
     }
 
     fn disc(cy: f64, cx: f64, radius: f64) -> Mask {

@@ -37,7 +37,7 @@ fn covers(d: &Detection, r: isize, c: isize) -> bool {
 }
 
 /// Whether two footprints touch (4-neighbours) without a texel in common.
-fn touching(a: &Detection, b: &Detection) -> bool {
+pub(crate) fn touching(a: &Detection, b: &Detection) -> bool {
     let near = PixelRect::new(
         a.rect.r0.saturating_sub(1),
         a.rect.c0.saturating_sub(1),
