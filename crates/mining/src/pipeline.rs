@@ -18,7 +18,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::path::{Path, PathBuf};
 
 use crate::agglomerative::DistanceMatrix;
-use crate::copies::{CopySplit, blurred, profile_jsd, split_copies, vertical_profile};
+use crate::copies::{CopySplit, blurred, own_profile, profile_jsd, split_copies, vertical_profile};
 use crate::detect::{DetectParams, Detection, Detections, FloorBand, detect_with_color_axis};
 use crate::error::{MiningError, Result, check_interrupt};
 use crate::group::{GroupOptions, Grouping, Profiles, Samples, Shape, group_samples_profiled};
@@ -780,11 +780,11 @@ impl Context<'_> {
         Ok(dets)
     }
 
-    /// The grouping of `dets` into categories, with their sharp vertical profiles (for the
-    /// copies test). Objects on different bases compare their profiles blurred by the
+    /// The grouping of `dets` into categories, with the samples it counted (the copies test
+    /// counts a piece cut from a detection on the same labels). Objects on different bases compare their profiles blurred by the
     /// field's vertical blur (`blur_levels`: a base is estimated within it), objects on one
     /// base their sharp ones ([`Profiles`]).
-    fn group_all(&self, dets: &Detections) -> Result<(Grouping, Vec<Vec<f64>>, Samples)> {
+    fn group_all(&self, dets: &Detections) -> Result<(Grouping, Samples)> {
         let opts = self.opts;
         let texel = self.planes.grid.texel;
         let shapes: Vec<Shape> = dets.detections.iter().map(|d| Shape::of(d, texel)).collect();
@@ -808,7 +808,7 @@ impl Context<'_> {
             profiles,
             &opts.group,
         )?;
-        Ok((grouping, sharp, samples))
+        Ok((grouping, samples))
     }
 
     /// Group the detections. Halves of one object that recur together (two categories
@@ -819,7 +819,7 @@ impl Context<'_> {
         &self,
         dets: &mut Detections,
     ) -> Result<(Grouping, Vec<CopySplit>, Vec<JoinedHalves>)> {
-        let (mut grouping, mut sharp, mut samples) = self.group_all(dets)?;
+        let (mut grouping, mut samples) = self.group_all(dets)?;
         let halves = if self.opts.group.join_halves {
             join_halves(dets, &grouping.category, self.opts.group.length_tolerance)
         } else {
@@ -827,11 +827,14 @@ impl Context<'_> {
         };
         if !halves.is_empty() {
             tracing::debug!(?halves, "halves joined");
-            (grouping, sharp, samples) = self.group_all(dets)?;
+            (grouping, samples) = self.group_all(dets)?;
         }
         let copies = if self.opts.group.split_copies {
             let g = &self.opts.group;
             let tau = dets.voxel_threshold;
+            // the copies test compares objects by their own columns alone
+            let own: Vec<Vec<f64>> =
+                dets.detections.iter().map(|d| own_profile(self.vol, d, tau)).collect();
             // every detection's samples, for the colours of a piece cut from it
             let mut by_owner: Vec<Vec<usize>> = vec![Vec::new(); dets.detections.len()];
             for (i, &o) in samples.owner.iter().enumerate() {
@@ -839,14 +842,14 @@ impl Context<'_> {
             }
             let piece_colours = |piece: &Detection| {
                 let book = grouping.codebook.as_ref()?;
-                let own = |i: &usize| {
+                let inside = |i: &usize| {
                     samples.at.get(*i).is_some_and(|&(r, c)| {
                         let (r, c) = (r as usize, c as usize);
                         piece.rect.contains(r, c)
                             && piece.own.get(r - piece.rect.r0, c - piece.rect.c0)
                     })
                 };
-                book.histogram(&samples, by_owner.get(piece.id)?.iter().copied().filter(own))
+                book.histogram(&samples, by_owner.get(piece.id)?.iter().copied().filter(inside))
             };
             split_copies(
                 dets,
@@ -855,14 +858,14 @@ impl Context<'_> {
                         .jsd
                         .get(i, j)
                         .unwrap_or(f64::INFINITY)
-                        .max(profile_jsd(&sharp[i], &sharp[j]))
+                        .max(profile_jsd(&own[i], &own[j]))
                 },
                 // a piece: its own colours and sharp profile against the other detection's
                 |piece, j| {
                     let colour = piece_colours(piece)
                         .and_then(|h| histogram::jsd(&h, &grouping.histograms[j]).ok())
                         .unwrap_or(f64::INFINITY);
-                    colour.max(profile_jsd(&vertical_profile(self.vol, piece, tau), &sharp[j]))
+                    colour.max(profile_jsd(&own_profile(self.vol, piece, tau), &own[j]))
                 },
                 g.copy_divergence,
                 g.length_tolerance,
