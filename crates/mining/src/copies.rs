@@ -979,10 +979,14 @@ mod tests {
         // area is theirs too, but no counter and crate make it
         let counter = rect_mask(60, 60, 2, 2, 6, 16);
         let crate_ = rect_mask(60, 60, 2, 30, 8, 8);
-        let pair = Mask::from_fn(60, 60, |r, c| {
-            ((14..20).contains(&r) && (2..18).contains(&c))
-                || ((20..28).contains(&r) && (6..14).contains(&c))
-        });
+        // a counter from row `r0` with a crate against its side
+        let in_contact = |r0: usize| {
+            Mask::from_fn(60, 60, move |r, c| {
+                ((r0..r0 + 6).contains(&r) && (2..18).contains(&c))
+                    || ((r0 + 6..r0 + 14).contains(&r) && (6..14).contains(&c))
+            })
+        };
+        let pair = in_contact(14);
         let block = rect_mask(60, 60, 40, 30, 10, 16);
         // the look of a texel: crates' columns are their own
         let is_crate = |r: usize, c: usize| {
@@ -1017,25 +1021,12 @@ mod tests {
         assert!(crate_share(b) > 0.9 && crate_share(a) < 0.1);
         assert_eq!(det.detections[3].footprint.count(), 160, "the block stays whole");
         // pieces that do not look like the objects whose rectangles they have: no cut
-        let mut det = scene(&[
-            rect_mask(60, 60, 2, 2, 6, 16),
-            rect_mask(60, 60, 2, 30, 8, 8),
-            Mask::from_fn(60, 60, |r, c| {
-                ((14..20).contains(&r) && (2..18).contains(&c))
-                    || ((20..28).contains(&r) && (6..14).contains(&c))
-            }),
-        ]);
+        let counter = rect_mask(60, 60, 2, 2, 6, 16);
+        let mut det = scene(&[counter.clone(), rect_mask(60, 60, 2, 30, 8, 8), in_contact(14)]);
         assert!(split_copies(&mut det, unlike, |_, _| 0.5, 0.12, 0.15).is_empty());
         // a counter and a crate that touch each other are pieces of one object (as the
         // region is): no template for cutting it
-        let mut det = scene(&[
-            rect_mask(60, 60, 2, 2, 6, 16),
-            rect_mask(60, 60, 8, 6, 8, 8),
-            Mask::from_fn(60, 60, |r, c| {
-                ((24..30).contains(&r) && (2..18).contains(&c))
-                    || ((30..38).contains(&r) && (6..14).contains(&c))
-            }),
-        ]);
+        let mut det = scene(&[counter, rect_mask(60, 60, 8, 6, 8, 8), in_contact(24)]);
         assert!(split_copies(&mut det, unlike, |_, _| 0.0, 0.12, 0.15).is_empty());
     }
 
