@@ -1202,27 +1202,31 @@ mod tests {
         assert_eq!(done, vec![CopySplit { detection: 0, copy_of: 2, pieces: 2, also: None }]);
     }
 
+    /// A volume of `rows` x `cols` columns and `nz` one-unit levels from 0, opaque in the
+    /// levels each `(column, levels)` lists, and the plane grid of one-unit texels under it.
+    fn solid(
+        rows: usize,
+        cols: usize,
+        nz: usize,
+        filled: impl IntoIterator<Item = ((usize, usize), std::ops::Range<usize>)>,
+    ) -> (crate::planes::OpacityVolume, PlaneGrid) {
+        let mut data = vec![0f32; rows * cols * nz];
+        for ((r, c), levels) in filled {
+            levels.for_each(|k| data[(r * cols + c) * nz + k] = 1.0);
+        }
+        let vol = crate::planes::OpacityVolume { rows, cols, nz, z0: 0.0, dz: 1.0, data };
+        (vol, PlaneGrid { rows, cols, origin: [0.0, 0.0], texel: [1.0, 1.0] })
+    }
+
     #[test]
     fn a_block_and_a_seat_on_legs_have_different_profiles_and_a_shift_is_forgiven_blurred() {
-        use crate::planes::OpacityVolume;
         // 10 x 10 columns, 20 levels; a block over the left half (levels 0..10), a "seat on
         // legs" over the right half (a slab at levels 8..10 and four leg columns)
         let (rows, cols, nz) = (10, 10, 20);
-        let mut data = vec![0f32; rows * cols * nz];
-        let mut set = |r: usize, c: usize, k: usize| data[(r * cols + c) * nz + k] = 1.0;
-        for r in 0..10 {
-            for c in 0..5 {
-                (0..10).for_each(|k| set(r, c, k));
-            }
-            for c in 5..10 {
-                (8..10).for_each(|k| set(r, c, k));
-            }
-        }
-        for (r, c) in [(0, 5), (0, 9), (9, 5), (9, 9)] {
-            (0..8).for_each(|k| set(r, c, k));
-        }
-        let vol = OpacityVolume { rows, cols, nz, z0: 0.0, dz: 1.0, data };
-        let grid = PlaneGrid { rows, cols, origin: [0.0, 0.0], texel: [1.0, 1.0] };
+        let block_cols = (0..10).flat_map(|r| (0..5).map(move |c| ((r, c), 0..10)));
+        let seat_cols = (0..10).flat_map(|r| (5..10).map(move |c| ((r, c), 8..10)));
+        let legs = [(0, 5), (0, 9), (9, 5), (9, 9)].map(|rc| (rc, 0..8));
+        let (vol, grid) = solid(rows, cols, nz, block_cols.chain(seat_cols).chain(legs));
         let block = detection(0, &grid, &rect_mask(rows, cols, 0, 0, 10, 5));
         let seat = detection(1, &grid, &rect_mask(rows, cols, 0, 5, 10, 5));
         let (pb, ps) = (vertical_profile(&vol, &block, 0.5), vertical_profile(&vol, &seat, 0.5));
@@ -1243,21 +1247,11 @@ mod tests {
 
     #[test]
     fn what_stands_on_an_object_is_no_part_of_its_profile() {
-        use crate::planes::OpacityVolume;
         // two 6 x 6 blocks (levels 0..4); a 2 x 2 box on the right one (levels 4..8)
         let (rows, cols, nz) = (6, 14, 12);
-        let mut data = vec![0f32; rows * cols * nz];
-        let mut set = |r: usize, c: usize, k: usize| data[(r * cols + c) * nz + k] = 1.0;
-        for r in 0..6 {
-            for c in (0..6).chain(8..14) {
-                (0..4).for_each(|k| set(r, c, k));
-            }
-        }
-        for (r, c) in [(2, 10), (2, 11), (3, 10), (3, 11)] {
-            (4..8).for_each(|k| set(r, c, k));
-        }
-        let vol = OpacityVolume { rows, cols, nz, z0: 0.0, dz: 1.0, data };
-        let grid = PlaneGrid { rows, cols, origin: [0.0, 0.0], texel: [1.0, 1.0] };
+        let blocks = (0..6).flat_map(|r| (0..6).chain(8..14).map(move |c| ((r, c), 0..4)));
+        let boxed = [(2, 10), (2, 11), (3, 10), (3, 11)].map(|rc| (rc, 4..8));
+        let (vol, grid) = solid(rows, cols, nz, blocks.chain(boxed));
         let mut bare = detection(0, &grid, &rect_mask(rows, cols, 0, 0, 6, 6));
         let mut holding = detection(1, &grid, &rect_mask(rows, cols, 0, 8, 6, 6));
         // their tops at level 3
