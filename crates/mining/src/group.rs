@@ -102,9 +102,10 @@ pub struct GroupOptions {
     /// categories of the basis merge.
     pub min_separation: f64,
     /// The most two copies of one object differ in colour or in vertical profile (JSD in
-    /// bits, each term alone): [`crate::copies`] cuts a detection into copies of another only
-    /// within it. Stricter than [`Self::min_separation`]: a false copy is a false object,
-    /// where a category split only costs the grouping.
+    /// bits, each term alone): [`crate::copies`] cuts a detection into copies of another, or
+    /// into two other objects in contact (each piece against its object), only within it.
+    /// Stricter than [`Self::min_separation`]: a false copy is a false object, where a
+    /// category split only costs the grouping.
     #[serde(default = "copy_divergence")]
     pub copy_divergence: f64,
     /// At most this many samples fit the K-means codebook (the rest are only labelled).

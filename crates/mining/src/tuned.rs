@@ -228,9 +228,10 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             Grouping,
             o.group.copy_divergence,
             "bits (JSD), colours and profiles each",
-            "a detection is cut into copies of another only this alike; at 0.25 (the \
-             categories' separation) random_6 lost 0.03-0.06 F1 and random_12 0.035 at 6000 \
-             iterations to false copies",
+            "a detection is cut into copies of another (or into two other objects, each \
+             piece against its own) only this alike; at 0.25 (the categories' separation) \
+             random_6 lost 0.03-0.06 F1 and random_12 0.035 at 6000 iterations to false \
+             copies",
         ),
         entry(
             CONSTANT,
