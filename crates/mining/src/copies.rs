@@ -51,7 +51,7 @@
 //! stands in the scene: it is split.
 
 use crate::detect::{Detection, Detections};
-use crate::halves::touching;
+use crate::halves::{covers, touching};
 use crate::image::{Mask, PixelRect};
 use crate::morphology::open;
 
@@ -350,18 +350,33 @@ fn piece(d: &Detection, keep: &Mask, det: &Detections) -> Option<Detection> {
 /// table with a monitor on it has the profile of a bare one, and a tree with a speck of its
 /// crown taken for an object on it keeps a tree's.
 pub fn vertical_profile(vol: &crate::planes::OpacityVolume, d: &Detection, tau: f32) -> Vec<f64> {
+    profile_of(vol, d, tau, true)
+}
+
+/// The profile of `d` ([`vertical_profile`]); the columns under what stands on it counted
+/// up to its shape top (`held_columns`) or left out.
+fn profile_of(
+    vol: &crate::planes::OpacityVolume,
+    d: &Detection,
+    tau: f32,
+    held_columns: bool,
+) -> Vec<f64> {
     let base = (((d.base - vol.z0) / vol.dz).round().max(0.0) as usize).min(vol.nz);
     let (_, own_top) = vol.levels_between(d.base, d.shape_top);
     let mut h = vec![0f64; vol.nz];
     for r in 0..d.rect.rows() {
         for c in 0..d.rect.cols() {
-            if d.footprint.get(r, c) {
-                let col = vol.column(d.rect.r0 + r, d.rect.c0 + c);
-                let end = if d.own.get(r, c) { vol.nz } else { (own_top + 1).clamp(base, vol.nz) };
-                for (k, v) in col[base..end].iter().enumerate() {
-                    if *v > tau {
-                        h[k] += 1.0;
-                    }
+            let end = if d.own.get(r, c) {
+                vol.nz
+            } else if held_columns && d.footprint.get(r, c) {
+                (own_top + 1).clamp(base, vol.nz)
+            } else {
+                continue;
+            };
+            let col = vol.column(d.rect.r0 + r, d.rect.c0 + c);
+            for (k, v) in col[base..end].iter().enumerate() {
+                if *v > tau {
+                    h[k] += 1.0;
                 }
             }
         }
@@ -409,9 +424,7 @@ pub fn profile_jsd(a: &[f64], b: &[f64]) -> f64 {
 /// under a monitor on a table count the table's top, blurred into the monitor's foot, and
 /// two tables holding different things must still be copies.
 pub fn own_profile(vol: &crate::planes::OpacityVolume, d: &Detection, tau: f32) -> Vec<f64> {
-    let mut only = d.clone();
-    only.footprint = d.own.clone();
-    vertical_profile(vol, &only, tau)
+    profile_of(vol, d, tau, false)
 }
 
 /// Whether another detection on the ground is one copy of detection `i`: alike (`unlike`
@@ -670,11 +683,13 @@ pub fn split_copies(
     // per region, the alike detections of half its area (closest colours first), for two
     // copies placed apart from any stacking
     let mut placed_plans: Vec<(usize, Vec<(f64, usize)>)> = Vec::new();
+    // a region whose own shape and look stand elsewhere too is an object in its own right:
+    // its recurrence is the repetition that makes it a category
+    let recurring: Vec<bool> =
+        (0..n).map(|i| recurs(i, &rects, &counts, &unlike, alike_tol, tol)).collect();
     for ri in 0..n {
         let Some(rr) = rects[ri] else { continue };
-        // a region whose own shape and look stand elsewhere too is an object in its own
-        // right: its recurrence is the repetition that makes it a category
-        if recurs(ri, &rects, &counts, &unlike, alike_tol, tol) {
+        if recurring[ri] {
             continue;
         }
         let mut matches: Vec<CopyMatch> = Vec::new();
@@ -740,30 +755,30 @@ pub fn split_copies(
     // two different objects in contact (a car parked against a fountain), each standing
     // alone elsewhere: the region is the larger one's rectangle placed where it fits best
     // and a rest that is the other's rectangle and area, each piece alike its object
+    // the pairs of detections on the ground, the larger first (the smaller fits in more
+    // ways), that do not touch each other: two that touch are pieces of one object, not two
+    // alone (a car the colour split cut in two is no template for cutting another)
+    let mut apart: Option<Vec<(usize, usize)>> = None;
     for ri in 0..n {
-        if rects[ri].is_none()
-            || done.iter().any(|d| d.detection == ri)
-            || recurs(ri, &rects, &counts, &unlike, alike_tol, tol)
-        {
+        if rects[ri].is_none() || recurring[ri] || done.iter().any(|d| d.detection == ri) {
             continue;
         }
-        let mut twos: Vec<(f64, usize, usize)> = Vec::new();
-        for ti in (0..n).filter(|&t| t != ri && rects[t].is_some()) {
-            for ui in (0..n).filter(|&u| u != ri && u != ti && rects[u].is_some()) {
-                // the larger placed first (the smaller fits in more ways); two that stand
-                // together elsewhere too are no two objects alone but pieces of one (a
-                // car the colour split cut in two is no template for cutting another)
-                if (counts[ui], ui) > (counts[ti], ti)
-                    || touching(&det.detections[ti], &det.detections[ui])
-                {
-                    continue;
-                }
-                let fit = log_ratio(counts[ri] as f64, (counts[ti] + counts[ui]) as f64);
-                if fit <= tol {
-                    twos.push((fit, ti, ui));
-                }
-            }
-        }
+        let apart = apart.get_or_insert_with(|| {
+            let on = || (0..n).filter(|&i| rects[i].is_some());
+            on().flat_map(|t| on().map(move |u| (t, u)))
+                .filter(|&(t, u)| {
+                    t != u
+                        && (counts[u], u) < (counts[t], t)
+                        && !touching(&det.detections[t], &det.detections[u])
+                })
+                .collect()
+        });
+        let mut twos: Vec<(f64, usize, usize)> = apart
+            .iter()
+            .filter(|&&(t, u)| t != ri && u != ri)
+            .map(|&(t, u)| (log_ratio(counts[ri] as f64, (counts[t] + counts[u]) as f64), t, u))
+            .filter(|&(fit, _, _)| fit <= tol)
+            .collect();
         twos.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
         let cut = twos.iter().find_map(|&(_, ti, ui)| {
             let first = CopyModel { rect: rects[ti]?, count: counts[ti], tol };
@@ -811,18 +826,13 @@ fn replace_by_pieces(
     for c in children {
         let child = &det.detections[c];
         let held = |p: &Detection| {
-            let mut count = 0usize;
-            for r in 0..child.rect.rows() {
-                for col in 0..child.rect.cols() {
-                    let (pr, pc) = (child.rect.r0 + r, child.rect.c0 + col);
-                    count += usize::from(
-                        child.footprint.get(r, col)
-                            && p.rect.contains(pr, pc)
-                            && p.footprint.get(pr - p.rect.r0, pc - p.rect.c0),
-                    );
-                }
-            }
-            count
+            let (r0, c0) = (child.rect.r0, child.rect.c0);
+            (0..child.rect.rows())
+                .flat_map(|r| (0..child.rect.cols()).map(move |col| (r, col)))
+                .filter(|&(r, col)| {
+                    child.footprint.get(r, col) && covers(p, (r0 + r) as isize, (c0 + col) as isize)
+                })
+                .count()
         };
         // the first piece on a tie (a child on none keeps standing on the detection's id)
         let best = (0..pieces.len()).rev().max_by_key(|&i| held(&pieces[i])).unwrap_or(0);

@@ -28,7 +28,7 @@ pub struct JoinedHalves {
 }
 
 /// Whether a texel `(r, c)` of the plane lies in `d`'s footprint.
-fn covers(d: &Detection, r: isize, c: isize) -> bool {
+pub(crate) fn covers(d: &Detection, r: isize, c: isize) -> bool {
     if r < 0 || c < 0 {
         return false;
     }

@@ -781,9 +781,9 @@ impl Context<'_> {
     }
 
     /// The grouping of `dets` into categories, with the samples it counted (the copies test
-    /// counts a piece cut from a detection on the same labels). Objects on different bases compare their profiles blurred by the
-    /// field's vertical blur (`blur_levels`: a base is estimated within it), objects on one
-    /// base their sharp ones ([`Profiles`]).
+    /// counts a piece cut from a detection on the same labels). Objects on different bases
+    /// compare their profiles blurred by the field's vertical blur (`blur_levels`: a base is
+    /// estimated within it), objects on one base their sharp ones ([`Profiles`]).
     fn group_all(&self, dets: &Detections) -> Result<(Grouping, Samples)> {
         let opts = self.opts;
         let texel = self.planes.grid.texel;
