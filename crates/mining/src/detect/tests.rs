@@ -1096,6 +1096,23 @@ fn a_wall_corner_closed_off_by_a_streak_is_still_a_wall() {
 }
 
 #[test]
+fn a_wall_along_the_short_side_of_a_long_plane_is_a_wall() {
+    // a plane 60 x 100 texels: the left wall (two texels thick, levels 2..20) runs along 40
+    // of the 60 rows, a doorway leaving the rest open; it spans 0.67 of the side it runs
+    // along, though only 0.4 of the plane's longer side. A bench as thin and as long (40
+    // texels) along the long side runs along 0.4 of it, and is an object.
+    let (rows, cols) = (60, 100);
+    let mut v = floor_volume(rows, cols, 30);
+    fill(&mut v, (0, 40), (0, 2), (2, 20), 0.95);
+    fill(&mut v, (50, 52), (30, 70), (2, 8), 0.95); // the bench
+    fill(&mut v, (20, 30), (40, 50), (2, 10), 0.95); // a box
+    let d = detect_small(&v, &PlaneImage::zeros(rows, cols, 3).unwrap());
+    assert_a_wall_removed(&d);
+    assert_found_exactly(&d, &[PixelRect::new(50, 30, 52, 70), PixelRect::new(20, 40, 30, 50)]);
+    assert!((filters::run_share(PixelRect::new(0, 0, 40, 2), rows, cols) - 0.667).abs() < 1e-3);
+}
+
+#[test]
 fn a_thin_surface_is_opaque_at_its_peak_only() {
     use super::split::opaque;
     let tau = 0.4;

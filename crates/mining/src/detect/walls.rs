@@ -20,8 +20,7 @@ pub(super) fn hollow_insides(cx: &Ctx, mask: &Mask) -> Result<Mask> {
     if !cx.p.walls_on() {
         return Mask::empty(mask.rows, mask.cols);
     }
-    let longest = mask.rows.max(mask.cols) as f32;
-    Ok(small_enclosures(mask, (super::filters::WALL_MIN_LENGTH * longest).ceil() as usize))
+    Ok(small_enclosures(mask, super::filters::WALL_MIN_LENGTH))
 }
 
 /// Remove the walls from the first-round mask, recording each; what lies inside a hollow
@@ -34,7 +33,6 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
     let (rows, cols) = (mask.rows, mask.cols);
     // what an enclosure too short for a wall holds is its host's inside
     let mask = Mask::from_fn(rows, cols, |rr, cc| mask.get(rr, cc) && !cx.hollow.get(rr, cc));
-    let longest = rows.max(cols) as f32;
     let r = half_thickness(cx);
     let near_core_plain = near_core(&mask, r)?;
     let filled = fill_empty_holes(&mask);
@@ -66,13 +64,13 @@ pub(super) fn remove_walls(cx: &Ctx, mask: Mask, removed: &mut Vec<Removed>) -> 
     let standing =
         Mask::from_fn(rows, cols, |rr, cc| thin_all.get(rr, cc) && stands_up(cx, rr, cc));
     let mut cores = Mask::empty(rows, cols)?;
-    for (reg, _) in long_regions(&standing, longest)? {
+    for (reg, _) in long_regions(&standing)? {
         paint(&mut cores, &reg);
     }
     let band = crate::morphology::dilate(&cores, r)?;
     let thin = Mask::from_fn(rows, cols, |rr, cc| thin_all.get(rr, cc) && band.get(rr, cc));
     let mut walls = Mask::empty(rows, cols)?;
-    for (reg, length) in long_regions(&thin, longest)? {
+    for (reg, length) in long_regions(&thin)? {
         removed.push(Removed {
             world: cx.grid.rect_to_world(reg.bbox),
             reason: RemovalReason::Wall { thickness: 2.0 * p.wall_half_thickness_texels, length },
@@ -100,13 +98,14 @@ fn stands_up(cx: &Ctx, r: usize, c: usize) -> bool {
     }
 }
 
-/// The components of `mask` running along at least [`super::filters::WALL_MIN_LENGTH`] of
-/// the plane's longer side (`longest`, texels), each with its length as a share of it.
-fn long_regions(mask: &Mask, longest: f32) -> Result<Vec<(crate::contours::Region, f32)>> {
+/// The components of `mask` (the whole plane) running along at least
+/// [`super::filters::WALL_MIN_LENGTH`] of it, each with its length as a share of the plane's
+/// side it runs along ([`super::filters::run_share`]).
+fn long_regions(mask: &Mask) -> Result<Vec<(crate::contours::Region, f32)>> {
     Ok(components(mask)?
         .into_iter()
         .map(|reg| {
-            let length = reg.bbox.rows().max(reg.bbox.cols()) as f32 / longest;
+            let length = super::filters::run_share(reg.bbox, mask.rows, mask.cols);
             (reg, length)
         })
         .filter(|&(_, length)| length >= super::filters::WALL_MIN_LENGTH)
