@@ -115,17 +115,18 @@ pub(super) fn fill_empty_holes(mask: &Mask) -> Mask {
     out
 }
 
-/// The insides of a mask's small enclosures: every hole whose box runs along less than
-/// `max_share` of the plane (the mask; [`super::filters::run_share`]), with the islands it
-/// encloses (texels of the mask inside it). A room's shell encloses a space as long as its
-/// walls, which run along at least [`super::filters::WALL_MIN_LENGTH`] of the plane; an
-/// enclosure shorter than a wall is the inside of one hollow object (a van whose roof the
-/// field painted onto the ground), and the specks and sheets the field left in it are that
-/// object's, not objects of their own.
-pub(super) fn small_enclosures(mask: &Mask, max_share: f32) -> Mask {
+/// The insides of a mask's small enclosures: every hole shorter than a wall can be (its box
+/// runs along less than [`super::filters::WALL_MIN_LENGTH`] of the plane, the mask:
+/// [`super::filters::run_share`]), with the islands it encloses (texels of the mask inside
+/// it). A room's shell encloses a space as long as its walls; an enclosure shorter than a
+/// wall is the inside of one hollow object (a van whose roof the field painted onto the
+/// ground), and the specks and sheets the field left in it are that object's, not objects
+/// of their own.
+pub(super) fn small_enclosures(mask: &Mask) -> Mask {
+    use super::filters::{WALL_MIN_LENGTH, run_share};
     let mut inside = Mask { rows: mask.rows, cols: mask.cols, data: vec![false; mask.data.len()] };
     for (_, bb, own) in holes(mask) {
-        if super::filters::run_share(bb, mask.rows, mask.cols) >= max_share {
+        if run_share(bb, mask.rows, mask.cols) >= WALL_MIN_LENGTH {
             continue;
         }
         let enclosed = fill_holes(&own);

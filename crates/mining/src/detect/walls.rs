@@ -20,7 +20,7 @@ pub(super) fn hollow_insides(cx: &Ctx, mask: &Mask) -> Result<Mask> {
     if !cx.p.walls_on() {
         return Mask::empty(mask.rows, mask.cols);
     }
-    Ok(small_enclosures(mask, super::filters::WALL_MIN_LENGTH))
+    Ok(small_enclosures(mask))
 }
 
 /// Remove the walls from the first-round mask, recording each; what lies inside a hollow
