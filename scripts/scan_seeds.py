@@ -45,7 +45,8 @@ def main():
                    "--test-views", "1", "--force"]
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode != 0:
-                print(f"seed {seed}: synth failed: {r.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
+                last = (r.stderr.strip().splitlines() or ["no message"])[-1]
+                print(f"seed {seed}: synth failed: {last}", file=sys.stderr)
                 continue
             with open(os.path.join(out, "gt_layout.json")) as f:
                 g = json.load(f)

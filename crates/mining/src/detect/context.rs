@@ -40,7 +40,7 @@ pub(super) struct Ctx<'a> {
     /// Smallest footprint of an object standing alone, texels (at most `min_texels`).
     pub min_lone_texels: usize,
     /// The insides of hollow objects: the first-round mask's enclosures too short for a wall
-    /// ([`super::shape::small_enclosures`]; empty until the walls stage sets it). What lies
+    /// ([`super::walls::hollow_insides`]; empty until the walls stage sets it). What lies
     /// in one is its host's inside, not an object of its own.
     pub hollow: Mask,
     /// The colour plane's vertical axis, `[vol.nz][color.ch]`, each channel divided by its

@@ -33,7 +33,7 @@ impl fmt::Display for RemovalReason {
         match self {
             RemovalReason::Wall { thickness, length } => write!(
                 f,
-                "wall: a thin ({thickness:.1} texels) and long ({:.0}% of the plane) structure",
+                "wall: a thin ({thickness:.1} texels) and long ({:.0}% of the plane's side) structure",
                 100.0 * length // fixed: percent
             ),
         }

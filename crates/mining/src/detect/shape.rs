@@ -115,32 +115,6 @@ pub(super) fn fill_empty_holes(mask: &Mask) -> Mask {
     out
 }
 
-/// The insides of a mask's small enclosures: every hole shorter than a wall can be (its box
-/// runs along less than [`super::filters::WALL_MIN_LENGTH`] of the plane, the mask:
-/// [`super::filters::run_share`]), with the islands it encloses (texels of the mask inside
-/// it). A room's shell encloses a space as long as its walls; an enclosure shorter than a
-/// wall is the inside of one hollow object (a van whose roof the field painted onto the
-/// ground), and the specks and sheets the field left in it are that object's, not objects
-/// of their own.
-pub(super) fn small_enclosures(mask: &Mask) -> Mask {
-    use super::filters::{WALL_MIN_LENGTH, run_share};
-    let mut inside = Mask { rows: mask.rows, cols: mask.cols, data: vec![false; mask.data.len()] };
-    for (_, bb, own) in holes(mask) {
-        if run_share(bb, mask.rows, mask.cols) >= WALL_MIN_LENGTH {
-            continue;
-        }
-        let enclosed = fill_holes(&own);
-        for r in 0..bb.rows() {
-            for c in 0..bb.cols() {
-                if enclosed.get(r, c) {
-                    inside.set(bb.r0 + r, bb.c0 + c, true);
-                }
-            }
-        }
-    }
-    inside
-}
-
 /// Pixels of `mask` with an 8-neighbour outside it (or on the image edge).
 pub(super) fn border_ring(mask: &Mask) -> Mask {
     let (rows, cols) = (mask.rows, mask.cols);

@@ -9,18 +9,38 @@
 use super::Removed;
 use super::context::Ctx;
 use super::filters::RemovalReason;
-use super::shape::{fill_empty_holes, small_enclosures};
+use super::filters::{WALL_MIN_LENGTH, run_share};
+use super::shape::{fill_empty_holes, fill_holes, holes};
 use crate::contours::components;
 use crate::error::Result;
 use crate::image::Mask;
 
-/// The insides of the first-round mask's hollow objects ([`Ctx::hollow`]): its enclosures
-/// too short for a wall, empty when walls are not looked for.
+/// The insides of the first-round mask's hollow objects ([`Ctx::hollow`]), empty when
+/// walls are not looked for: every hole shorter than a wall can be (its box runs along less
+/// than [`WALL_MIN_LENGTH`] of the plane: [`run_share`]), with the islands it encloses
+/// (texels of the mask inside it). A room's shell encloses a space as long as its walls; an
+/// enclosure shorter than a wall is the inside of one hollow object (a van whose roof the
+/// field painted onto the ground), and the specks and sheets the field left in it are that
+/// object's, not objects of their own.
 pub(super) fn hollow_insides(cx: &Ctx, mask: &Mask) -> Result<Mask> {
+    let mut inside = Mask::empty(mask.rows, mask.cols)?;
     if !cx.p.walls_on() {
-        return Mask::empty(mask.rows, mask.cols);
+        return Ok(inside);
     }
-    Ok(small_enclosures(mask))
+    for (_, bb, own) in holes(mask) {
+        if run_share(bb, mask.rows, mask.cols) >= WALL_MIN_LENGTH {
+            continue;
+        }
+        let enclosed = fill_holes(&own);
+        for r in 0..bb.rows() {
+            for c in 0..bb.cols() {
+                if enclosed.get(r, c) {
+                    inside.set(bb.r0 + r, bb.c0 + c, true);
+                }
+            }
+        }
+    }
+    Ok(inside)
 }
 
 /// Remove the walls from the first-round mask, recording each; what lies inside a hollow
@@ -98,17 +118,17 @@ fn stands_up(cx: &Ctx, r: usize, c: usize) -> bool {
     }
 }
 
-/// The components of `mask` (the whole plane) running along at least
-/// [`super::filters::WALL_MIN_LENGTH`] of it, each with its length as a share of the plane's
-/// side it runs along ([`super::filters::run_share`]).
+/// The components of `mask` (the whole plane) running along at least [`WALL_MIN_LENGTH`]
+/// of it, each with its length as a share of the plane's side it runs along
+/// ([`run_share`]).
 fn long_regions(mask: &Mask) -> Result<Vec<(crate::contours::Region, f32)>> {
     Ok(components(mask)?
         .into_iter()
         .map(|reg| {
-            let length = super::filters::run_share(reg.bbox, mask.rows, mask.cols);
+            let length = run_share(reg.bbox, mask.rows, mask.cols);
             (reg, length)
         })
-        .filter(|&(_, length)| length >= super::filters::WALL_MIN_LENGTH)
+        .filter(|&(_, length)| length >= WALL_MIN_LENGTH)
         .collect())
 }
 
