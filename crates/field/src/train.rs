@@ -53,6 +53,13 @@ pub struct TrainConfig {
     pub lr_network: f32,
     /// Learning rates decay exponentially to this fraction at the end.
     pub lr_decay_target: f32,
+    /// Each resolution step restarts the learning rates at their initial values, and they
+    /// decay from there at the same rate per iteration (TensoRF's `lr_upsample_reset`, on
+    /// in its defaults): the new texels start at their full rate, as Adam's moments, reset
+    /// with them, start afresh. Off: one decay over the whole run. Runs from before it
+    /// existed resume with it off.
+    #[serde(default)]
+    pub lr_upsample_reset: bool,
     pub l1_weight: f32,
     pub tv_weight_density: f32,
     pub tv_weight_color: f32,
@@ -176,6 +183,7 @@ impl TrainConfig {
             lr_grid: 0.02,
             lr_network: 1e-3,
             lr_decay_target: 0.1,
+            lr_upsample_reset: true,
             l1_weight: 8e-5,
             tv_weight_density: 0.0,
             tv_weight_color: 0.0,
@@ -630,12 +638,34 @@ impl Trainer {
         self.occupancy = (occ.fill() > 1e-4).then_some(occ);
     }
 
+    /// The grids' and the networks' learning rates at the current progress, after the
+    /// resolution steps taken so far (a step that falls due is taken by the next iteration,
+    /// which then restarts the rates).
+    pub fn learning_rates(&self) -> (f32, f32) {
+        let p = self.progress();
+        (self.learning_rate(Group::Grid, p), self.learning_rate(Group::Network, p))
+    }
+
     fn learning_rate(&self, g: Group, progress: f64) -> f32 {
         let base = match g {
             Group::Grid => self.config.lr_grid,
             Group::Network => self.config.lr_network,
         };
-        base * self.config.lr_decay_target.powf(progress as f32)
+        base * self.lr_decay(progress)
+    }
+
+    /// The learning rates' decay factor at `progress`: the decay target raised to the
+    /// progress made since the last resolution step (with [`TrainConfig::lr_upsample_reset`])
+    /// or since the start. The step's scheduled fraction stands for the iteration it came
+    /// at (they differ by less than one iteration), so a resumed run needs no more state.
+    fn lr_decay(&self, progress: f64) -> f32 {
+        let since = if self.config.lr_upsample_reset && self.upsampled > 0 {
+            let at = self.config.upsample_at[self.upsampled - 1];
+            (progress - at).max(0.0)
+        } else {
+            progress
+        };
+        self.config.lr_decay_target.powf(since as f32)
     }
 
     /// One iteration: a batch of random training rays, forward, backward, Adam.
@@ -859,7 +889,7 @@ impl Trainer {
                 }
             })
             .collect();
-        let look_lr = APPEARANCE_LR * self.config.lr_decay_target.powf(self.progress() as f32);
+        let look_lr = APPEARANCE_LR * self.lr_decay(self.progress());
         if let Some(a) = self.appearance.as_mut() {
             // the chunks' gradients summed in chunk order (deterministic), then the pull
             // toward the identity, then Adam at APPEARANCE_LR

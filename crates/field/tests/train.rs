@@ -130,6 +130,51 @@ fn training_is_deterministic_for_a_seed() {
     assert_eq!(run(), run());
 }
 
+/// A resolution step restarts the learning rates at their initial values, then they decay at
+/// the run's rate per iteration (TensoRF's `lr_upsample_reset`); with it off they decay
+/// once over the whole run.
+#[test]
+fn a_resolution_step_restarts_the_learning_rates() {
+    let train = Dataset::load(dataset(), Split::Train, &LoadOptions::default()).unwrap();
+    let aabb = Aabb3::new(Vec3::new(-1.3, -1.3, -0.05), Vec3::new(1.3, 1.3, 0.9));
+    let rates = |reset: bool| {
+        let mut cfg = TrainConfig::new(ModelKind::Standard);
+        cfg.batch = 64;
+        cfg.iters = 20;
+        cfg.plane_res_start = 8;
+        cfg.plane_res_final = 16;
+        cfg.upsample_at = vec![0.5];
+        cfg.occupancy_at = vec![];
+        cfg.lr_upsample_reset = reset;
+        let mut fc = FieldConfig::new(ModelKind::Standard, aabb, 16);
+        fc.density_channels = 4;
+        fc.color_channels = 4;
+        let mut t = Trainer::new(&train, fc, cfg.clone());
+        let mut seen = vec![t.learning_rates()];
+        while !t.finished() {
+            t.step();
+            seen.push(t.learning_rates());
+        }
+        (cfg, seen)
+    };
+    let (cfg, on) = rates(true);
+    let (_, off) = rates(false);
+    let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * b.abs();
+    // before the step (progress 0.45 after 9 iterations) both decay from the start
+    let before = cfg.lr_decay_target.powf(0.45);
+    assert!(close(on[9].0, cfg.lr_grid * before), "{:?}", on[9]);
+    assert!(close(off[9].1, cfg.lr_network * before), "{:?}", off[9]);
+    // the step comes with the 11th iteration (progress 0.5): 0.05 after it
+    let after = cfg.lr_decay_target.powf(0.05);
+    assert!(close(on[11].0, cfg.lr_grid * after), "{:?}", on[11]);
+    assert!(close(on[11].1, cfg.lr_network * after), "{:?}", on[11]);
+    assert!(close(off[11].0, cfg.lr_grid * cfg.lr_decay_target.powf(0.55)), "{:?}", off[11]);
+    // at the end: half the run's decay with the restart, all of it without
+    let (end_on, end_off) = (on.last().unwrap().0, off.last().unwrap().0);
+    assert!(close(end_on, cfg.lr_grid * cfg.lr_decay_target.powf(0.5)), "{end_on}");
+    assert!(close(end_off, cfg.lr_grid * cfg.lr_decay_target), "{end_off}");
+}
+
 /// The training step sums the chunks' gradients, adds L1, zeroes frozen tensors and runs
 /// Adam in one pass, block by block; the separate passes give the same field, bit for bit,
 /// over a schedule with a resolution step, an occupancy grid and L1, for S (and with frozen

@@ -167,6 +167,12 @@ pub struct TrainArgs {
     /// the default, gives every sample its own density gradient (fields mine as measured).
     #[arg(long, default_value_t = assetfield_field::train::DEFAULT_DENSITY_GRAD_ALPHA)]
     pub density_grad_alpha: f32,
+    /// Whether each resolution step of coarse-to-fine training restarts the learning rates
+    /// at their initial values, to decay from there at the same rate per iteration
+    /// (TensoRF's lr_upsample_reset, on in its defaults). false: one decay over the whole
+    /// run, as fields trained before 2026-12-07 were (docs/training.md).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub lr_upsample_reset: bool,
     /// Weight of the total variation of the density planes (the mean squared difference of
     /// neighbouring texels), which smooths floaters away where few views constrain the field;
     /// 0, the default, as TensoRF for renders (TensoRF uses 1.0 for forward-facing
@@ -440,6 +446,7 @@ pub(crate) fn train_config(
     tc.density_grad_alpha = a.density_grad_alpha;
     tc.tv_weight_density = a.tv_density;
     tc.tv_weight_color = a.tv_color;
+    tc.lr_upsample_reset = a.lr_upsample_reset;
     tc.iters = match (a.iters, seconds) {
         (Some(n), _) => n,
         (None, Some(_)) => u64::MAX,
