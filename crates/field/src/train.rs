@@ -51,7 +51,8 @@ pub struct TrainConfig {
     pub early_occupancy_samples: f32,
     pub lr_grid: f32,
     pub lr_network: f32,
-    /// Learning rates decay exponentially to this fraction at the end.
+    /// Learning rates decay exponentially by this fraction over a run's length (over the
+    /// whole run, or from the last resolution step with `lr_upsample_reset`).
     pub lr_decay_target: f32,
     /// Each resolution step restarts the learning rates at their initial values, and they
     /// decay from there at the same rate per iteration (TensoRF's `lr_upsample_reset`, on

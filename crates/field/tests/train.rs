@@ -136,19 +136,13 @@ fn training_is_deterministic_for_a_seed() {
 #[test]
 fn a_resolution_step_restarts_the_learning_rates() {
     let train = Dataset::load(dataset(), Split::Train, &LoadOptions::default()).unwrap();
-    let aabb = Aabb3::new(Vec3::new(-1.3, -1.3, -0.05), Vec3::new(1.3, 1.3, 0.9));
     let rates = |reset: bool| {
-        let mut cfg = TrainConfig::new(ModelKind::Standard);
+        let (mut cfg, fc) = tiny_configs(ModelKind::Standard);
         cfg.batch = 64;
         cfg.iters = 20;
-        cfg.plane_res_start = 8;
-        cfg.plane_res_final = 16;
         cfg.upsample_at = vec![0.5];
         cfg.occupancy_at = vec![];
         cfg.lr_upsample_reset = reset;
-        let mut fc = FieldConfig::new(ModelKind::Standard, aabb, 16);
-        fc.density_channels = 4;
-        fc.color_channels = 4;
         let mut t = Trainer::new(&train, fc, cfg.clone());
         let mut seen = vec![t.learning_rates()];
         while !t.finished() {
