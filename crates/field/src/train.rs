@@ -890,7 +890,11 @@ impl Trainer {
                 }
             })
             .collect();
-        let look_lr = APPEARANCE_LR * self.lr_decay(self.progress());
+        // the colour maps and the background map keep their tensors and Adam's moments
+        // through the resolution steps: their rates decay once over the run, as measured
+        // on the captures before the grids' rates restarted
+        let whole_run = self.config.lr_decay_target.powf(self.progress() as f32);
+        let look_lr = APPEARANCE_LR * whole_run;
         if let Some(a) = self.appearance.as_mut() {
             // the chunks' gradients summed in chunk order (deterministic), then the pull
             // toward the identity, then Adam at APPEARANCE_LR
@@ -906,9 +910,10 @@ impl Trainer {
             let (m, v) = a.adam.moments_mut();
             step.update(step.alpha(look_lr), &mut a.params, &a.grad, m, v);
         }
-        let grid_lr = self.learning_rate(Group::Grid, self.progress());
+        let grid_lr = self.config.lr_grid * whole_run;
         if let Some(b) = self.background_map.as_mut() {
-            // summed in chunk order; Adam at the grids' learning rate (a map is a grid)
+            // summed in chunk order; Adam at the grids' initial rate (a map is a grid),
+            // decayed once over the run
             b.grad.fill(0.0);
             for r in &results {
                 for (g, x) in b.grad.iter_mut().zip(&r.beyond_grad) {
