@@ -892,8 +892,8 @@ impl Trainer {
             })
             .collect();
         // the colour maps and the background map keep their tensors and Adam's moments
-        // through the resolution steps: their rates decay once over the run, as measured
-        // on the captures before the grids' rates restarted
+        // through the resolution steps: their rates decay once over the run, with or
+        // without `lr_upsample_reset`, as they were measured on captures
         let whole_run = self.config.lr_decay_target.powf(self.progress() as f32);
         let look_lr = APPEARANCE_LR * whole_run;
         if let Some(a) = self.appearance.as_mut() {
