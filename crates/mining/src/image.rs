@@ -403,6 +403,19 @@ impl Mask {
         Ok(Mask { rows: rect.rows(), cols: rect.cols(), data })
     }
 
+    /// Set every pixel that is set in `sub`, moved by `(r0, c0)` (the inverse of
+    /// [`Mask::crop`] at a rect whose corner is `(r0, c0)`); pixels that land outside are
+    /// ignored, those unset in `sub` left as they are.
+    pub fn paste_at(&mut self, sub: &Mask, r0: usize, c0: usize) {
+        for r in 0..sub.rows {
+            for c in 0..sub.cols {
+                if sub.get(r, c) {
+                    self.set(r0 + r, c0 + c, true);
+                }
+            }
+        }
+    }
+
     /// Bounding box of the set pixels, `None` if none is set (or the mask is inconsistent).
     pub fn bbox(&self) -> Option<PixelRect> {
         self.validate().ok()?;
@@ -518,6 +531,25 @@ impl LabelImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_cropped_mask_pasted_back_sets_its_own_pixels_and_keeps_the_rest() {
+        let m = Mask::from_fn(5, 6, |r, c| (r * 7 + c * 3) % 4 == 0);
+        let rect = PixelRect::new(1, 2, 4, 6);
+        let sub = m.crop(rect).unwrap();
+        let mut out = Mask::from_fn(5, 6, |r, c| r == 0 && c == 0);
+        out.paste_at(&sub, rect.r0, rect.c0);
+        for r in 0..5 {
+            for c in 0..6 {
+                let want = (r == 0 && c == 0) || (rect.contains(r, c) && m.get(r, c));
+                assert_eq!(out.get(r, c), want, "({r}, {c})");
+            }
+        }
+        // what lands outside is ignored
+        let mut edge = Mask::from_fn(2, 2, |_, _| false);
+        edge.paste_at(&Mask::from_fn(2, 2, |_, _| true), 1, 1);
+        assert_eq!(edge.count(), 1);
+    }
 
     #[test]
     fn a_padded_mask_keeps_its_pixels_inside_an_empty_margin() {

@@ -1217,13 +1217,7 @@ fn build_library(
     let (rows, cols) = (grid.rows, grid.cols);
     let mut objects = Mask::empty(rows, cols)?;
     for d in &dets.detections {
-        for r in 0..d.rect.rows() {
-            for c in 0..d.rect.cols() {
-                if d.footprint.get(r, c) {
-                    objects.set(d.rect.r0 + r, d.rect.c0 + c, true);
-                }
-            }
-        }
+        objects.paste_at(&d.footprint, d.rect.r0, d.rect.c0);
     }
     // (the halo is the ring each entry's patch carries with it when composed, so an entry
     // placed back where it was mined restores the trained planes; the ring of samples is the

@@ -31,14 +31,7 @@ pub(super) fn hollow_insides(cx: &Ctx, mask: &Mask) -> Result<Mask> {
         if run_share(bb, mask.rows, mask.cols) >= WALL_MIN_LENGTH {
             continue;
         }
-        let enclosed = fill_holes(&own);
-        for r in 0..bb.rows() {
-            for c in 0..bb.cols() {
-                if enclosed.get(r, c) {
-                    inside.set(bb.r0 + r, bb.c0 + c, true);
-                }
-            }
-        }
+        inside.paste_at(&fill_holes(&own), bb.r0, bb.c0);
     }
     Ok(inside)
 }
