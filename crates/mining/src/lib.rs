@@ -19,6 +19,7 @@ pub mod contours;
 pub mod copies;
 pub mod detect;
 pub mod error;
+pub mod fringe;
 pub mod group;
 pub mod halves;
 pub mod histogram;

@@ -21,6 +21,7 @@ use crate::agglomerative::DistanceMatrix;
 use crate::copies::{CopySplit, blurred, own_profile, profile_jsd, split_copies, vertical_profile};
 use crate::detect::{DetectParams, Detection, Detections, FloorBand, detect_with_color_axis};
 use crate::error::{MiningError, Result, check_interrupt};
+use crate::fringe::FringeGrowth;
 use crate::group::{GroupOptions, Grouping, Profiles, Samples, Shape, group_samples_profiled};
 use crate::halves::{JoinedHalves, join_halves};
 use crate::histogram;
@@ -165,6 +166,8 @@ pub struct MineReport {
     pub copies_pieces: usize,
     /// Objects joined from two halves that recur together ([`crate::halves`]).
     pub halves_joined: usize,
+    /// Objects grown by their faint fringe ([`crate::fringe`]).
+    pub fringes_taken: usize,
     pub categories: usize,
     /// Regions dropped as background, with reasons.
     pub removed: Vec<String>,
@@ -690,6 +693,14 @@ pub fn mine(
     check_interrupt()?;
     progress.step(4, STEPS, "matching templates (yaw)"); // fixed: progress step
     let (poses, pivots, margin) = cx.pose(&dets, &grouping).map_err(off_the_ground)?;
+    // after the grouping and the poses, which compare what the objects' cores look like (a
+    // fringe's faint strokes differ from copy to copy): the fringe is what the library
+    // entries and the layout's boxes take along
+    let fringes = if opts.detect.stages.fringe {
+        crate::fringe::grow_fringes(&mut dets, opts.detect.fringe_ring)
+    } else {
+        Vec::new()
+    };
     check_interrupt()?;
 
     progress.step(5, STEPS, "writing the library"); // fixed: progress step
@@ -722,7 +733,7 @@ pub fn mine(
         write_metrics(dir, m, opts)?;
     }
     let removed = removed_lines(&dets);
-    cx.write_report(dir, &source, &found, (&copies, &halves), &removed)?;
+    cx.write_report(dir, &source, &found, (&copies, &halves, &fringes), &removed)?;
     check_interrupt()?;
     let out = staging.commit()?;
     Ok(MineReport {
@@ -733,6 +744,7 @@ pub fn mine(
         copies_cut: copies.len(),
         copies_pieces: copies.iter().map(|c| c.pieces).sum(),
         halves_joined: halves.len(),
+        fringes_taken: fringes.len(),
         categories: grouping.n_categories,
         removed,
         floor: dets.floor.map(|f| f.z_top),
@@ -960,7 +972,7 @@ impl Context<'_> {
         dir: &Path,
         source: &str,
         found: &Found<'_>,
-        (copies, halves): (&[CopySplit], &[JoinedHalves]),
+        (copies, halves, fringes): (&[CopySplit], &[JoinedHalves], &[FringeGrowth]),
         removed: &[String],
     ) -> Result<()> {
         let Found { dets, grouping, .. } = *found;
@@ -981,6 +993,7 @@ impl Context<'_> {
             "removed": dets.removed,
             "copies_split": copies,
             "halves_joined": halves,
+            "fringes_taken": fringes,
             "detect_preset": self.opts.detect.preset.name(),
             "categories": grouping.n_categories,
             "cut": grouping.cut,

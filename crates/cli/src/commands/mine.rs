@@ -146,6 +146,11 @@ pub struct MineArgs {
     /// connectivity, colours and heights).
     #[arg(long)]
     pub no_split: bool,
+    /// Keep every object's box where its evidence passes the threshold: do not grow an
+    /// object by the faint fringe that reaches past its edge's blur (a plant's thin leaves
+    /// around its dense crown). Off with --preset paper.
+    #[arg(long)]
+    pub no_fringe: bool,
     /// Read every detection value from FILE (JSON: the `detect` object of a `mining.json`'s
     /// `options`, edited), instead of the preset's; the flags above and below still apply on
     /// top. For sensitivity studies: which value decides what on a scene.
@@ -403,6 +408,9 @@ pub fn mine(a: MineArgs) -> Result<()> {
     if a.no_unpack {
         o.detect.stages.unpack = false;
     }
+    if a.no_fringe {
+        o.detect.stages.fringe = false;
+    }
     if a.no_split {
         let s = &mut o.detect.stages;
         (s.split_bridges, s.split_3d, s.split_colour) = (false, false, false);
@@ -468,8 +476,12 @@ pub fn mine(a: MineArgs) -> Result<()> {
         0 => String::new(),
         n => format!(", {n} joined from two halves"),
     };
+    let fringes = match r.fringes_taken {
+        0 => String::new(),
+        n => format!(", {n} grown by a faint fringe"),
+    };
     println!(
-        "mined {} objects ({} standing on others{copies}{halves}) in {} categories from {} ({}-assetfield) in {:.1}s",
+        "mined {} objects ({} standing on others{copies}{halves}{fringes}) in {} categories from {} ({}-assetfield) in {:.1}s",
         r.detections,
         r.supported,
         r.categories,
