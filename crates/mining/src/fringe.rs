@@ -19,6 +19,7 @@
 
 use crate::detect::{Detection, Detections};
 use crate::image::Mask;
+use rayon::prelude::*;
 
 /// Plane texels, (row, column).
 type Texels = Vec<(usize, usize)>;
@@ -142,37 +143,41 @@ pub fn grow_fringes(det: &mut Detections, gate_ring: usize) -> Vec<FringeGrowth>
     }
     let sites: Vec<bool> = owner.iter().map(|&o| o != usize::MAX).collect();
     let (_, nearest) = nearest_site(rows, cols, &sites);
-    // per detection that grows: its id, the texels it takes, how many rings held
-    let mut grown: Vec<(usize, Texels, usize)> = Vec::new();
-    for d in det.detections.iter().filter(|d| on_ground(d)) {
-        let own_site: Vec<bool> = owner.iter().map(|&o| o == d.id).collect();
-        let (dist2, _) = nearest_site(rows, cols, &own_site);
-        // its side: free texels nearer to it than to any other object on the ground
-        let zone = |i: usize| !occupied[i] && nearest[i] != usize::MAX && owner[nearest[i]] == d.id;
-        // mean evidence per ring (ring k: distance in (k - 1, k])
-        let mut sums: Vec<(f64, usize)> = Vec::new();
-        for i in (0..rows * cols).filter(|&i| zone(i) && dist2[i].is_finite()) {
-            let k = dist2[i].sqrt().ceil() as usize;
-            if sums.len() < k {
-                sums.resize(k, (0.0, 0));
+    // per detection that grows: its id, the texels it takes, how many rings held (each
+    // judged on the footprints as mined, in parallel; the growth is applied after)
+    let grown: Vec<(usize, Texels, usize)> = det
+        .detections
+        .par_iter()
+        .filter(|d| on_ground(d))
+        .filter_map(|d| {
+            let own_site: Vec<bool> = owner.iter().map(|&o| o == d.id).collect();
+            let (dist2, _) = nearest_site(rows, cols, &own_site);
+            // its side: free texels nearer to it than to any other object on the ground
+            let zone =
+                |i: usize| !occupied[i] && nearest[i] != usize::MAX && owner[nearest[i]] == d.id;
+            // mean evidence per ring (ring k: distance in (k - 1, k])
+            let mut sums: Vec<(f64, usize)> = Vec::new();
+            for i in (0..rows * cols).filter(|&i| zone(i) && dist2[i].is_finite()) {
+                let k = dist2[i].sqrt().ceil() as usize;
+                if sums.len() < k {
+                    sums.resize(k, (0.0, 0));
+                }
+                sums[k - 1].0 += f64::from(det.evidence[i]);
+                sums[k - 1].1 += 1;
             }
-            sums[k - 1].0 += f64::from(det.evidence[i]);
-            sums[k - 1].1 += 1;
-        }
-        let rings =
-            sums.iter().take_while(|&&(s, n)| n > 0 && s / n as f64 >= f64::from(some)).count();
-        if rings < gate_ring {
-            continue;
-        }
-        let reach = (rings * rings) as f64;
-        let added: Texels = (0..rows * cols)
-            .filter(|&i| zone(i) && dist2[i] <= reach && det.evidence[i] >= some)
-            .map(|i| (i / cols, i % cols))
-            .collect();
-        if !added.is_empty() {
-            grown.push((d.id, added, rings));
-        }
-    }
+            let rings =
+                sums.iter().take_while(|&&(s, n)| n > 0 && s / n as f64 >= f64::from(some)).count();
+            if rings < gate_ring {
+                return None;
+            }
+            let reach = (rings * rings) as f64;
+            let added: Texels = (0..rows * cols)
+                .filter(|&i| zone(i) && dist2[i] <= reach && det.evidence[i] >= some)
+                .map(|i| (i / cols, i % cols))
+                .collect();
+            (!added.is_empty()).then_some((d.id, added, rings))
+        })
+        .collect();
     let mut out = Vec::with_capacity(grown.len());
     for (id, added, rings) in grown {
         let d = &mut det.detections[id];
