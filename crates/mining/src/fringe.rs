@@ -3,7 +3,7 @@
 //! A footprint is where the first round's evidence passes its threshold. Round every object
 //! the evidence then falls to the floor's over the blur of the edge: the first ring of
 //! texels outside a footprint holds some density (half the evidence threshold, the share
-//! the first round calls "some density") round half the objects of the basis. Thin parts
+//! the first round calls "some density") round half the objects found. Thin parts
 //! that the field leaves faint do not stop there: a plant's leaves stay under the
 //! threshold, the smoothing takes the strokes that pass it off the dense crown, and the
 //! object is boxed on its core, a box too small for its leaves. Such a fringe still holds

@@ -690,17 +690,17 @@ pub fn mine(
     check_interrupt()?;
     progress.step(3, STEPS, "grouping into categories"); // fixed: progress step
     let (grouping, copies, halves) = cx.group(&mut dets).map_err(off_the_ground)?;
-    check_interrupt()?;
-    progress.step(4, STEPS, "matching templates (yaw)"); // fixed: progress step
-    let (poses, pivots, margin) = cx.pose(&dets, &grouping).map_err(off_the_ground)?;
-    // after the grouping and the poses, which compare what the objects' cores look like (a
-    // fringe's faint strokes differ from copy to copy): the fringe is what the library
-    // entries and the layout's boxes take along
+    // after the grouping, which compares what the objects' cores look like (a fringe's
+    // faint strokes differ from copy to copy); before the poses, so that each instance is
+    // placed by the footprint its library entry holds
     let fringes = if opts.detect.stages.fringe {
         crate::fringe::grow_fringes(&mut dets, opts.detect.fringe_ring)
     } else {
         Vec::new()
     };
+    check_interrupt()?;
+    progress.step(4, STEPS, "matching templates (yaw)"); // fixed: progress step
+    let (poses, pivots, margin) = cx.pose(&dets, &grouping).map_err(off_the_ground)?;
     check_interrupt()?;
 
     progress.step(5, STEPS, "writing the library"); // fixed: progress step

@@ -452,6 +452,17 @@ mod tests {
     }
 
     #[test]
+    fn a_file_written_before_the_fringe_reads_it_as_on_at_its_default_ring() {
+        let mut v = serde_json::to_value(DetectParams::default()).unwrap();
+        v.as_object_mut().unwrap().remove("fringe_ring");
+        v["stages"].as_object_mut().unwrap().remove("fringe");
+        assert!(v.get("fringe_ring").is_none() && v["stages"].get("fringe").is_none());
+        let p: DetectParams = serde_json::from_value(v).unwrap();
+        assert_eq!(p, DetectParams::default());
+        assert!(p.stages.fringe && p.fringe_ring == 2);
+    }
+
+    #[test]
     fn the_tuned_values_are_counted_from_the_parameters_themselves() {
         assert_eq!(DetectParams::default().count_tuned(), 12);
         assert_eq!(DetectParams::paper().count_tuned(), 12);
