@@ -18,7 +18,8 @@
 //! of round a solid object, takes nothing.
 
 use crate::detect::{Detection, Detections};
-use crate::image::Mask;
+use crate::image::{Mask, PixelRect};
+use crate::planes::PlaneGrid;
 use rayon::prelude::*;
 
 /// Plane texels, (row, column).
@@ -153,11 +154,17 @@ pub fn grow_fringes(det: &mut Detections, gate_ring: usize) -> Vec<FringeGrowth>
             let own_site: Vec<bool> = owner.iter().map(|&o| o == d.id).collect();
             let (dist2, _) = nearest_site(rows, cols, &own_site);
             // its side: free texels nearer to it than to any other object on the ground
-            let zone =
-                |i: usize| !occupied[i] && nearest[i] != usize::MAX && owner[nearest[i]] == d.id;
+            let zone: Vec<usize> = (0..rows * cols)
+                .filter(|&i| {
+                    !occupied[i]
+                        && nearest[i] != usize::MAX
+                        && owner[nearest[i]] == d.id
+                        && dist2[i].is_finite()
+                })
+                .collect();
             // mean evidence per ring (ring k: distance in (k - 1, k])
             let mut sums: Vec<(f64, usize)> = Vec::new();
-            for i in (0..rows * cols).filter(|&i| zone(i) && dist2[i].is_finite()) {
+            for &i in &zone {
                 let k = dist2[i].sqrt().ceil() as usize;
                 if sums.len() < k {
                     sums.resize(k, (0.0, 0));
@@ -171,8 +178,10 @@ pub fn grow_fringes(det: &mut Detections, gate_ring: usize) -> Vec<FringeGrowth>
                 return None;
             }
             let reach = (rings * rings) as f64;
-            let added: Texels = (0..rows * cols)
-                .filter(|&i| zone(i) && dist2[i] <= reach && det.evidence[i] >= some)
+            let added: Texels = zone
+                .iter()
+                .copied()
+                .filter(|&i| dist2[i] <= reach && det.evidence[i] >= some)
                 .map(|i| (i / cols, i % cols))
                 .collect();
             (!added.is_empty()).then_some((d.id, added, rings))
@@ -199,27 +208,19 @@ fn footprint_texels(d: &Detection) -> impl Iterator<Item = (usize, usize)> + '_ 
 
 /// `d` with the plane texels `added` in its footprint and its own texels, its box, world
 /// box and area grown to hold them.
-fn take_texels(d: &mut Detection, added: &[(usize, usize)], grid: &crate::planes::PlaneGrid) {
-    let (mut r0, mut c0, mut r1, mut c1) = (d.rect.r0, d.rect.c0, d.rect.r1, d.rect.c1);
-    for &(r, c) in added {
-        (r0, c0, r1, c1) = (r0.min(r), c0.min(c), r1.max(r + 1), c1.max(c + 1));
-    }
-    let rect = crate::image::PixelRect::new(r0, c0, r1, c1);
-    let (rows, cols) = (r1 - r0, c1 - c0);
-    let inside = |m: &Mask, r: usize, c: usize| {
-        let (pr, pc) = (r + r0, c + c0);
-        pr >= d.rect.r0
-            && pc >= d.rect.c0
-            && pr < d.rect.r1
-            && pc < d.rect.c1
-            && m.get(pr - d.rect.r0, pc - d.rect.c0)
+fn take_texels(d: &mut Detection, added: &[(usize, usize)], grid: &PlaneGrid) {
+    let Some(reach) = PixelRect::of_texels(added.iter().copied()) else { return };
+    let rect = d.rect.union(&reach);
+    // the footprint and own texels as they were, moved onto the grown box, plus `added`
+    let grown = |m: &Mask| {
+        let mut g = Mask::from_fn(rect.rows(), rect.cols(), |_, _| false);
+        g.paste_at(m, d.rect.r0 - rect.r0, d.rect.c0 - rect.c0);
+        for &(r, c) in added {
+            g.set(r - rect.r0, c - rect.c0, true);
+        }
+        g
     };
-    let mut footprint = Mask::from_fn(rows, cols, |r, c| inside(&d.footprint, r, c));
-    let mut own = Mask::from_fn(rows, cols, |r, c| inside(&d.own, r, c));
-    for &(r, c) in added {
-        footprint.set(r - r0, c - c0, true);
-        own.set(r - r0, c - c0, true);
-    }
+    let (footprint, own) = (grown(&d.footprint), grown(&d.own));
     d.area = footprint.count() as f32 * grid.texel_area();
     d.rect = rect;
     d.footprint = footprint;
@@ -340,7 +341,7 @@ mod tests {
         assert_eq!(det.detections[0], before);
         // with the gate at the first ring, the halo is taken
         assert_eq!(grow_fringes(&mut det, 1).len(), 1);
-        assert_eq!(det.detections[0].rect, crate::image::PixelRect::new(16, 16, 24, 24));
+        assert_eq!(det.detections[0].rect, PixelRect::new(16, 16, 24, 24));
     }
 
     #[test]
