@@ -469,8 +469,10 @@ impl Samples {
                 rgb.copy_from_slice(&work.rgb[..p.len() * 3]); // fixed: RGB
             },
         );
-        // CIELAB with the lightness at reduced weight: shading changes a colour's lightness
-        // far more than its hue, and a ball lit from above is still one colour
+        // CIELAB, every axis over its span: the lightness weighs as much as the hue (it had
+        // half the weight, a tuned number that went to keep mining within 25; each object's
+        // lightness taken relative to its own mean, against shading that differs between
+        // copies, grouped different objects of one hue: results, ninth session)
         // fixed: CIELAB has 3 axes
         s.points.par_chunks_mut(3).for_each(|p| {
             let [l, a, b] = srgb_to_lab([p[0], p[1], p[2]]);
