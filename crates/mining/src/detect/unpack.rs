@@ -709,8 +709,7 @@ mod tests {
         // and 20 x 42, the blocked band 20 x 13 between them (the old rule, every piece
         // larger, took it for the body's shape)
         let judged = rect(20, 60, 0, 0, 20, 60);
-        let raised =
-            Mask::from_fn(20, 60, |r, c| (c >= 8 && c < 12 && r < 20) || (c == 14 && r < 20));
+        let raised = Mask::from_fn(20, 60, |r, c| r < 20 && ((8..12).contains(&c) || c == 14));
         assert!(top_carries(&judged, &raised, 3, 25));
         // one piece: carried; nothing free: not
         assert!(top_carries(&judged, &rect(20, 60, 8, 28, 12, 32), 3, 25));
