@@ -110,10 +110,7 @@ pub fn remove_small_unless_alone(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn square(rows: usize, cols: usize, r0: usize, c0: usize, r1: usize, c1: usize) -> Mask {
-        Mask::from_fn(rows, cols, |r, c| r >= r0 && r < r1 && c >= c0 && c < c1)
-    }
+    use crate::test_support::rect_mask as square;
 
     #[test]
     fn dilate_and_erode_squares() {

@@ -43,3 +43,15 @@ pub(crate) fn scene(masks: &[Mask]) -> Detections {
         removed: Vec::new(),
     }
 }
+
+/// A `rows x cols` mask holding the rectangle of rows `r0..r1` and columns `c0..c1`.
+pub(crate) fn rect_mask(
+    rows: usize,
+    cols: usize,
+    r0: usize,
+    c0: usize,
+    r1: usize,
+    c1: usize,
+) -> Mask {
+    Mask::from_fn(rows, cols, |r, c| (r0..r1).contains(&r) && (c0..c1).contains(&c))
+}

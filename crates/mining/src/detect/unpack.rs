@@ -689,10 +689,7 @@ fn connected_to(m: &Mask, seeds: &[(usize, usize)]) -> Mask {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn rect(h: usize, w: usize, r0: usize, c0: usize, r1: usize, c1: usize) -> Mask {
-        Mask::from_fn(h, w, |r, c| r >= r0 && r < r1 && c >= c0 && c < c1)
-    }
+    use crate::test_support::rect_mask as rect;
 
     #[test]
     fn a_cabin_larger_than_every_piece_is_the_bodys_shape() {
