@@ -124,7 +124,7 @@ pub fn nearest_site(rows: usize, cols: usize, site: &[bool]) -> (Vec<f64>, Vec<u
 
 /// Grow every detection on the ground by its faint fringe (see the module docs), judged
 /// on `det.evidence` against half of `det.threshold`; `gate_ring` is the ring out to which
-/// a fringe must hold (0 takes nothing: [`crate::detect::DetectParams::validate`] refuses
+/// a fringe must hold, and the rings it then takes (0 takes nothing: [`crate::detect::DetectParams::validate`] refuses
 /// it). Detections standing on others keep their footprints (their rings lie on their
 /// support). Returns what grew, by detection id.
 pub fn grow_fringes(det: &mut Detections, gate_ring: usize) -> Vec<FringeGrowth> {
