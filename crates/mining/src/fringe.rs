@@ -124,9 +124,10 @@ pub fn nearest_site(rows: usize, cols: usize, site: &[bool]) -> (Vec<f64>, Vec<u
 
 /// Grow every detection on the ground by its faint fringe (see the module docs), judged
 /// on `det.evidence` against half of `det.threshold`; `gate_ring` is the ring out to which
-/// a fringe must hold, and the rings it then takes (0 takes nothing: [`crate::detect::DetectParams::validate`] refuses
-/// it). Detections standing on others keep their footprints (their rings lie on their
-/// support). Returns what grew, by detection id.
+/// a fringe must hold, and the rings it then takes (0 takes nothing:
+/// [`crate::detect::DetectParams::validate`] refuses it). Detections standing on others
+/// keep their footprints (their rings lie on their support). Returns what grew, by
+/// detection id.
 pub fn grow_fringes(det: &mut Detections, gate_ring: usize) -> Vec<FringeGrowth> {
     let (rows, cols) = (det.grid.rows, det.grid.cols);
     if det.evidence.len() != rows * cols || gate_ring == 0 {
@@ -146,7 +147,15 @@ pub fn grow_fringes(det: &mut Detections, gate_ring: usize) -> Vec<FringeGrowth>
         }
     }
     let sites: Vec<bool> = owner.iter().map(|&o| o != usize::MAX).collect();
-    let (_, nearest) = nearest_site(rows, cols, &sites);
+    // a free texel's nearest object is the side it lies on, and its distance to that
+    // object's footprint is its distance to the nearest site: one transform serves all
+    let (dist2, nearest) = nearest_site(rows, cols, &sites);
+    // each object's side: the free texels nearer to it than to any other object on the
+    // ground, in plane order
+    let mut zones: Vec<Vec<usize>> = vec![Vec::new(); det.detections.len()];
+    for i in (0..rows * cols).filter(|&i| !occupied[i] && nearest[i] != usize::MAX) {
+        zones[owner[nearest[i]]].push(i);
+    }
     // per detection that grows: its id, the texels it takes, how many rings held (each
     // judged on the footprints as mined, in parallel; the growth is applied after)
     let grown: Vec<(usize, Texels, usize)> = det
@@ -154,20 +163,10 @@ pub fn grow_fringes(det: &mut Detections, gate_ring: usize) -> Vec<FringeGrowth>
         .par_iter()
         .filter(|d| on_ground(d))
         .filter_map(|d| {
-            let own_site: Vec<bool> = owner.iter().map(|&o| o == d.id).collect();
-            let (dist2, _) = nearest_site(rows, cols, &own_site);
-            // its side: free texels nearer to it than to any other object on the ground
-            let zone: Vec<usize> = (0..rows * cols)
-                .filter(|&i| {
-                    !occupied[i]
-                        && nearest[i] != usize::MAX
-                        && owner[nearest[i]] == d.id
-                        && dist2[i].is_finite()
-                })
-                .collect();
+            let zone = &zones[d.id];
             // mean evidence per ring (ring k: distance in (k - 1, k])
             let mut sums: Vec<(f64, usize)> = Vec::new();
-            for &i in &zone {
+            for &i in zone {
                 let k = dist2[i].sqrt().ceil() as usize;
                 if sums.len() < k {
                     sums.resize(k, (0.0, 0));
@@ -238,7 +237,7 @@ mod tests {
     use crate::test_support::scene;
 
     fn square(n: usize, r0: usize, c0: usize, side: usize) -> Mask {
-        Mask::from_fn(n, n, |r, c| r >= r0 && r < r0 + side && c >= c0 && c < c0 + side)
+        crate::test_support::rect_mask(n, n, r0, c0, r0 + side, c0 + side)
     }
 
     /// A brute-force nearest site for the exact transform to match.

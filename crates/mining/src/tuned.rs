@@ -148,9 +148,9 @@ pub fn tuned(o: &MineOptions) -> Vec<Tuned> {
             u(d.fringe_ring),
             "rings of texels",
             "a faint fringe an object takes must hold out to this ring, and is taken out to \
-             it: past the one ring of an edge's blur (ring 1 holds some density round 53% of 1,743 objects found on the \
-             basis and fresh sets, ring 2 round 1.1% and round 22 of 30 plants boxed on their \
-             crowns)",
+             it: past the one ring of an edge's blur (ring 1 holds some density round 53% of \
+             1,743 objects found on the basis and fresh sets, ring 2 round 1.1% and round 22 \
+             of 30 plants boxed on their crowns)",
         ),
         entry(
             OPTION,

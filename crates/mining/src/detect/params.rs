@@ -232,11 +232,10 @@ pub struct DetectParams {
     /// How many rings of texels round an object on the ground must hold some density on
     /// average (half the evidence threshold) for it to take its faint fringe
     /// ([`crate::fringe`]), and the rings it then takes: 2, past the one ring of an edge's
-    /// blur. The first ring holds
-    /// that much round 53% of the 1,743 objects found on the basis and fresh sets
-    /// (probe14-28), the second round 1.1% (mostly leafy plants, found with their leaves
-    /// already) and round 22 of the 30 plants boxed on their crowns. Files written before
-    /// it existed read as 2.
+    /// blur. The first ring holds that much round 53% of the 1,743 objects found on the
+    /// basis and fresh sets (probe14-28), the second round 1.1% (mostly leafy plants, found
+    /// with their leaves already) and round 22 of the 30 plants boxed on their crowns. Files
+    /// written before it existed read as 2.
     #[serde(default = "default_fringe_ring")]
     pub fringe_ring: usize,
 

@@ -265,10 +265,9 @@ pub(super) fn unpack(cx: &Ctx, part: &Part) -> (Vec<Child>, Option<usize>) {
 /// Measured on the fields with cut tops: Cycles-rendered cars' cabins take 692-732 judged
 /// texels beside pieces of 155-341; the project's cars', 956-1819 beside 85-317; a bin on a
 /// counter, 132 beside 155 and 305; two monitors on a Cycles desk, 264 beside 274 and 78.
-/// (Until the ninth session every piece had to be larger, and the monitors were the desk's
-/// shape.) Pieces are 4-connected, as the holes [`fill_holes`] fills are. The cost: objects
-/// close together on a small top, whose fringes together take more of it than any piece
-/// they leave, are the body's shape (two laptops on a desk, 208 beside 88 and 135). Judging each
+/// Pieces are 4-connected, as the holes [`fill_holes`] fills are. The cost: objects close
+/// together on a small top, whose fringes together take more of it than any piece they
+/// leave, are the body's shape (two laptops on a desk, 208 beside 88 and 135). Judging each
 /// raised blob alone, or by its own texels, let one of `blender_random_2021`'s cabins back
 /// in: a Cycles cabin's glass is not raised, and its own texels are fewer than its bonnet's.
 /// This replaced a tuned share of free surface (0.3 of the footprint, band included, which
